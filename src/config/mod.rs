@@ -1,0 +1,175 @@
+//! The daemon's configuration: one TOML file (`hw/robot.toml` is the documented
+//! default), one table per stage. Unknown keys and bad values are errors that
+//! name the key.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+/// Physical robot: footprint, tool and drive limits. Shared by planner,
+/// controller, motor link and simulator.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotParams {
+    /// Radius of the robot's circular footprint (m); walls are inflated by it.
+    pub radius: f64,
+    /// Width of the cleaning tool (m); lanes are this far apart at most.
+    pub tool_width: f64,
+    /// Distance between the wheels' contact points (m).
+    pub wheel_base: f64,
+    /// Wheel radius (m).
+    pub wheel_radius: f64,
+    /// Top linear speed (m/s); the paper's robot: 0.226.
+    pub max_speed: f64,
+    /// Top turn rate (rad/s); the paper's robot: 0.78.
+    pub max_turn_rate: f64,
+    /// Scanner mounting offset forward of the wheel axle centre (m).
+    pub scanner_offset_x: f64,
+}
+
+impl Default for RobotParams {
+    fn default() -> Self {
+        Self {
+            radius: 0.17,
+            tool_width: 0.30,
+            wheel_base: 0.235,
+            wheel_radius: 0.036,
+            max_speed: 0.226,
+            max_turn_rate: 0.78,
+            scanner_offset_x: 0.0,
+        }
+    }
+}
+
+/// The whole configuration file.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// The robot's body and drive limits.
+    pub robot: RobotParams,
+    /// Scanner driver.
+    pub scanner: crate::urg::UrgParams,
+    /// Wheel-base link.
+    pub motor: crate::motor::MotorParams,
+    /// Scan matcher.
+    pub icp: crate::icp::IcpParams,
+    /// Map.
+    pub map: crate::map::MapParams,
+    /// Cell decomposition.
+    pub decomp: crate::decomp::DecompParams,
+    /// Coverage planner.
+    pub plan: crate::plan::PlanParams,
+    /// Path follower.
+    pub control: crate::control::ControlParams,
+    /// Pipeline budgets.
+    pub pipeline: crate::pipeline::PipelineParams,
+}
+
+/// Why a configuration could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read config {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The TOML is malformed, has an unknown key or a value of the wrong type.
+    #[error("config {path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The parser's message, naming the key and line.
+        message: String,
+    },
+    /// A value parsed but is out of its allowed range.
+    #[error("config key `{key}`: {message}")]
+    Invalid {
+        /// Dotted key, e.g. `robot.radius`.
+        key: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+}
+
+impl Config {
+    /// Parses a configuration from TOML text; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: origin.to_string(),
+            message: e.to_string().trim_end().replace('\n', " "),
+        })?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Reads and parses a configuration file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml(&text, &path.display().to_string())
+    }
+
+    /// Checks value ranges that the types alone cannot express.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let r = &self.robot;
+        positive("robot.radius", r.radius)?;
+        positive("robot.tool_width", r.tool_width)?;
+        positive("robot.wheel_base", r.wheel_base)?;
+        positive("robot.wheel_radius", r.wheel_radius)?;
+        positive("robot.max_speed", r.max_speed)?;
+        positive("robot.max_turn_rate", r.max_turn_rate)?;
+        if !r.scanner_offset_x.is_finite() {
+            return Err(invalid("robot.scanner_offset_x", "must be a finite number"));
+        }
+        Ok(())
+    }
+}
+
+/// An [`ConfigError::Invalid`] for `key`.
+pub fn invalid(key: &str, message: &str) -> ConfigError {
+    ConfigError::Invalid {
+        key: key.to_string(),
+        message: message.to_string(),
+    }
+}
+
+/// Checks that `v` is finite and > 0.
+pub fn positive(key: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(
+            key,
+            &format!("must be a finite number > 0, got {v}"),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = Config::from_toml("[robot]\nradiuss = 0.2\n", "t.toml").unwrap_err();
+        assert!(e.to_string().contains("radiuss"), "{e}");
+    }
+
+    #[test]
+    fn bad_value_is_named() {
+        let e = Config::from_toml("[robot]\nradius = -1.0\n", "t.toml").unwrap_err();
+        assert!(e.to_string().contains("robot.radius"), "{e}");
+    }
+
+    #[test]
+    fn shipped_default_config_parses() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = Config::load(Path::new(path)).expect("hw/robot.toml parses");
+        assert_eq!(cfg.robot, RobotParams::default());
+    }
+}

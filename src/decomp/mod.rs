@@ -1,0 +1,9 @@
+//! Adaptive (online) boustrophedon cell decomposition with virtual edges and
+//! cell inheritance.
+
+/// Cell decomposition settings.
+/// Loaded from the `[decomp]` table of the config file; every field is documented
+/// in `hw/robot.toml`.
+#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DecompParams {}

@@ -1,0 +1,123 @@
+//! Plain geometry shared by every algorithm: poses, points with intensity,
+//! line segments. Units are metres and radians; world frame x right, y up,
+//! angles counter-clockwise.
+
+use nalgebra::{Isometry2, Point2, Vector2};
+
+/// A planar pose (SE(2)): translation plus rotation, in metres and radians.
+pub type Pose = Isometry2<f64>;
+
+/// Builds a pose from `x`, `y` (m) and heading `theta` (rad).
+pub fn pose(x: f64, y: f64, theta: f64) -> Pose {
+    Isometry2::new(Vector2::new(x, y), theta)
+}
+
+/// Heading of a pose in radians, in (-π, π].
+pub fn heading(p: &Pose) -> f64 {
+    p.rotation.angle()
+}
+
+/// Wraps an angle into (-π, π].
+pub fn wrap_angle(a: f64) -> f64 {
+    let mut r = a % std::f64::consts::TAU;
+    if r <= -std::f64::consts::PI {
+        r += std::f64::consts::TAU;
+    } else if r > std::f64::consts::PI {
+        r -= std::f64::consts::TAU;
+    }
+    r
+}
+
+/// A 2-D point with the laser reflection intensity it was seen with
+/// (0 when the sensor gives none; normalised units, typically 0..1).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IPoint {
+    /// x in metres.
+    pub x: f64,
+    /// y in metres.
+    pub y: f64,
+    /// Reflection intensity (dimensionless).
+    pub intensity: f64,
+}
+
+impl IPoint {
+    /// A point at (`x`, `y`) with intensity `intensity`.
+    pub const fn new(x: f64, y: f64, intensity: f64) -> Self {
+        Self { x, y, intensity }
+    }
+
+    /// The position as an nalgebra point.
+    pub fn xy(&self) -> Point2<f64> {
+        Point2::new(self.x, self.y)
+    }
+
+    /// This point moved by `pose` (intensity unchanged).
+    pub fn transformed(&self, pose: &Pose) -> Self {
+        let p = pose * self.xy();
+        Self::new(p.x, p.y, self.intensity)
+    }
+}
+
+/// A line segment between two end points, in metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// First end point.
+    pub a: Point2<f64>,
+    /// Second end point.
+    pub b: Point2<f64>,
+}
+
+impl Segment {
+    /// The segment from `a` to `b`.
+    pub fn new(a: Point2<f64>, b: Point2<f64>) -> Self {
+        Self { a, b }
+    }
+
+    /// Length in metres.
+    pub fn length(&self) -> f64 {
+        (self.b - self.a).norm()
+    }
+
+    /// Direction angle of `a -> b` in radians.
+    pub fn angle(&self) -> f64 {
+        let d = self.b - self.a;
+        d.y.atan2(d.x)
+    }
+
+    /// Distance from `p` to the closest point of the segment.
+    pub fn distance_to(&self, p: &Point2<f64>) -> f64 {
+        let d = self.b - self.a;
+        let l2 = d.norm_squared();
+        if l2 == 0.0 {
+            return (p - self.a).norm();
+        }
+        let t = ((p - self.a).dot(&d) / l2).clamp(0.0, 1.0);
+        (p - (self.a + d * t)).norm()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_angle_stays_in_range() {
+        for k in -20..20 {
+            let a = k as f64 * 0.7;
+            let w = wrap_angle(a);
+            assert!(w > -std::f64::consts::PI - 1e-12 && w <= std::f64::consts::PI + 1e-12);
+            assert!(
+                ((a - w) / std::f64::consts::TAU).fract().abs() < 1e-9
+                    || (1.0 - ((a - w) / std::f64::consts::TAU).fract().abs()) < 1e-9
+            );
+        }
+    }
+
+    #[test]
+    fn segment_distance() {
+        let s = Segment::new(Point2::new(0.0, 0.0), Point2::new(2.0, 0.0));
+        assert!((s.distance_to(&Point2::new(1.0, 1.0)) - 1.0).abs() < 1e-12);
+        assert!((s.distance_to(&Point2::new(3.0, 0.0)) - 1.0).abs() < 1e-12);
+        assert!((s.length() - 2.0).abs() < 1e-12);
+    }
+}

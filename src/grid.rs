@@ -1,0 +1,218 @@
+//! A fixed-size evidence grid of the explored area: which cells the scanner has
+//! seen free, which it has seen occupied, and which are still unknown. The map
+//! maintains it from registered scans; the decomposition reads it to know where
+//! explored free space ends. Allocated once; updates never allocate.
+
+use nalgebra::Point2;
+
+/// State of one grid cell as the decomposition sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CellState {
+    /// Never observed.
+    Unknown,
+    /// Observed, more evidence of free than occupied.
+    Free,
+    /// Observed, more evidence of occupied.
+    Occupied,
+}
+
+/// Evidence value of a cell never observed.
+const UNKNOWN: u8 = 0;
+/// Evidence a cell starts from when first observed.
+const NEUTRAL: u8 = 128;
+/// Evidence at or above which a cell counts as occupied.
+const OCCUPIED_AT: u8 = 150;
+/// Step added by a hit.
+const HIT: u8 = 40;
+/// Step removed by a pass-through.
+const MISS: u8 = 8;
+
+/// An evidence grid over a fixed rectangle of the world.
+#[derive(Clone, Debug)]
+pub struct Grid {
+    origin: Point2<f64>,
+    resolution: f64,
+    width: usize,
+    height: usize,
+    cells: Vec<u8>,
+}
+
+/// Integer cell coordinates (column, row); row 0 is the lowest y.
+pub type CellIndex = (usize, usize);
+
+impl Grid {
+    /// A grid of `width` × `height` cells of `resolution` metres whose lower-left
+    /// corner is at `origin`. All cells start unknown.
+    pub fn new(origin: Point2<f64>, resolution: f64, width: usize, height: usize) -> Self {
+        Self {
+            origin,
+            resolution,
+            width,
+            height,
+            cells: vec![UNKNOWN; width * height],
+        }
+    }
+
+    /// A grid covering a square of `extent` metres on each side centred on `centre`.
+    pub fn centred(centre: Point2<f64>, extent: f64, resolution: f64) -> Self {
+        let n = (extent / resolution).ceil() as usize;
+        let half = n as f64 * resolution / 2.0;
+        Self::new(
+            Point2::new(centre.x - half, centre.y - half),
+            resolution,
+            n,
+            n,
+        )
+    }
+
+    /// Cell size in metres.
+    pub fn resolution(&self) -> f64 {
+        self.resolution
+    }
+
+    /// Number of columns.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Number of rows.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// World position of the lower-left corner of cell (0, 0).
+    pub fn origin(&self) -> Point2<f64> {
+        self.origin
+    }
+
+    /// The cell containing world point `p`, or `None` outside the grid or for
+    /// non-finite input.
+    pub fn cell_of(&self, p: &Point2<f64>) -> Option<CellIndex> {
+        let fx = (p.x - self.origin.x) / self.resolution;
+        let fy = (p.y - self.origin.y) / self.resolution;
+        if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
+            return None;
+        }
+        let (cx, cy) = (fx as usize, fy as usize);
+        (cx < self.width && cy < self.height).then_some((cx, cy))
+    }
+
+    /// World position of the centre of cell `c`.
+    pub fn centre_of(&self, c: CellIndex) -> Point2<f64> {
+        Point2::new(
+            self.origin.x + (c.0 as f64 + 0.5) * self.resolution,
+            self.origin.y + (c.1 as f64 + 0.5) * self.resolution,
+        )
+    }
+
+    /// State of cell `c` (unknown outside the grid).
+    pub fn state(&self, c: CellIndex) -> CellState {
+        if c.0 >= self.width || c.1 >= self.height {
+            return CellState::Unknown;
+        }
+        match self.cells[c.1 * self.width + c.0] {
+            UNKNOWN => CellState::Unknown,
+            v if v >= OCCUPIED_AT => CellState::Occupied,
+            _ => CellState::Free,
+        }
+    }
+
+    /// Raw evidence value of cell `c` (0 = unknown, else 1..=255, higher = more occupied).
+    pub fn evidence(&self, c: CellIndex) -> u8 {
+        self.cells[c.1 * self.width + c.0]
+    }
+
+    /// Overwrites the state of cell `c` (used by tests and checkpoint restore).
+    pub fn set_state(&mut self, c: CellIndex, s: CellState) {
+        if c.0 < self.width && c.1 < self.height {
+            self.cells[c.1 * self.width + c.0] = match s {
+                CellState::Unknown => UNKNOWN,
+                CellState::Free => 1,
+                CellState::Occupied => 255,
+            };
+        }
+    }
+
+    fn bump(&mut self, cx: usize, cy: usize, hit: bool) {
+        let v = &mut self.cells[cy * self.width + cx];
+        let base = if *v == UNKNOWN { NEUTRAL } else { *v };
+        *v = if hit {
+            base.saturating_add(HIT)
+        } else {
+            base.saturating_sub(MISS).max(1)
+        };
+    }
+
+    /// Integrates one beam from `from` to `to`: cells along it gain free evidence;
+    /// when `hit`, the end cell gains occupied evidence. Parts outside the grid are
+    /// ignored. Never allocates.
+    pub fn integrate_ray(&mut self, from: &Point2<f64>, to: &Point2<f64>, hit: bool) {
+        let r = self.resolution;
+        let (x0, y0) = ((from.x - self.origin.x) / r, (from.y - self.origin.y) / r);
+        let (x1, y1) = ((to.x - self.origin.x) / r, (to.y - self.origin.y) / r);
+        if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+            return;
+        }
+        let (dx, dy) = (x1 - x0, y1 - y0);
+        let steps = dx.abs().max(dy.abs()).ceil() as usize;
+        let n = steps.max(1);
+        let end = (x1.floor() as i64, y1.floor() as i64);
+        for i in 0..n {
+            let t = i as f64 / n as f64;
+            let (cx, cy) = ((x0 + dx * t).floor() as i64, (y0 + dy * t).floor() as i64);
+            if (cx, cy) == end {
+                break;
+            }
+            if cx >= 0 && cy >= 0 && (cx as usize) < self.width && (cy as usize) < self.height {
+                self.bump(cx as usize, cy as usize, false);
+            }
+        }
+        if hit
+            && end.0 >= 0
+            && end.1 >= 0
+            && (end.0 as usize) < self.width
+            && (end.1 as usize) < self.height
+        {
+            self.bump(end.0 as usize, end.1 as usize, true);
+        }
+    }
+
+    /// Number of cells in each state: (unknown, free, occupied).
+    pub fn counts(&self) -> (usize, usize, usize) {
+        let mut c = (0, 0, 0);
+        for &v in &self.cells {
+            match v {
+                UNKNOWN => c.0 += 1,
+                v if v >= OCCUPIED_AT => c.2 += 1,
+                _ => c.1 += 1,
+            }
+        }
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ray_marks_free_then_occupied() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 50, 50);
+        g.integrate_ray(&Point2::new(0.05, 0.05), &Point2::new(2.05, 0.05), true);
+        assert_eq!(g.state((0, 0)), CellState::Free);
+        assert_eq!(g.state((10, 0)), CellState::Free);
+        assert_eq!(g.state((20, 0)), CellState::Occupied);
+        assert_eq!(g.state((21, 0)), CellState::Unknown);
+        assert_eq!(g.state((5, 1)), CellState::Unknown);
+    }
+
+    #[test]
+    fn outside_and_nan_are_ignored() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 10, 10);
+        g.integrate_ray(&Point2::new(f64::NAN, 0.0), &Point2::new(1.0, 1.0), true);
+        g.integrate_ray(&Point2::new(-5.0, -5.0), &Point2::new(50.0, 50.0), true);
+        assert!(g.cell_of(&Point2::new(-0.1, 0.5)).is_none());
+        assert!(g.cell_of(&Point2::new(f64::INFINITY, 0.5)).is_none());
+        assert_eq!(g.counts().0 + g.counts().1 + g.counts().2, 100);
+    }
+}

@@ -1,0 +1,33 @@
+//! sweepline: an onboard coverage daemon for a differential-drive robot with a
+//! Hokuyo URG-04LX laser scanner.
+//!
+//! The crate is layered as `../shared/DESIGN.md` describes; lower layers never
+//! depend on higher ones:
+//!
+//! 1. codecs (sans-IO): [`scip`], [`motor`] codecs;
+//! 2. drivers: [`urg`], [`motor`] drivers, over [`serial`] ports and ptys;
+//! 3. algorithms: [`icp`], [`map`], [`decomp`], [`plan`], [`control`], over
+//!    plain data ([`geom`], [`scan`], [`grid`]);
+//! 4. [`pipeline`]: the only layer that owns threads;
+//! 5. [`sim`]: worlds, kinematics, device emulators, log replay;
+//! 6. front: [`config`], [`report`], [`cli`] (the `sweepline` binary).
+
+pub mod capacity;
+pub mod cli;
+pub mod config;
+pub mod control;
+pub mod decomp;
+pub mod geom;
+pub mod grid;
+pub mod icp;
+pub mod map;
+pub mod motor;
+pub mod pipeline;
+pub mod plan;
+pub mod report;
+pub mod scan;
+pub mod scip;
+pub mod serial;
+pub mod sim;
+pub mod testdata;
+pub mod urg;

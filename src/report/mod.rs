@@ -1,0 +1,2 @@
+//! Reports: SVG pictures (map, cells, path, histograms) and the latency/CPU
+//! budget report.

@@ -1,0 +1,2 @@
+//! Simulation: worlds, ray casting, robot kinematics, device emulators on
+//! ptys, and replay of recorded logs.
