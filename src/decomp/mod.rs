@@ -1,5 +1,8 @@
 //! Adaptive (online) boustrophedon cell decomposition with virtual edges and
 //! cell inheritance.
+pub mod cell;
+
+pub use cell::{Adjacency, Cell, CellId, CellStatus, Decomposition};
 
 /// Cell decomposition settings.
 /// Loaded from the `[decomp]` table of the config file; every field is documented
