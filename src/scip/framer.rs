@@ -1,0 +1,133 @@
+//! Bytes → lines. Accepts LF, CR or CRLF as one line end, never assumes
+//! read() boundaries (state carries over between calls), and bounds the line
+//! length: a longer line is reported once and its rest discarded.
+
+use crate::capacity::SCIP_MAX_LINE;
+
+/// What one byte completed.
+#[derive(Debug, PartialEq, Eq)]
+pub enum LineEvent<'a> {
+    /// A complete line without its terminator (may be empty: end of a reply).
+    Line(&'a [u8]),
+    /// A complete line that held bytes no SCIP line carries (control or
+    /// non-ASCII bytes): line noise or a desync.
+    Garbage,
+    /// The line grew past [`SCIP_MAX_LINE`]; its rest up to the next line end
+    /// is discarded silently.
+    Overlong,
+}
+
+/// The line framer state.
+#[derive(Clone, Debug, Default)]
+pub struct LineFramer {
+    buf: heapless::Vec<u8, SCIP_MAX_LINE>,
+    clear_next: bool,
+    after_cr: bool,
+    overflowed: bool,
+    garbage: bool,
+}
+
+impl LineFramer {
+    /// An empty framer.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets any partial line.
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// True when no partial line is buffered.
+    pub fn is_idle(&self) -> bool {
+        (self.buf.is_empty() || self.clear_next) && !self.overflowed && !self.garbage
+    }
+
+    /// Feeds one byte; returns the event it completed, if any.
+    pub fn push(&mut self, byte: u8) -> Option<LineEvent<'_>> {
+        if self.clear_next {
+            self.buf.clear();
+            self.clear_next = false;
+        }
+        let after_cr = std::mem::replace(&mut self.after_cr, false);
+        match byte {
+            b'\n' if after_cr => None,
+            b'\n' | b'\r' => {
+                self.after_cr = byte == b'\r';
+                self.clear_next = true;
+                let overflowed = std::mem::replace(&mut self.overflowed, false);
+                let garbage = std::mem::replace(&mut self.garbage, false);
+                if overflowed {
+                    None
+                } else if garbage {
+                    Some(LineEvent::Garbage)
+                } else {
+                    Some(LineEvent::Line(&self.buf))
+                }
+            }
+            _ if self.overflowed => None,
+            _ => {
+                if !(0x20..=0x7e).contains(&byte) {
+                    self.garbage = true;
+                }
+                if self.buf.push(byte).is_err() {
+                    self.overflowed = true;
+                    self.garbage = false;
+                    return Some(LineEvent::Overlong);
+                }
+                None
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lines(input: &[u8]) -> Vec<Result<Vec<u8>, &'static str>> {
+        let mut f = LineFramer::new();
+        let mut out = Vec::new();
+        for &b in input {
+            match f.push(b) {
+                Some(LineEvent::Line(l)) => out.push(Ok(l.to_vec())),
+                Some(LineEvent::Garbage) => out.push(Err("garbage")),
+                Some(LineEvent::Overlong) => out.push(Err("overlong")),
+                None => {}
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn lf_cr_and_crlf_are_one_line_end_each() {
+        let want = vec![Ok(b"VV".to_vec()), Ok(b"00P".to_vec()), Ok(vec![])];
+        assert_eq!(lines(b"VV\n00P\n\n"), want);
+        assert_eq!(lines(b"VV\r00P\r\r"), want);
+        assert_eq!(lines(b"VV\r\n00P\r\n\r\n"), want);
+        assert_eq!(lines(b"VV\r\n00P\n\r"), want);
+    }
+
+    #[test]
+    fn overlong_lines_are_reported_once_and_skipped() {
+        let mut input = vec![b'A'; SCIP_MAX_LINE + 50];
+        input.extend_from_slice(b"\nok\n");
+        assert_eq!(lines(&input), vec![Err("overlong"), Ok(b"ok".to_vec())]);
+    }
+
+    #[test]
+    fn control_bytes_make_a_garbage_line() {
+        assert_eq!(
+            lines(b"0\x001\nok\n"),
+            vec![Err("garbage"), Ok(b"ok".to_vec())]
+        );
+        assert_eq!(lines(b"\xff\n"), vec![Err("garbage")]);
+    }
+
+    #[test]
+    fn a_line_of_exactly_the_capacity_passes() {
+        let mut input = vec![b'0'; SCIP_MAX_LINE];
+        input.push(b'\n');
+        assert_eq!(lines(&input), vec![Ok(vec![b'0'; SCIP_MAX_LINE])]);
+    }
+}
