@@ -1,2 +1,3 @@
 //! Simulation: worlds, ray casting, robot kinematics, device emulators on
 //! ptys, and replay of recorded logs.
+pub mod urg_emu;
