@@ -18,12 +18,19 @@ pub enum ScanFault {
     ExtraByte,
     /// The scan was replaced by an error status block (no data).
     ErrorStatus,
+    /// The scan is intact but repeats the previous scan's timestamp.
+    StuckClock,
 }
 
 impl ScanFault {
     /// Whether the scan's data were damaged (a correct driver discards it).
     pub fn corrupts(&self) -> bool {
-        !matches!(self, ScanFault::ErrorStatus)
+        !matches!(self, ScanFault::ErrorStatus | ScanFault::StuckClock)
+    }
+
+    /// Whether a correct driver still delivers the scan.
+    pub fn delivered(&self) -> bool {
+        matches!(self, ScanFault::StuckClock)
     }
 }
 
@@ -38,6 +45,8 @@ pub struct Faults {
     pub extra_every: u32,
     /// Replace every N-th scan by an error status block.
     pub status_every: u32,
+    /// Repeat the previous timestamp in every N-th scan (a stuck clock).
+    pub stuck_every: u32,
     /// The status code used by `status` (a hardware fault by default).
     pub status_code: [u8; 2],
     /// End lines with CR LF instead of LF.
@@ -56,7 +65,7 @@ pub struct Faults {
 
 /// A `--faults` list that could not be parsed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("bad fault `{item}`: {why} (known: checksum=N, drop=N, extra=N, status=N[:CODE], crlf, split, stall=N:SECONDS, wrap, unplug=N:SECONDS)")]
+#[error("bad fault `{item}`: {why} (known: checksum=N, drop=N, extra=N, status=N[:CODE], stuck=N, crlf, split, stall=N:SECONDS, wrap, unplug=N:SECONDS)")]
 pub struct FaultSpecError {
     /// The offending item.
     pub item: String,
@@ -135,6 +144,7 @@ impl std::str::FromStr for Faults {
                         f.status_code = [b[0], b[1]];
                     }
                 }
+                "stuck" => f.stuck_every = every(item, value)?,
                 "crlf" => flag(&mut f.crlf)?,
                 "split" => flag(&mut f.split_writes)?,
                 "wrap" => flag(&mut f.clock_wrap)?,
@@ -164,6 +174,8 @@ impl Faults {
             Some(ScanFault::ExtraByte)
         } else if hit(self.status_every) {
             Some(ScanFault::ErrorStatus)
+        } else if hit(self.stuck_every) {
+            Some(ScanFault::StuckClock)
         } else {
             None
         }
@@ -177,6 +189,7 @@ impl fmt::Display for ScanFault {
             ScanFault::DroppedByte => "dropped byte",
             ScanFault::ExtraByte => "extra byte",
             ScanFault::ErrorStatus => "error status",
+            ScanFault::StuckClock => "repeated timestamp",
         })
     }
 }

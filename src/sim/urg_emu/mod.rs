@@ -182,6 +182,7 @@ pub fn run(
     keep_going: &dyn Fn(&Option<PathBuf>) -> bool,
 ) -> Result<(), EmuError> {
     let spec = ModelSpec::of(cfg.model);
+    let spec_period = spec.period();
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed);
     let mut sensor = Sensor::new(
         spec,
@@ -209,6 +210,9 @@ pub fn run(
                 continue;
             }
             Some(Action::Unplug(d)) => {
+                // Let the client read the last scan first: the fault is an
+                // unplug between scans, so no scan is cut in half.
+                sleep_while(&*clock, 0.3 * spec_period, &go);
                 host.unplug();
                 if let Ok(mut l) = log.lock() {
                     l.unplugs += 1;

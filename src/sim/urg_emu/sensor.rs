@@ -107,6 +107,7 @@ pub struct Sensor {
     boot: u32,
     rb_at: Option<f64>,
     sent: u64,
+    last_stamp: u32,
     action: Option<Action>,
     angles: Vec<f64>,
     echoes: Vec<Echo>,
@@ -155,6 +156,7 @@ impl Sensor {
             boot: 0,
             rb_at: None,
             sent: 0,
+            last_stamp: 0,
             action: None,
             angles: Vec::new(),
             echoes: Vec::new(),
@@ -464,7 +466,12 @@ impl Sensor {
         }
         self.sent += 1;
         let fault = self.faults.scan_fault(self.sent);
-        let stamp = self.clock_ms(t);
+        let stamp = if fault == Some(ScanFault::StuckClock) {
+            self.last_stamp
+        } else {
+            self.clock_ms(t)
+        };
+        self.last_stamp = stamp;
         let mut block = std::mem::take(&mut self.block);
         block.clear();
         let _ = echo.encode(&mut block);
@@ -559,7 +566,7 @@ impl Sensor {
                 let at = self.rng.random_range(a..=sum_at);
                 block.insert(at, c);
             }
-            ScanFault::ErrorStatus => {}
+            ScanFault::ErrorStatus | ScanFault::StuckClock => {}
         }
     }
 
