@@ -15,6 +15,7 @@
 //! Millimetres and sensor steps appear only inside this module; everything it
 //! hands to the rest of the daemon is in metres, radians and seconds.
 
+pub mod capture;
 pub mod checksum;
 pub mod clock;
 pub mod command;
@@ -28,6 +29,7 @@ pub mod scan;
 pub mod sink;
 pub mod status;
 
+pub use capture::{parse_capture, CaptureError, CaptureRecord};
 pub use checksum::{checksum, ChecksumError, KvQuirk};
 pub use clock::ClockUnwrapper;
 pub use command::{
