@@ -240,6 +240,11 @@ impl PtyHost {
         }
     }
 
+    /// The current slave path (`/dev/pts/N`), `None` while unplugged.
+    pub fn slave_path(&self) -> Option<PathBuf> {
+        self.pty.as_ref().map(|p| p.slave_path().to_path_buf())
+    }
+
     /// The current pty, `None` while unplugged.
     pub fn pty(&mut self) -> Option<&mut Pty> {
         self.pty.as_mut()

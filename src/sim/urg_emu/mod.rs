@@ -31,7 +31,7 @@ use rand_chacha::ChaCha8Rng;
 
 pub use faults::{FaultSpecError, Faults, ScanFault};
 pub use model::{Model, ModelSpec};
-pub use scene::{Echo, RectRoom, ReplayScan, Scene};
+pub use scene::{capture_stream, Echo, RectRoom, ReplayError, ReplayScan, Scene};
 pub use sensor::{Action, EmuLog, Sensor, SentScan};
 
 use crate::scip::{LineEvent, LineFramer};
@@ -102,13 +102,14 @@ impl Emulator {
             stop: AtomicBool::new(false),
         });
         let sh = shared.clone();
+        let link = cfg.link.clone();
         let thread = std::thread::Builder::new()
             .name("urg-emulator".into())
             .spawn(move || {
                 let stop = |_: &Option<PathBuf>| !sh.stop.load(Ordering::Relaxed);
                 let mut on_plug = |p: Option<PathBuf>| {
                     if let Ok(mut g) = sh.path.lock() {
-                        *g = p;
+                        *g = link.clone().or(p);
                     }
                 };
                 let r = run(cfg, scene, clock, host, sh.log.clone(), &mut on_plug, &stop);
@@ -171,7 +172,8 @@ fn sleep_while(clock: &dyn Clock, dt: f64, keep_going: &dyn Fn() -> bool) {
 }
 
 /// Runs the emulator on `host` until `keep_going` returns false. `on_plug`
-/// is told the client path after every (re)plug, `None` while unplugged.
+/// is told the pty's slave path (`/dev/pts/N`) after every (re)plug, `None`
+/// while unplugged.
 pub fn run(
     cfg: EmulatorConfig,
     scene: Box<dyn Scene>,
@@ -197,7 +199,7 @@ pub fn run(
     let mut out: Vec<u8> = Vec::with_capacity(16 * 1024);
     let mut line: Vec<u8> = Vec::with_capacity(256);
     let mut buf = [0u8; 1024];
-    on_plug(host.client_path());
+    on_plug(host.slave_path());
     let path_now = host.client_path();
     let go = || keep_going(&path_now);
     while go() {
@@ -222,7 +224,7 @@ pub fn run(
                 host.replug()?;
                 framer.reset();
                 sensor.power_on(clock.now(), true);
-                on_plug(host.client_path());
+                on_plug(host.slave_path());
                 continue;
             }
             None => {}

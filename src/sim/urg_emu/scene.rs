@@ -174,6 +174,100 @@ impl Scene for ReplayScan {
     }
 }
 
+/// Why a recorded scan could not be loaded for replay.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The capture file could not be read.
+    #[error("cannot read capture {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A record header or length runs past the end of the file.
+    #[error("capture is truncated at byte {0} (records are u32 s, u32 us, u32 length, bytes)")]
+    Truncated(usize),
+    /// The sensor's PP reply is not in the capture.
+    #[error("capture holds no PP reply (needed for the step angles)")]
+    NoParams,
+    /// No scan reply decodes in the capture.
+    #[error("capture holds no valid scan reply")]
+    NoScan,
+}
+
+/// Concatenates the payloads of a byte capture in the hokuyoaist log format
+/// (records of big-endian u32 seconds, u32 microseconds, u32 length, bytes).
+pub fn capture_stream(file: &[u8]) -> Result<Vec<u8>, ReplayError> {
+    let mut out = Vec::with_capacity(file.len());
+    let mut i = 0;
+    while i < file.len() {
+        let head = file.get(i..i + 12).ok_or(ReplayError::Truncated(i))?;
+        let len = u32::from_be_bytes([head[8], head[9], head[10], head[11]]) as usize;
+        let body = file
+            .get(i + 12..i + 12 + len)
+            .ok_or(ReplayError::Truncated(i))?;
+        out.extend_from_slice(body);
+        i += 12 + len;
+    }
+    Ok(out)
+}
+
+impl ReplayScan {
+    /// The first scan in a sensor's reply stream (e.g. the `.logr` side of a
+    /// capture, see [`capture_stream`]), with angles from the PP reply in
+    /// the same stream. Error codes replay as the same codes; intensities,
+    /// when recorded, set the reflectivity.
+    pub fn from_reply_stream(bytes: &[u8]) -> Result<Self, ReplayError> {
+        use crate::scip::{Decoder, DecoderOptions, Event, Reading, ReplyBody};
+        let mut dec = Decoder::new(DecoderOptions { lenient_kv: true });
+        let mut params = None;
+        let mut rest = bytes;
+        while !rest.is_empty() {
+            let (used, ev) = dec.feed(rest);
+            rest = &rest[used..];
+            let Some(Event::Reply(raw)) = ev else {
+                continue;
+            };
+            let Ok(reply) = raw.decode() else { continue };
+            match reply.body {
+                ReplyBody::Params(p) => params = Some(p),
+                ReplyBody::Scan(scan) => {
+                    let p = params.as_ref().ok_or(ReplayError::NoParams)?;
+                    let group = f64::from(scan.request.cluster.group());
+                    let first =
+                        p.angle_of_step(f64::from(scan.request.start) + (group - 1.0) / 2.0);
+                    let values = scan
+                        .readings(p)
+                        .map(|(v, r)| match r {
+                            Reading::Range(mm) => Echo::Hit {
+                                range: f64::from(mm) / 1000.0,
+                                reflectivity: v
+                                    .intensity
+                                    .map_or(0.5, |i| (f64::from(i) / 10_000.0).clamp(0.0, 1.0)),
+                            },
+                            Reading::Error(e) => Echo::Error(e.code),
+                            Reading::BeyondMax(_) => Echo::NoReturn,
+                        })
+                        .collect();
+                    return Ok(ReplayScan::new(first, p.step_angle() * group, values));
+                }
+                _ => {}
+            }
+        }
+        Err(ReplayError::NoScan)
+    }
+
+    /// [`ReplayScan::from_reply_stream`] of a capture file's read side.
+    pub fn from_capture_file(path: &std::path::Path) -> Result<Self, ReplayError> {
+        let file = std::fs::read(path).map_err(|source| ReplayError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_reply_stream(&capture_stream(&file)?)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -215,6 +309,20 @@ mod tests {
             panic!()
         };
         assert!((range - 2.5).abs() < 0.05);
+    }
+
+    #[test]
+    fn truncated_capture_is_a_typed_error() {
+        let e = capture_stream(&[0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 9, 1]).unwrap_err();
+        assert!(matches!(e, ReplayError::Truncated(0)), "{e}");
+        assert!(matches!(
+            ReplayScan::from_reply_stream(b"garbage\n\n"),
+            Err(ReplayError::NoScan)
+        ));
+        assert!(matches!(
+            ReplayScan::from_capture_file(std::path::Path::new("/nonexistent.logr")),
+            Err(ReplayError::Io { .. })
+        ));
     }
 
     #[test]

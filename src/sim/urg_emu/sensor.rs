@@ -331,6 +331,11 @@ impl Sensor {
                     block.extend_from_slice(line);
                     block.push(b'\n');
                     let _ = crate::scip::reply::write_status(ok(), &mut block);
+                    {
+                        let mut w = DataLineWriter::new(&mut block);
+                        let _ = w.put_value(self.clock_ms(t), Width::Four);
+                        let _ = w.finish();
+                    }
                     self.measure(t, &req, &mut block);
                     block.push(b'\n');
                     out.extend_from_slice(&block);
