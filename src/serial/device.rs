@@ -15,6 +15,7 @@ use super::{Connector, Port};
 pub struct DevicePort {
     tty: TTYPort,
     name: String,
+    timeout: Duration,
 }
 
 /// Opens `path` raw and exclusive at `baud` with the given read timeout.
@@ -34,7 +35,11 @@ pub fn open_device(path: &Path, baud: u32, read_timeout: Duration) -> io::Result
             };
             io::Error::new(kind, format!("cannot open {name}: {e}"))
         })?;
-    Ok(DevicePort { tty, name })
+    Ok(DevicePort {
+        tty,
+        name,
+        timeout: read_timeout,
+    })
 }
 
 impl Drop for DevicePort {
@@ -52,8 +57,43 @@ impl Drop for DevicePort {
 }
 
 impl Read for DevicePort {
+    /// Waits up to the read timeout for bytes, then reads what is there.
+    /// Our own poll + read (rather than the serialport crate's) so that a
+    /// timeout or EINTR costs no allocation on the scan path: errors are
+    /// built from their kind only.
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        self.tty.read(buf)
+        use std::os::fd::AsRawFd;
+        let fd = self.tty.as_raw_fd();
+        let mut p = libc::pollfd {
+            fd,
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ms = self.timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
+        // SAFETY: one valid pollfd for the duration of the call.
+        let r = unsafe { libc::poll(&mut p, 1, ms) };
+        if r < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        if r == 0 {
+            return Err(io::ErrorKind::TimedOut.into());
+        }
+        if p.revents & libc::POLLIN == 0 {
+            if p.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0 {
+                return Err(io::ErrorKind::BrokenPipe.into());
+            }
+            return Err(io::ErrorKind::TimedOut.into());
+        }
+        // SAFETY: buf is valid for buf.len() bytes; the fd is open.
+        let n = unsafe { libc::read(fd, buf.as_mut_ptr().cast(), buf.len()) };
+        if n < 0 {
+            let e = io::Error::last_os_error();
+            if e.kind() == io::ErrorKind::WouldBlock {
+                return Err(io::ErrorKind::TimedOut.into());
+            }
+            return Err(e);
+        }
+        Ok(n as usize)
     }
 }
 
@@ -68,6 +108,7 @@ impl Write for DevicePort {
 
 impl Port for DevicePort {
     fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        self.timeout = timeout;
         self.tty
             .set_timeout(timeout)
             .map_err(|e| io::Error::other(format!("{}: {e}", self.name)))

@@ -85,6 +85,46 @@ impl Clock for ScaledClock {
     }
 }
 
+/// A clock that only moves when told to (lock-step simulation, tests):
+/// `sleep` advances it instead of waiting.
+#[derive(Debug, Default)]
+pub struct ManualClock {
+    bits: std::sync::atomic::AtomicU64,
+}
+
+impl ManualClock {
+    /// A clock reading `t` seconds.
+    pub fn new(t: f64) -> Self {
+        Self {
+            bits: std::sync::atomic::AtomicU64::new(t.to_bits()),
+        }
+    }
+
+    /// Sets the time; a value earlier than now is ignored (monotonic).
+    pub fn set(&self, t: f64) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let _ = self.bits.fetch_update(Relaxed, Relaxed, |b| {
+            (t > f64::from_bits(b)).then_some(t.to_bits())
+        });
+    }
+
+    /// Moves the time forward by `dt` seconds.
+    pub fn advance(&self, dt: f64) {
+        if dt > 0.0 && dt.is_finite() {
+            self.set(self.now() + dt);
+        }
+    }
+}
+
+impl Clock for ManualClock {
+    fn now(&self) -> f64 {
+        f64::from_bits(self.bits.load(std::sync::atomic::Ordering::Relaxed))
+    }
+    fn sleep(&self, dt: f64) {
+        self.advance(dt);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -97,5 +137,16 @@ mod tests {
         let dt = c.now() - t0;
         assert!((0.19..1.0).contains(&dt), "{dt}");
         assert_eq!(ScaledClock::new(-1.0).rate(), 1.0);
+    }
+
+    #[test]
+    fn manual_clock_moves_only_forward() {
+        let c = ManualClock::new(1.0);
+        c.sleep(0.5);
+        assert_eq!(c.now(), 1.5);
+        c.set(1.0);
+        assert_eq!(c.now(), 1.5);
+        c.advance(f64::NAN);
+        assert_eq!(c.now(), 1.5);
     }
 }

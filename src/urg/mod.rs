@@ -19,7 +19,7 @@ pub mod health;
 pub mod session;
 pub mod timesync;
 
-pub use clock::{Clock, MonotonicClock, ScaledClock};
+pub use clock::{Clock, ManualClock, MonotonicClock, ScaledClock};
 pub use driver::{UrgDriver, UrgScan};
 pub use health::{HealthSnapshot, UrgHealth};
 pub use session::{SessionInfo, UrgError, UrgSession};

@@ -7,6 +7,7 @@
 //! * [`scene`]: what the laser sees ([`Scene`] trait, a rectangular room,
 //!   replay of a recorded scan);
 //! * [`faults`]: fault injection switches;
+//! * [`link`]: the sensor behind an in-process port (lock-step, no pty);
 //! * this file: the runner that moves bytes between the sensor and a
 //!   [`PtyHost`], applies wire faults (CRLF, split writes) and performs
 //!   stalls and unplug/replug.
@@ -15,6 +16,7 @@
 //! with a [`crate::urg::clock::ScaledClock`].
 
 pub mod faults;
+pub mod link;
 pub mod model;
 pub mod scene;
 pub mod sensor;
@@ -30,6 +32,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 pub use faults::{FaultSpecError, Faults, ScanFault};
+pub use link::SensorLink;
 pub use model::{Model, ModelSpec};
 pub use scene::{capture_stream, Echo, RectRoom, ReplayError, ReplayScan, Scene};
 pub use sensor::{Action, EmuLog, Sensor, SentScan};

@@ -138,6 +138,11 @@ impl Sensor {
         } else {
             0
         };
+        if let Ok(mut l) = log.lock() {
+            // Steady state never grows the log (no allocation per scan).
+            l.sent.reserve(4096);
+            l.commands.reserve(1000);
+        }
         let mut s = Sensor {
             spec,
             faults,
