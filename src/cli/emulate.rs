@@ -40,6 +40,9 @@ pub struct Args {
     /// Run the sensor this many times faster than real time.
     #[arg(long, default_value_t = 1.0)]
     pub rate: f64,
+    /// Sensor clock rate error in parts per million (crystal drift).
+    #[arg(long, default_value_t = 0.0)]
+    pub drift_ppm: f64,
 }
 
 /// Runs `sweepline emulate`.
@@ -77,6 +80,7 @@ fn run_urg(args: Args) -> CliResult {
         faults,
         link: args.link.clone(),
         seed: args.seed,
+        drift_ppm: args.drift_ppm,
     };
     let log = Arc::new(Mutex::new(EmuLog::default()));
     let spec = urg_emu::ModelSpec::of(model);

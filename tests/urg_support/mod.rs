@@ -48,16 +48,23 @@ pub fn test_params() -> UrgParams {
 /// Starts the emulator with `faults` (and SCIP 1.1 boot if asked), then the
 /// driver on its symlink.
 pub fn rig(name: &str, faults: &str, scip1: bool, params: UrgParams) -> Rig {
-    let dir = temp_dir(name);
-    let link = dir.join("urg");
-    let clock = Arc::new(ScaledClock::new(RATE));
     let cfg = EmulatorConfig {
         model: Model::Urg04lx,
         scip1_boot: scip1,
         faults: faults.parse::<Faults>().unwrap(),
-        link: Some(link.clone()),
         seed: 42,
+        ..EmulatorConfig::default()
     };
+    rig_cfg(name, cfg, RATE, params)
+}
+
+/// Starts the emulator as `cfg` says (its link is set here) on a clock
+/// running `rate` times real time, then the driver on its symlink.
+pub fn rig_cfg(name: &str, mut cfg: EmulatorConfig, rate: f64, params: UrgParams) -> Rig {
+    let dir = temp_dir(name);
+    let link = dir.join("urg");
+    let clock = Arc::new(ScaledClock::new(rate));
+    cfg.link = Some(link.clone());
     let emu = Emulator::spawn(cfg, Box::new(RectRoom::bench(3)), clock.clone()).unwrap();
     let driver =
         UrgDriver::start(Box::new(DeviceConnector::new(&link)), params, clock.clone()).unwrap();

@@ -54,6 +54,8 @@ pub struct EmulatorConfig {
     pub link: Option<PathBuf>,
     /// Seed of every random choice (noise, fault placement, write splits).
     pub seed: u64,
+    /// Sensor clock rate error (ppm) relative to the emulator clock.
+    pub drift_ppm: f64,
 }
 
 impl Default for EmulatorConfig {
@@ -64,6 +66,7 @@ impl Default for EmulatorConfig {
             faults: Faults::default(),
             link: None,
             seed: 1,
+            drift_ppm: 0.0,
         }
     }
 }
@@ -198,6 +201,7 @@ pub fn run(
         log.clone(),
         clock.now(),
     );
+    sensor.set_drift_ppm(cfg.drift_ppm);
     let mut framer = LineFramer::new();
     let mut out: Vec<u8> = Vec::with_capacity(16 * 1024);
     let mut line: Vec<u8> = Vec::with_capacity(256);

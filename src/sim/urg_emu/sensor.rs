@@ -29,7 +29,7 @@ pub const CLOCK_WRAP_MS: u64 = 1 << 24;
 pub const LOG_CAPACITY: usize = 100_000;
 
 /// One scan the emulator put on the wire.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SentScan {
     /// Sequence number over the emulator's life (from 1).
     pub index: u64,
@@ -40,6 +40,9 @@ pub struct SentScan {
     pub true_ms: u64,
     /// Which power-on it belongs to (from 1; unplug/replug and RB add one).
     pub boot: u32,
+    /// Emulator-clock time (s) at which the scan was measured: the truth a
+    /// driver's host stamp is checked against.
+    pub at: f64,
     /// What was done to it on the wire, if anything.
     pub fault: Option<ScanFault>,
 }
@@ -105,6 +108,7 @@ pub struct Sensor {
     /// Unwrapped true clock (ms) at `t0`, continuing over reboots.
     true0: u64,
     boot: u32,
+    rate: f64,
     rb_at: Option<f64>,
     sent: u64,
     last_stamp: u32,
@@ -159,6 +163,7 @@ impl Sensor {
             t0: now,
             true0: clock0,
             boot: 0,
+            rate: 1.0,
             rb_at: None,
             sent: 0,
             last_stamp: 0,
@@ -203,7 +208,17 @@ impl Sensor {
     }
 
     fn elapsed_ms(&self, now: f64) -> u64 {
-        ((now - self.t0).max(0.0) * 1000.0).floor() as u64
+        ((now - self.t0).max(0.0) * 1000.0 * self.rate).floor() as u64
+    }
+
+    /// Makes the sensor's crystal run fast (positive) or slow by `ppm`
+    /// parts per million relative to the emulator clock.
+    pub fn set_drift_ppm(&mut self, ppm: f64) {
+        let now = self.t0;
+        if ppm.is_finite() && ppm.abs() < 1e5 {
+            self.true0 = self.true_ms(now);
+            self.rate = 1.0 + ppm * 1e-6;
+        }
     }
 
     fn true_ms(&self, now: f64) -> u64 {
@@ -509,6 +524,7 @@ impl Sensor {
             stamp,
             true_ms: self.true_ms(t),
             boot: self.boot,
+            at: t,
             fault,
         };
         if let Ok(mut l) = self.log.lock() {
