@@ -10,9 +10,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sweepline::scan::LaserScan;
 use sweepline::scip::{
-    self, Cluster, Command, DataKind, Decoder, DecoderOptions, Event, ReplyBody, ScanRequest,
-    SensorInfo, SensorParams, Status, StatusCode, StreamRequest, Tag, TaggedCommand, TimeControl,
-    VersionInfo, Width,
+    self, Cluster, Command, DataKind, Decoder, DecoderOptions, Event, LineEvent, LineFramer,
+    ReplyBody, ScanRequest, SensorInfo, SensorParams, Status, StatusCode, StreamRequest, Tag,
+    TaggedCommand, TimeControl, VersionInfo, Width,
 };
 
 /// Total cases across the tests in this file (≥ 1,000,000).
@@ -245,6 +245,36 @@ fn run(
     replies
 }
 
+fn framer_event(ev: Option<LineEvent<'_>>, out: &mut Vec<Result<Vec<u8>, u8>>) {
+    match ev {
+        Some(LineEvent::Line(l)) => out.push(Ok(l.to_vec())),
+        Some(LineEvent::Garbage) => out.push(Err(0)),
+        Some(LineEvent::Overlong) => out.push(Err(1)),
+        None => {}
+    }
+}
+
+fn framer_bytewise(input: &[u8]) -> Vec<Result<Vec<u8>, u8>> {
+    let mut f = LineFramer::new();
+    let mut out = Vec::new();
+    for &b in input {
+        framer_event(f.push(b), &mut out);
+    }
+    out
+}
+
+fn framer_bulk(input: &[u8]) -> Vec<Result<Vec<u8>, u8>> {
+    let mut f = LineFramer::new();
+    let mut out = Vec::new();
+    let mut rest = input;
+    while !rest.is_empty() {
+        let (n, ev) = f.push_slice(rest);
+        rest = &rest[n..];
+        framer_event(ev, &mut out);
+    }
+    out
+}
+
 fn fuzz(seed: u64, cases: usize) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut corpus = Vec::new();
@@ -270,6 +300,9 @@ fn fuzz(seed: u64, cases: usize) {
             let _ = scip::decode_value(&buf[..buf.len().min(4)]);
             let _ = scip::checksum::verify_kv_line(&buf[..cut], true);
             let _ = Tag::new(&buf[..buf.len().min(20)]);
+            if case % 8 == 0 {
+                assert_eq!(framer_bytewise(&buf), framer_bulk(&buf));
+            }
             n
         }));
         match r {

@@ -304,13 +304,16 @@ impl Decoder {
     /// completes an event; returns how many bytes were consumed and the event.
     /// Call again with the rest of the input until it is all consumed.
     pub fn feed(&mut self, input: &[u8]) -> (usize, Option<Event<'_>>) {
-        for (i, &b) in input.iter().enumerate() {
-            let Some(line) = self.framer.push(b) else {
+        let mut at = 0;
+        while at < input.len() {
+            let (n, line) = self.framer.push_slice(&input[at..]);
+            at += n;
+            let Some(line) = line else {
                 continue;
             };
             if let Some(outcome) = self.asm.on_line(line) {
-                self.asm.stats.bytes += i as u64 + 1;
-                return (i + 1, Some(self.asm.event(outcome)));
+                self.asm.stats.bytes += at as u64;
+                return (at, Some(self.asm.event(outcome)));
             }
         }
         self.asm.stats.bytes += input.len() as u64;

@@ -43,6 +43,70 @@ impl LineFramer {
         (self.buf.is_empty() || self.clear_next) && !self.overflowed && !self.garbage
     }
 
+    /// Feeds bytes until one completes an event; returns how many bytes were
+    /// consumed and that event. Same result as [`LineFramer::push`] byte by
+    /// byte, but copies whole runs at once (the scan hot path).
+    pub fn push_slice(&mut self, input: &[u8]) -> (usize, Option<LineEvent<'_>>) {
+        let mut at = 0;
+        while at < input.len() {
+            if self.clear_next {
+                self.buf.clear();
+                self.clear_next = false;
+            }
+            if self.after_cr {
+                self.after_cr = false;
+                if input[at] == b'\n' {
+                    at += 1;
+                    continue;
+                }
+            }
+            let rest = &input[at..];
+            let end = rest
+                .iter()
+                .position(|&b| b == b'\n' || b == b'\r')
+                .unwrap_or(rest.len());
+            let run = &rest[..end];
+            if !self.overflowed {
+                let room = SCIP_MAX_LINE - self.buf.len();
+                if run.len() > room {
+                    // Same as byte by byte: the byte that does not fit reports.
+                    let fits = &run[..room];
+                    if fits.iter().any(|b| !(0x20..=0x7e).contains(b)) {
+                        self.garbage = true;
+                    }
+                    let _ = self.buf.extend_from_slice(fits);
+                    self.overflowed = true;
+                    self.garbage = false;
+                    return (at + room + 1, Some(LineEvent::Overlong));
+                }
+                if run.iter().any(|b| !(0x20..=0x7e).contains(b)) {
+                    self.garbage = true;
+                }
+                let _ = self.buf.extend_from_slice(run);
+            }
+            at += end;
+            if at == input.len() {
+                break;
+            }
+            // A line end.
+            let byte = input[at];
+            at += 1;
+            self.after_cr = byte == b'\r';
+            self.clear_next = true;
+            let overflowed = std::mem::replace(&mut self.overflowed, false);
+            let garbage = std::mem::replace(&mut self.garbage, false);
+            if overflowed {
+                continue;
+            }
+            return if garbage {
+                (at, Some(LineEvent::Garbage))
+            } else {
+                (at, Some(LineEvent::Line(&self.buf)))
+            };
+        }
+        (input.len(), None)
+    }
+
     /// Feeds one byte; returns the event it completed, if any.
     pub fn push(&mut self, byte: u8) -> Option<LineEvent<'_>> {
         if self.clear_next {
@@ -122,6 +186,37 @@ mod tests {
             vec![Err("garbage"), Ok(b"ok".to_vec())]
         );
         assert_eq!(lines(b"\xff\n"), vec![Err("garbage")]);
+    }
+
+    /// The bulk path gives exactly the events of the byte path, for inputs
+    /// mixing every line end, noise and overlong lines, cut at every offset.
+    #[test]
+    fn push_slice_matches_push() {
+        let mut input = b"VV\r\n00P\rA\x01B\n\n\r\n".to_vec();
+        input.extend(std::iter::repeat_n(b'x', SCIP_MAX_LINE + 3));
+        input.extend_from_slice(b"\r\nok\n");
+        input.extend(std::iter::repeat_n(b'y', SCIP_MAX_LINE));
+        input.extend_from_slice(b"\n\r");
+        let want = lines(&input);
+        for cut in 0..input.len() {
+            let mut f = LineFramer::new();
+            let mut got = Vec::new();
+            for part in [&input[..cut], &input[cut..]] {
+                let mut rest = part;
+                while !rest.is_empty() {
+                    let (n, ev) = f.push_slice(rest);
+                    assert!(n >= 1);
+                    rest = &rest[n..];
+                    match ev {
+                        Some(LineEvent::Line(l)) => got.push(Ok(l.to_vec())),
+                        Some(LineEvent::Garbage) => got.push(Err("garbage")),
+                        Some(LineEvent::Overlong) => got.push(Err("overlong")),
+                        None => {}
+                    }
+                }
+            }
+            assert_eq!(got, want, "cut at {cut}");
+        }
     }
 
     #[test]

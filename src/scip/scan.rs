@@ -279,20 +279,23 @@ pub fn fill_laser_scan(
     out.beams.clear();
     out.stamp = stamp;
     out.seq = seq;
-    for (v, reading) in scan.readings(params) {
-        let centre = f64::from(v.step) + (f64::from(v.steps) - 1.0) / 2.0;
-        let (range, valid) = match reading {
-            Reading::Range(mm) => (f64::from(mm) / 1000.0, true),
-            Reading::BeyondMax(mm) => (f64::from(mm) / 1000.0, false),
+    let family = params.family();
+    let step_angle = params.step_angle();
+    let front = f64::from(params.afrt);
+    let (dmin, dmax) = (params.dmin, params.dmax);
+    for v in scan.values() {
+        let centre = f64::from(v.step) + (f64::from(v.steps) - 1.0) * 0.5;
+        let (range, valid) = match Reading::classify(v.distance, dmin, dmax, family) {
+            Reading::Range(mm) => (f64::from(mm) * 1e-3, true),
+            Reading::BeyondMax(mm) => (f64::from(mm) * 1e-3, false),
             Reading::Error(_) => (0.0, false),
         };
-        let intensity = if valid {
-            v.intensity.map_or(0.0, f64::from)
-        } else {
-            0.0
+        let intensity = match (valid, v.intensity) {
+            (true, Some(i)) => f64::from(i),
+            _ => 0.0,
         };
         let beam = Beam {
-            angle: params.angle_of_step(centre),
+            angle: (centre - front) * step_angle,
             range,
             intensity,
             valid,
