@@ -249,8 +249,15 @@ fn looks_like_echo(line: &[u8]) -> bool {
         && line[1].is_ascii_uppercase()
 }
 
-fn is_valid_command(line: &[u8]) -> bool {
-    TaggedCommand::parse(line).is_ok()
+/// The command echo a broken line holds, if any: the whole line when it is a
+/// valid command, or a `QT`/`RS` echo glued to the end of a cut-off line (the
+/// stop command's echo arriving in the middle of a stream).
+fn echo_in(line: &[u8]) -> Option<&[u8]> {
+    if TaggedCommand::parse(line).is_ok() {
+        return Some(line);
+    }
+    let tail = line.get(line.len().checked_sub(2)?..)?;
+    (tail == b"QT" || tail == b"RS").then_some(tail)
 }
 
 impl Decoder {
@@ -372,7 +379,8 @@ impl Assembler {
         self.stats.truncated_replies += 1;
         self.stats.dropped_replies += 1;
         self.stats.desyncs += 1;
-        self.start_reply(line, false);
+        // Tentative: if no status follows, skip on silently (already reported).
+        self.start_reply(line, true);
         Some(Outcome::Error(FrameError::Truncated(by)))
     }
 
@@ -406,8 +414,8 @@ impl Assembler {
             State::Discard => {
                 if line.is_empty() {
                     self.state = State::Idle;
-                } else if is_valid_command(line) {
-                    self.start_reply(line, true);
+                } else if let Some(echo) = echo_in(line) {
+                    self.start_reply(echo, true);
                 }
                 None
             }
@@ -457,8 +465,8 @@ impl Assembler {
                 None
             }
             Err(e) => {
-                if is_valid_command(line) {
-                    return self.interrupted(line);
+                if let Some(echo) = echo_in(line) {
+                    return self.interrupted(echo);
                 }
                 if matches!(e, FrameError::StatusChecksum(_)) {
                     self.stats.status_checksum_errors += 1;
@@ -504,8 +512,8 @@ impl Assembler {
                 None
             }
             Err(error) => {
-                if is_valid_command(line) {
-                    return self.interrupted(line);
+                if let Some(echo) = echo_in(line) {
+                    return self.interrupted(echo);
                 }
                 if self.kv {
                     self.stats.kv_checksum_errors += 1;
