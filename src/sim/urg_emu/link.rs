@@ -47,7 +47,8 @@ impl SensorLink {
 
     fn pull(&mut self) {
         self.sensor.poll(self.clock.now(), &mut self.out);
-        self.inbox.extend(self.out.drain(..));
+        self.inbox.extend(self.out.iter().copied());
+        self.out.clear();
     }
 }
 
@@ -69,10 +70,11 @@ impl Read for SensorLink {
                 }
             }
         }
-        let n = buf.len().min(self.inbox.len());
-        for (slot, b) in buf.iter_mut().zip(self.inbox.drain(..n)) {
-            *slot = b;
-        }
+        let (a, b) = self.inbox.as_slices();
+        let src = if a.is_empty() { b } else { a };
+        let n = buf.len().min(src.len());
+        buf[..n].copy_from_slice(&src[..n]);
+        self.inbox.drain(..n);
         Ok(n)
     }
 }
@@ -87,7 +89,8 @@ impl Write for SensorLink {
                 self.sensor.on_line(&self.line, now, &mut self.out);
             }
         }
-        self.inbox.extend(self.out.drain(..));
+        self.inbox.extend(self.out.iter().copied());
+        self.out.clear();
         Ok(data.len())
     }
     fn flush(&mut self) -> io::Result<()> {
