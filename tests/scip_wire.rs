@@ -772,7 +772,17 @@ fn garbage_noise_and_overlong_lines_resync_at_the_next_reply() {
     );
     let st = dec.stats();
     assert_eq!((st.garbage_lines, st.overlong_lines, st.replies), (1, 1, 3));
+    assert_eq!(st.last_error, Some(FrameError::UnexpectedLine));
     assert!(dec.is_idle());
+    // The callback form sees the same events.
+    let mut seen = Vec::new();
+    Decoder::default().feed_each(&input, |ev| {
+        seen.push(match ev {
+            Event::Reply(r) => Got::Reply(String::from_utf8_lossy(r.echo).into_owned()),
+            Event::Error(e) => Got::Error(e),
+        })
+    });
+    assert_eq!(seen, decode_stream(&input));
 }
 
 #[test]

@@ -55,6 +55,8 @@ pub struct DecoderStats {
     pub dropped_replies: u64,
     /// Times the decoder had to skip input to find a reply boundary.
     pub desyncs: u64,
+    /// The most recent frame error, for health reports.
+    pub last_error: Option<FrameError>,
 }
 
 impl DecoderStats {
@@ -320,11 +322,25 @@ impl Decoder {
             };
             if let Some(outcome) = self.asm.on_line(line) {
                 self.asm.stats.bytes += at as u64;
+                if let Outcome::Error(e) = outcome {
+                    self.asm.stats.last_error = Some(e);
+                }
                 return (at, Some(self.asm.event(outcome)));
             }
         }
         self.asm.stats.bytes += input.len() as u64;
         (input.len(), None)
+    }
+
+    /// Feeds all of `input`, handing every event to `on_event` in order.
+    pub fn feed_each(&mut self, mut input: &[u8], mut on_event: impl FnMut(Event<'_>)) {
+        while !input.is_empty() {
+            let (n, ev) = self.feed(input);
+            input = &input[n..];
+            if let Some(ev) = ev {
+                on_event(ev);
+            }
+        }
     }
 }
 

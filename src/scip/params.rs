@@ -236,8 +236,8 @@ impl SensorParams {
         Ok(p)
     }
 
-    /// Checks the values are usable: ARES and SCAN non-zero, AMIN ≤ AFRT ≤ AMAX < ARES·2
-    /// (some sensors count beyond one turn), DMIN < DMAX, at most 9999 steps.
+    /// Checks the values are usable: ARES and SCAN non-zero, DMIN < DMAX,
+    /// AMIN ≤ AFRT ≤ AMAX ≤ 9999 (the widest step field of a scan command).
     pub fn validate(&self) -> Result<(), ReplyError> {
         if self.ares == 0 {
             return Err(ReplyError::BadParameter("ARES"));

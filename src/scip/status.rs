@@ -111,6 +111,12 @@ impl StatusCode {
     }
 }
 
+impl std::fmt::Display for StatusCode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// The status line of a reply.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Status {
@@ -148,6 +154,15 @@ impl Status {
     }
 }
 
+impl std::fmt::Display for Status {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Status::Scip2(c) => write!(f, "{c}"),
+            Status::Scip1(b) => write!(f, "{} (SCIP 1.1)", char::from(*b).escape_default()),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,5 +194,8 @@ mod tests {
         );
         assert!(Status::Scip1(b'0').is_success(CommandKind::Scip20));
         assert!(!Status::Scip1(b'E').is_success(CommandKind::Qt));
+        assert_eq!(Status::Scip2(StatusCode::UNDEFINED).to_string(), "0E");
+        assert_eq!(Status::Scip1(b'E').to_string(), "E (SCIP 1.1)");
+        assert_eq!(StatusCode([0xff, b'0']).as_str(), "??");
     }
 }
