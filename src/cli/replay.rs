@@ -52,6 +52,8 @@ pub struct ReplayResult {
     pub degenerate: usize,
     /// Sum of iterations of accepted matches.
     pub iterations: u64,
+    /// One line per scan: stamp, outcome and quality figures (`steps.txt`).
+    pub steps: Vec<String>,
     /// Keyframe points, world frame, thinned to a 5 cm grid (for the picture).
     pub points: Vec<IPoint>,
 }
@@ -73,6 +75,26 @@ pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayR
         let t0 = Instant::now();
         let step = tracker.step(&pts, Some(&l.odom_pose));
         let dt = t0.elapsed().as_secs_f64();
+        let line = match step.outcome {
+            Outcome::First => format!("{:.6} first", l.stamp),
+            Outcome::Matched(q) | Outcome::Rejected(_, q) => format!(
+                "{:.6} {} it={} pairs={} inl={:.2} rms={:.4} eig={:.4} deg={} dt={:.3} dr={:.4} kf={} ms={:.3}",
+                l.stamp,
+                if matches!(step.outcome, Outcome::Matched(_)) { "ok" } else { "rejected" },
+                q.iterations,
+                q.pairs,
+                q.inlier_ratio,
+                q.residual_rms,
+                q.min_eigenvalue,
+                q.degenerate,
+                q.correction_translation,
+                q.correction_rotation,
+                step.keyframe,
+                dt * 1e3
+            ),
+            Outcome::Failed(e) => format!("{:.6} failed {e}", l.stamp),
+        };
+        res.steps.push(line);
         match step.outcome {
             Outcome::First => {}
             Outcome::Matched(q) => {
@@ -249,6 +271,9 @@ pub fn run(args: Args) -> CliResult {
     let svg_path = args.out.join("replay.svg");
     svg::save(&svg_path, &picture(&res))
         .map_err(|e| format!("cannot write {}: {e}", svg_path.display()))?;
+    let steps = args.out.join("steps.txt");
+    std::fs::write(&steps, res.steps.join("\n") + "\n")
+        .map_err(|e| format!("cannot write {}: {e}", steps.display()))?;
     let text = summary(&res);
     let sum = args.out.join("summary.txt");
     std::fs::write(&sum, &text).map_err(|e| format!("cannot write {}: {e}", sum.display()))?;

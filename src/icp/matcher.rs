@@ -58,6 +58,14 @@ pub enum Rejection {
         /// The `icp.min_inlier_ratio` setting.
         min: f64,
     },
+    /// The pairs do not fit well after convergence.
+    #[error("residual {rms:.3} m after convergence (maximum {max:.3} m)")]
+    HighResidual {
+        /// RMS residual (m).
+        rms: f64,
+        /// The `icp.max_residual` setting.
+        max: f64,
+    },
     /// The match moved the guess implausibly far.
     #[error("the match corrected the guess by {translation:.3} m / {rotation:.3} rad, beyond the limits")]
     TooLargeCorrection {
@@ -75,6 +83,12 @@ impl Quality {
             return Err(Rejection::LowInlierRatio {
                 ratio: self.inlier_ratio,
                 min: params.min_inlier_ratio,
+            });
+        }
+        if self.residual_rms > params.max_residual {
+            return Err(Rejection::HighResidual {
+                rms: self.residual_rms,
+                max: params.max_residual,
             });
         }
         if self.correction_translation > params.max_correction_translation

@@ -52,6 +52,8 @@ pub struct IcpParams {
     pub min_pairs: usize,
     /// Smallest acceptable share of scan points that found a gated partner.
     pub min_inlier_ratio: f64,
+    /// A match whose RMS residual (m) after convergence exceeds this is rejected.
+    pub max_residual: f64,
     /// A direction whose normalised information (eigenvalue / pairs) is below this is degenerate.
     pub degeneracy_threshold: f64,
     /// Reference neighbours used to estimate a surface normal.
@@ -92,6 +94,7 @@ impl Default for IcpParams {
             trim_fraction: 0.9,
             min_pairs: 20,
             min_inlier_ratio: 0.3,
+            max_residual: 0.05,
             degeneracy_threshold: 0.02,
             normal_neighbours: 5,
             normal_radius: 0.3,
@@ -102,8 +105,8 @@ impl Default for IcpParams {
             keyframe_distance: 0.3,
             keyframe_angle: 0.2,
             keyframe_window: 6,
-            max_correction_translation: 0.5,
-            max_correction_rotation: 0.35,
+            max_correction_translation: 1.0,
+            max_correction_rotation: 0.7,
         }
     }
 }
@@ -137,6 +140,7 @@ impl IcpParams {
         if !(0.0..=1.0).contains(&self.min_inlier_ratio) {
             return Err(invalid("icp.min_inlier_ratio", "must be in [0, 1]"));
         }
+        positive("icp.max_residual", self.max_residual)?;
         if !(self.degeneracy_threshold.is_finite() && self.degeneracy_threshold >= 0.0) {
             return Err(invalid(
                 "icp.degeneracy_threshold",

@@ -3,6 +3,15 @@
 //! fall back to the prediction, add keyframes as the robot moves.
 
 use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Rejection};
+
+/// Of two failed attempts, the one to report: a rejected match (it ran) over a
+/// failure, else the first.
+fn better_failure(a: Outcome, b: Outcome) -> Outcome {
+    match (&a, &b) {
+        (Outcome::Failed(_), Outcome::Rejected(..)) => b,
+        _ => a,
+    }
+}
 use crate::config::ConfigError;
 use crate::geom::{IPoint, Pose};
 
@@ -37,7 +46,9 @@ pub struct Tracker {
     map: KeyframeMap,
     pose: Pose,
     velocity: Pose,
-    last_odom: Option<Pose>,
+    /// The last distinct odometry reading, and our pose estimate at the scan
+    /// where it first appeared (odometry in logs may stall, then jump).
+    odom_anchor: Option<(Pose, Pose)>,
     started: bool,
 }
 
@@ -50,7 +61,7 @@ impl Tracker {
             map,
             pose: start,
             velocity: Pose::identity(),
-            last_odom: None,
+            odom_anchor: None,
             started: false,
         })
     }
@@ -73,16 +84,19 @@ impl Tracker {
     /// Processes one scan given as sensor-frame points in beam order, with the
     /// wheel odometry pose at the same time when there is one.
     pub fn step(&mut self, points: &[IPoint], odom: Option<&Pose>) -> Step {
-        let odom_delta = match (odom, self.last_odom) {
-            (Some(now), Some(before)) => Some(before.inverse() * now),
+        // A fresh odometry reading predicts from the pose where the previous
+        // distinct reading first appeared; a stalled (repeated) reading says
+        // nothing, so the constant-velocity prior is used instead.
+        let fresh_odom = match (odom, self.odom_anchor) {
+            (Some(now), Some((before, at))) if *now != before => {
+                Some((*now, at * (before.inverse() * now)))
+            }
+            (Some(now), None) => Some((*now, self.pose)),
             _ => None,
         };
-        if let Some(o) = odom {
-            self.last_odom = Some(*o);
-        }
         let prepared = self.matcher.prepare_points(points);
         if !self.started {
-            return match prepared {
+            let step = match prepared {
                 Ok(_) => {
                     let params = self.matcher.params().clone();
                     let kf = self
@@ -102,30 +116,60 @@ impl Tracker {
                 }
                 Err(e) => self.fallback(Outcome::Failed(e)),
             };
+            if let Some((now, _)) = fresh_odom {
+                self.odom_anchor = Some((now, self.pose));
+            }
+            return step;
         }
-        let delta = match (self.matcher.params().prior, odom_delta) {
-            (Prior::Odometry, Some(d)) => d,
-            _ => self.velocity,
+        let cv_guess = self.pose * self.velocity;
+        let guess = match (self.matcher.params().prior, fresh_odom) {
+            (Prior::Odometry, Some((_, g))) => g,
+            _ => cv_guess,
         };
-        let guess = self.pose * delta;
+        let step = self.register(prepared.map(|_| ()), guess, cv_guess);
+        if let Some((now, _)) = fresh_odom {
+            self.odom_anchor = Some((now, step.pose));
+        }
+        step
+    }
+
+    /// Matches the prepared scan from `guess`; when that match is rejected or
+    /// fails, retries once from `alt` (if different) and keeps the better.
+    fn register(&mut self, prepared: Result<(), IcpError>, guess: Pose, alt: Pose) -> Step {
         if let Err(e) = prepared {
             return self.predict(guess, Outcome::Failed(e));
         }
-        let result = self.matcher.match_prepared(self.map.reference(), &guess);
-        let m = match result {
-            Ok(m) => m,
-            Err(e) => return self.predict(guess, Outcome::Failed(e)),
+        let first = self.try_match(&guess);
+        let outcome = match first {
+            Ok(m) => Ok(m),
+            Err(bad) if alt != guess => match self.try_match(&alt) {
+                Ok(m) => Ok(m),
+                Err(bad2) => Err(better_failure(bad, bad2)),
+            },
+            Err(bad) => Err(bad),
         };
-        if let Err(r) = m.quality.check(self.matcher.params()) {
-            return self.predict(guess, Outcome::Rejected(r, m.quality));
+        match outcome {
+            Ok(m) => {
+                self.velocity = self.pose.inverse() * m.pose;
+                self.pose = m.pose;
+                let keyframe = self.maybe_keyframe();
+                Step {
+                    pose: self.pose,
+                    outcome: Outcome::Matched(m.quality),
+                    keyframe,
+                }
+            }
+            Err(o) => self.predict(guess, o),
         }
-        self.velocity = self.pose.inverse() * m.pose;
-        self.pose = m.pose;
-        let keyframe = self.maybe_keyframe();
-        Step {
-            pose: self.pose,
-            outcome: Outcome::Matched(m.quality),
-            keyframe,
+    }
+
+    fn try_match(&mut self, guess: &Pose) -> Result<super::Match, Outcome> {
+        match self.matcher.match_prepared(self.map.reference(), guess) {
+            Ok(m) => match m.quality.check(self.matcher.params()) {
+                Ok(()) => Ok(m),
+                Err(r) => Err(Outcome::Rejected(r, m.quality)),
+            },
+            Err(e) => Err(Outcome::Failed(e)),
         }
     }
 
