@@ -163,6 +163,8 @@ impl Tracker {
         }
     }
 
+    // Both variants are plain stack values used once; boxing would allocate per scan.
+    #[allow(clippy::result_large_err)]
     fn try_match(&mut self, guess: &Pose) -> Result<super::Match, Outcome> {
         match self.matcher.match_prepared(self.map.reference(), guess) {
             Ok(m) => match m.quality.check(self.matcher.params()) {
