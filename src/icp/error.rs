@@ -45,7 +45,7 @@ pub enum IcpError {
         iteration: u32,
     },
     /// The solver produced a non-finite pose (numerically singular problem).
-    #[error("the solver diverged (non-finite pose at iteration {iteration})")]
+    #[error("the solver found no usable solution at iteration {iteration} (non-finite pose, or fewer than 3 pairs with a surface normal)")]
     Diverged {
         /// Iteration at which it happened (0-based).
         iteration: u32,

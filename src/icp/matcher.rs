@@ -238,11 +238,26 @@ impl Matcher {
         self.match_prepared(reference, guess)
     }
 
-    /// Registers the points last given to a `prepare_*` method.
+    /// Registers the points last given to a `prepare_*` method, with the
+    /// guess held by the configured `prior_weight` (see [`Matcher::match_prepared_weighted`]).
     pub fn match_prepared(
         &mut self,
         reference: &Reference,
         guess: &Pose,
+    ) -> Result<Match, IcpError> {
+        let w = self.params.prior_weight;
+        self.match_prepared_weighted(reference, guess, w)
+    }
+
+    /// Registers the prepared points; `prior_weight` >= 0 adds a penalty on the
+    /// translation away from `guess` (point-to-line metric only), worth
+    /// `prior_weight` pairs per unit of squared distance: directions the scan
+    /// constrains weakly then follow the prior (e.g. wheel odometry) instead of noise.
+    pub fn match_prepared_weighted(
+        &mut self,
+        reference: &Reference,
+        guess: &Pose,
+        prior_weight: f64,
     ) -> Result<Match, IcpError> {
         let prm = self.params.clone();
         if self.scan.len() < prm.min_pairs {
@@ -268,6 +283,7 @@ impl Matcher {
         }
 
         let mut pose = *guess;
+        let mut before = *guess;
         let mut gate = prm.gate_initial;
         let mut iterations = 0;
         let mut converged = false;
@@ -285,19 +301,32 @@ impl Matcher {
             }
             let next = match prm.metric {
                 Metric::PointToPoint => solve_point_to_point(&self.pairs, reference),
-                Metric::PointToLine => {
-                    solve_point_to_line(&self.pairs, reference, &pose, prm.degeneracy_threshold)
-                }
+                Metric::PointToLine => solve_point_to_line(
+                    &self.pairs,
+                    reference,
+                    &pose,
+                    guess,
+                    prior_weight.max(0.0),
+                    prm.degeneracy_threshold,
+                ),
             };
             let next = next.ok_or(IcpError::Diverged { iteration: it })?;
-            let step = next * pose.inverse();
+            // The step seen from the scanner (free of the lever arm of world coordinates).
+            let step = pose.inverse() * next;
             let (dt, dr) = (step.translation.vector.norm(), step.rotation.angle().abs());
             if !(dt.is_finite() && dr.is_finite()) {
                 return Err(IcpError::Diverged { iteration: it });
             }
+            // Nearest-neighbour pairing can flip between two pair sets; a
+            // return to the pose of two iterations ago is a 2-cycle: stop.
+            let back = before.inverse() * next;
+            let cycle = it > 0
+                && back.translation.vector.norm() < prm.epsilon_translation
+                && back.rotation.angle().abs() < prm.epsilon_rotation;
+            before = pose;
             pose = next;
             gate = self.adapt_gate(gate);
-            if dt < prm.epsilon_translation && dr < prm.epsilon_rotation {
+            if cycle || (dt < prm.epsilon_translation && dr < prm.epsilon_rotation) {
                 converged = true;
                 break;
             }
@@ -421,6 +450,8 @@ fn solve_point_to_line(
     pairs: &[Pair],
     reference: &Reference,
     pose: &Pose,
+    prior: &Pose,
+    prior_weight: f64,
     threshold: f64,
 ) -> Option<Pose> {
     let (refp, normals) = (reference.points(), reference.normals());
@@ -444,6 +475,16 @@ fn solve_point_to_line(
     }
     if used < 3 {
         return None;
+    }
+    if prior_weight > 0.0 {
+        // Prior term: the scan centroid c = pose(q_c) pulled towards prior(q_c).
+        let qc = pose.inverse() * nalgebra::Point2::from(c);
+        let pc = prior * qc;
+        let lam = prior_weight * used as f64;
+        h[(0, 0)] += lam;
+        h[(1, 1)] += lam;
+        g.x += lam * (c.x - pc.x);
+        g.y += lam * (c.y - pc.y);
     }
     let e = h.symmetric_eigen();
     let floor = threshold * used as f64;

@@ -19,6 +19,7 @@ mod local_map;
 mod matcher;
 mod params;
 mod reference;
+pub mod synth;
 mod tracker;
 
 pub use error::IcpError;

@@ -66,6 +66,8 @@ pub struct IcpParams {
     pub min_range: f64,
     /// Successive scan points closer than this (m) are thinned out before matching.
     pub min_point_spacing: f64,
+    /// Weight of the prior (odometry) translation in point-to-line matching, per pair; 0 = none.
+    pub prior_weight: f64,
     /// Initial guess for tracking: odometry or constant velocity.
     pub prior: Prior,
     /// Add a keyframe to the local map after this much travel (m).
@@ -101,6 +103,7 @@ impl Default for IcpParams {
             max_range: 30.0,
             min_range: 0.05,
             min_point_spacing: 0.03,
+            prior_weight: 0.0,
             prior: Prior::Odometry,
             keyframe_distance: 0.3,
             keyframe_angle: 0.2,
@@ -164,6 +167,9 @@ impl IcpParams {
                 "icp.min_point_spacing",
                 "must be a finite number >= 0",
             ));
+        }
+        if !(self.prior_weight.is_finite() && self.prior_weight >= 0.0) {
+            return Err(invalid("icp.prior_weight", "must be a finite number >= 0"));
         }
         positive("icp.keyframe_distance", self.keyframe_distance)?;
         positive("icp.keyframe_angle", self.keyframe_angle)?;

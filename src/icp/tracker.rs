@@ -126,7 +126,11 @@ impl Tracker {
             (Prior::Odometry, Some((_, g))) => g,
             _ => cv_guess,
         };
-        let step = self.register(prepared.map(|_| ()), guess, cv_guess);
+        let weight = match (self.matcher.params().prior, fresh_odom) {
+            (Prior::Odometry, Some(_)) => self.matcher.params().prior_weight,
+            _ => 0.0,
+        };
+        let step = self.register(prepared.map(|_| ()), guess, weight, cv_guess);
         if let Some((now, _)) = fresh_odom {
             self.odom_anchor = Some((now, step.pose));
         }
@@ -135,14 +139,20 @@ impl Tracker {
 
     /// Matches the prepared scan from `guess`; when that match is rejected or
     /// fails, retries once from `alt` (if different) and keeps the better.
-    fn register(&mut self, prepared: Result<(), IcpError>, guess: Pose, alt: Pose) -> Step {
+    fn register(
+        &mut self,
+        prepared: Result<(), IcpError>,
+        guess: Pose,
+        weight: f64,
+        alt: Pose,
+    ) -> Step {
         if let Err(e) = prepared {
             return self.predict(guess, Outcome::Failed(e));
         }
-        let first = self.try_match(&guess);
+        let first = self.try_match(&guess, weight);
         let outcome = match first {
             Ok(m) => Ok(m),
-            Err(bad) if alt != guess => match self.try_match(&alt) {
+            Err(bad) if alt != guess => match self.try_match(&alt, 0.0) {
                 Ok(m) => Ok(m),
                 Err(bad2) => Err(better_failure(bad, bad2)),
             },
@@ -165,8 +175,12 @@ impl Tracker {
 
     // Both variants are plain stack values used once; boxing would allocate per scan.
     #[allow(clippy::result_large_err)]
-    fn try_match(&mut self, guess: &Pose) -> Result<super::Match, Outcome> {
-        match self.matcher.match_prepared(self.map.reference(), guess) {
+    fn try_match(&mut self, guess: &Pose, weight: f64) -> Result<super::Match, Outcome> {
+        let reference = self.map.reference();
+        match self
+            .matcher
+            .match_prepared_weighted(reference, guess, weight)
+        {
             Ok(m) => match m.quality.check(self.matcher.params()) {
                 Ok(()) => Ok(m),
                 Err(r) => Err(Outcome::Rejected(r, m.quality)),
