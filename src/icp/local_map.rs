@@ -10,7 +10,7 @@ use std::collections::VecDeque;
 
 use nalgebra::Vector2;
 
-use super::reference::ordered_normal;
+use super::reference::ordered_surface;
 use super::{IcpError, IcpParams, Reference};
 use crate::capacity::MAX_BEAMS;
 use crate::geom::{IPoint, Pose};
@@ -21,6 +21,7 @@ struct Keyframe {
     pose: Pose,
     points: Vec<IPoint>,
     normals: Vec<Vector2<f64>>,
+    edges: Vec<bool>,
 }
 
 /// A sliding window of keyframes and the reference built from them.
@@ -31,6 +32,7 @@ pub struct KeyframeMap {
     spare: Option<Keyframe>,
     merged: Vec<IPoint>,
     merged_normals: Vec<Vector2<f64>>,
+    merged_edges: Vec<bool>,
     reference: Reference,
 }
 
@@ -44,6 +46,7 @@ impl KeyframeMap {
             spare: None,
             merged: Vec::with_capacity(window * MAX_BEAMS),
             merged_normals: Vec::with_capacity(window * MAX_BEAMS),
+            merged_edges: Vec::with_capacity(window * MAX_BEAMS),
             reference: Reference::new(),
         }
     }
@@ -85,26 +88,29 @@ impl KeyframeMap {
         kf.pose = *pose;
         kf.points.clear();
         kf.normals.clear();
+        kf.edges.clear();
         let rot = pose.rotation;
-        for i in 0..points.len() {
-            let n = ordered_normal(
-                points,
-                i,
-                params.normal_neighbours / 2,
-                params.normal_radius,
-            );
-            kf.points.push(points[i].transformed(pose));
+        for (i, p) in points.iter().enumerate() {
+            let (n, edge) = ordered_surface(points, i, params);
+            kf.points.push(p.transformed(pose));
             kf.normals.push(rot * n);
+            kf.edges.push(edge);
         }
         self.keyframes.push_back(kf);
         self.merged.clear();
         self.merged_normals.clear();
+        self.merged_edges.clear();
         for k in &self.keyframes {
             self.merged.extend_from_slice(&k.points);
             self.merged_normals.extend_from_slice(&k.normals);
+            self.merged_edges.extend_from_slice(&k.edges);
         }
-        self.reference
-            .rebuild_with_normals(&self.merged, &self.merged_normals, params)
+        self.reference.rebuild_with_normals(
+            &self.merged,
+            &self.merged_normals,
+            &self.merged_edges,
+            params,
+        )
     }
 
     /// Forgets every keyframe (e.g. after the robot was carried away).

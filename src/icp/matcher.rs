@@ -291,7 +291,7 @@ impl Matcher {
         for it in 0..prm.max_iterations {
             iterations = it + 1;
             gated = self.pair(reference, &pose, gate);
-            let used = self.trim(gated);
+            let used = self.trim(reference, gated);
             if used < prm.min_pairs {
                 return Err(IcpError::TooFewPairs {
                     pairs: used,
@@ -389,13 +389,28 @@ impl Matcher {
     }
 
     /// Keeps the best `trim_fraction` of the pairs; returns how many remain.
-    fn trim(&mut self, gated: usize) -> usize {
+    /// Pairs on an intensity edge of the reference are never trimmed: they
+    /// carry what geometry lacks (a marker seen along a featureless wall) and
+    /// are, until aligned, the farthest pairs.
+    fn trim(&mut self, reference: &Reference, gated: usize) -> usize {
         let keep = ((gated as f64 * self.params.trim_fraction).ceil() as usize).min(gated);
-        if keep < gated && keep > 0 {
-            self.pairs
-                .select_nth_unstable_by(keep - 1, |a, b| a.d2.total_cmp(&b.d2));
-            self.pairs.truncate(keep);
+        if keep >= gated || keep == 0 {
+            return self.pairs.len();
         }
+        let edges = reference.intensity_edges();
+        let mut front = 0;
+        for i in 0..self.pairs.len() {
+            if edges[self.pairs[i].p as usize] {
+                self.pairs.swap(front, i);
+                front += 1;
+            }
+        }
+        let keep = keep.max(front);
+        if keep < gated && keep > front {
+            self.pairs[front..]
+                .select_nth_unstable_by(keep - front - 1, |a, b| a.d2.total_cmp(&b.d2));
+        }
+        self.pairs.truncate(keep);
         self.pairs.len()
     }
 
@@ -443,6 +458,38 @@ fn solve_point_to_point(pairs: &[Pair], reference: &Reference) -> Option<Pose> {
     (tx.is_finite() && ty.is_finite() && theta.is_finite()).then_some(pose)
 }
 
+/// Calls `f(J, r)` for the error rows of one pair at `pose`: one
+/// point-to-line row (Jacobian over (dx, dy, radius·dθ) about `c`), or two
+/// point-to-point rows where the reference point is an intensity edge (a
+/// marker border pins the pose along the surface too). Returns false when the
+/// pair gives no row (no surface normal).
+#[inline]
+fn rows(
+    pr: &Pair,
+    reference: &Reference,
+    pose: &Pose,
+    c: &Vector2<f64>,
+    radius: f64,
+    mut f: impl FnMut(Vector3<f64>, f64),
+) -> bool {
+    let i = pr.p as usize;
+    let q = pose * pr.q.xy();
+    let p = &reference.points()[i];
+    let d = Vector2::new(q.x - c.x, q.y - c.y);
+    if reference.intensity_edges()[i] {
+        f(Vector3::new(1.0, 0.0, -d.y / radius), q.x - p.x);
+        f(Vector3::new(0.0, 1.0, d.x / radius), q.y - p.y);
+        return true;
+    }
+    let n = reference.normals()[i];
+    if n.x == 0.0 && n.y == 0.0 {
+        return false;
+    }
+    let j = Vector3::new(n.x, n.y, (n.y * d.x - n.x * d.y) / radius);
+    f(j, n.x * (q.x - p.x) + n.y * (q.y - p.y));
+    true
+}
+
 /// One Gauss-Newton step of the point-to-line error about the centroid of the
 /// moved scan points. Directions whose normalised information is below
 /// `threshold` are not updated (they keep the current estimate).
@@ -454,24 +501,16 @@ fn solve_point_to_line(
     prior_weight: f64,
     threshold: f64,
 ) -> Option<Pose> {
-    let (refp, normals) = (reference.points(), reference.normals());
     let (c, radius) = centroid_radius(pairs, pose);
     let mut h = Matrix3::zeros();
     let mut g = Vector3::zeros();
     let mut used = 0usize;
     for pr in pairs {
-        let n = normals[pr.p as usize];
-        if n.x == 0.0 && n.y == 0.0 {
-            continue;
-        }
-        let q = pose * pr.q.xy();
-        let p = &refp[pr.p as usize];
-        let d = Vector2::new(q.x - c.x, q.y - c.y);
-        let j = Vector3::new(n.x, n.y, (n.y * d.x - n.x * d.y) / radius);
-        let r = n.x * (q.x - p.x) + n.y * (q.y - p.y);
-        h += j * j.transpose();
-        g += j * r;
-        used += 1;
+        let counted = rows(pr, reference, pose, &c, radius, |j, r| {
+            h += j * j.transpose();
+            g += j * r;
+        });
+        used += usize::from(counted);
     }
     if used < 3 {
         return None;
@@ -539,20 +578,14 @@ struct Info {
 /// Point-to-line information matrix of the pairs at `pose` (whatever metric
 /// was solved): it says which directions the geometry constrains.
 fn information(pairs: &[Pair], reference: &Reference, pose: &Pose, threshold: f64) -> Info {
-    let normals = reference.normals();
     let (c, radius) = centroid_radius(pairs, pose);
     let mut h = Matrix3::zeros();
     let mut used = 0usize;
     for pr in pairs {
-        let n = normals[pr.p as usize];
-        if n.x == 0.0 && n.y == 0.0 {
-            continue;
-        }
-        let q = pose * pr.q.xy();
-        let d = Vector2::new(q.x - c.x, q.y - c.y);
-        let j = Vector3::new(n.x, n.y, (n.y * d.x - n.x * d.y) / radius);
-        h += j * j.transpose();
-        used += 1;
+        let counted = rows(pr, reference, pose, &c, radius, |j, _| {
+            h += j * j.transpose()
+        });
+        used += usize::from(counted);
     }
     let norm = h / used.max(1) as f64;
     let eig = norm.symmetric_eigen();

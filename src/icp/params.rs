@@ -60,6 +60,9 @@ pub struct IcpParams {
     pub normal_neighbours: usize,
     /// Neighbours farther than this (m) do not count for the normal.
     pub normal_radius: f64,
+    /// Intensity step between surface neighbours that marks an intensity edge
+    /// (used when `intensity_weight` > 0): such pairs also constrain motion along the surface.
+    pub intensity_edge: f64,
     /// Readings at or beyond this range (m) are dropped before matching.
     pub max_range: f64,
     /// Readings closer than this (m) are dropped (robot body, dust).
@@ -100,6 +103,7 @@ impl Default for IcpParams {
             degeneracy_threshold: 0.02,
             normal_neighbours: 5,
             normal_radius: 0.3,
+            intensity_edge: 0.2,
             max_range: 30.0,
             min_range: 0.05,
             min_point_spacing: 0.03,
@@ -154,6 +158,7 @@ impl IcpParams {
             return Err(invalid("icp.normal_neighbours", "must be in 2..=32"));
         }
         positive("icp.normal_radius", self.normal_radius)?;
+        positive("icp.intensity_edge", self.intensity_edge)?;
         positive("icp.max_range", self.max_range)?;
         if !(self.min_range.is_finite() && self.min_range >= 0.0 && self.min_range < self.max_range)
         {

@@ -15,6 +15,7 @@ use crate::geom::IPoint;
 pub struct Reference {
     points: Vec<IPoint>,
     normals: Vec<Vector2<f64>>,
+    edges: Vec<bool>,
     coords: Vec<[f64; 3]>,
     tree: Option<ImmutableKdTree<f64, 3>>,
     intensity_scale: f64,
@@ -41,6 +42,7 @@ impl Reference {
         Self {
             points: Vec::new(),
             normals: Vec::new(),
+            edges: Vec::new(),
             coords: Vec::new(),
             tree: None,
             intensity_scale: 0.0,
@@ -64,8 +66,11 @@ impl Reference {
             .unwrap_or(std::num::NonZeroUsize::MIN);
         let r2 = params.normal_radius * params.normal_radius;
         let mut nb: Vec<Vector2<f64>> = Vec::with_capacity(k.get());
+        self.edges.clear();
+        let step = params.intensity_edge;
         for p in &self.points {
             nb.clear();
+            let mut edge = false;
             for n in tree2
                 .query(&[p.x, p.y])
                 .nearest_n::<SquaredEuclidean<f64>>(k)
@@ -74,9 +79,11 @@ impl Reference {
                 if n.distance <= r2 {
                     let q = &self.points[n.item as usize];
                     nb.push(Vector2::new(q.x, q.y));
+                    edge |= (q.intensity - p.intensity).abs() >= step;
                 }
             }
             self.normals.push(normal_of(&nb));
+            self.edges.push(edge && params.intensity_weight > 0.0);
         }
         self.build_tree(params)
     }
@@ -92,32 +99,34 @@ impl Reference {
         self.copy_finite(points);
         self.check_size(params)?;
         self.normals.clear();
+        self.edges.clear();
         let n = self.points.len();
         for i in 0..n {
-            self.normals.push(ordered_normal(
-                &self.points,
-                i,
-                params.normal_neighbours / 2,
-                params.normal_radius,
-            ));
+            let (normal, edge) = ordered_surface(&self.points, i, params);
+            self.normals.push(normal);
+            self.edges.push(edge);
         }
         self.build_tree(params)
     }
 
-    /// Rebuilds from points with their normals already known (zero vector = unknown).
-    /// Pairs with a non-finite point or normal are dropped.
+    /// Rebuilds from points with their normals (zero vector = unknown) and
+    /// intensity-edge flags already known. Entries with a non-finite point or
+    /// normal are dropped; slices are read up to the shortest length.
     pub fn rebuild_with_normals(
         &mut self,
         points: &[IPoint],
         normals: &[Vector2<f64>],
+        edges: &[bool],
         params: &IcpParams,
     ) -> Result<(), IcpError> {
         self.points.clear();
         self.normals.clear();
-        for (p, n) in points.iter().zip(normals) {
+        self.edges.clear();
+        for ((p, n), e) in points.iter().zip(normals).zip(edges) {
             if finite_point(p) && n.x.is_finite() && n.y.is_finite() {
                 self.points.push(*p);
                 self.normals.push(*n);
+                self.edges.push(*e && params.intensity_weight > 0.0);
             }
         }
         self.check_size(params)?;
@@ -142,6 +151,13 @@ impl Reference {
     /// Unit surface normals, one per point (zero vector where unknown).
     pub fn normals(&self) -> &[Vector2<f64>] {
         &self.normals
+    }
+
+    /// Per point: true where the intensity steps by at least `intensity_edge`
+    /// between surface neighbours (a marker's border) and `w` > 0. Such points
+    /// constrain the pose along the surface too.
+    pub fn intensity_edges(&self) -> &[bool] {
+        &self.edges
     }
 
     /// Scale of the intensity axis in the tree (√w).
@@ -203,27 +219,28 @@ fn finite_point(p: &IPoint) -> bool {
     p.x.is_finite() && p.y.is_finite() && p.intensity.is_finite()
 }
 
-/// Normal of point `i` of an ordered sequence from its neighbours at most
-/// `half` steps away and within `radius`.
-pub(crate) fn ordered_normal(
+/// Normal and intensity-edge flag of point `i` of an ordered sequence, from
+/// its neighbours at most `normal_neighbours` steps away on each side and within `normal_radius`.
+pub(crate) fn ordered_surface(
     points: &[IPoint],
     i: usize,
-    half: usize,
-    radius: f64,
-) -> Vector2<f64> {
-    let half = half.max(1);
+    params: &IcpParams,
+) -> (Vector2<f64>, bool) {
+    let half = params.normal_neighbours.max(1);
     let p = &points[i];
-    let r2 = radius * radius;
+    let r2 = params.normal_radius * params.normal_radius;
     let lo = i.saturating_sub(half);
     let hi = (i + half).min(points.len() - 1);
     let mut acc = Accum::default();
+    let mut edge = false;
     for q in &points[lo..=hi] {
         let (dx, dy) = (q.x - p.x, q.y - p.y);
         if dx * dx + dy * dy <= r2 {
             acc.add(q.x, q.y);
+            edge |= (q.intensity - p.intensity).abs() >= params.intensity_edge;
         }
     }
-    acc.normal()
+    (acc.normal(), edge && params.intensity_weight > 0.0)
 }
 
 fn normal_of(nb: &[Vector2<f64>]) -> Vector2<f64> {
