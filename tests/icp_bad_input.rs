@@ -261,3 +261,43 @@ fn invalid_params_are_named() {
         .to_string()
         .contains("icp.intensity_weight"));
 }
+
+#[test]
+fn long_runs_of_predictions_stay_finite() {
+    // Thousands of chained poses used to drift off unit rotation and then blow
+    // up under repeated constant-velocity prediction; poses are renormalised.
+    let walls = room(5.0, 4.0, 0.5);
+    let start = pose(2.0, 1.5, 0.0);
+    let mut t = Tracker::new(IcpParams::default(), start).unwrap();
+    assert!(matches!(
+        t.step(&cast(&walls, &start, &ScanSpec::default()), None)
+            .outcome,
+        Outcome::First
+    ));
+    let moved = pose(2.05, 1.5, 0.03);
+    let s = t.step(
+        &cast(
+            &walls,
+            &moved,
+            &ScanSpec {
+                seed: 5,
+                ..ScanSpec::default()
+            },
+        ),
+        None,
+    );
+    assert!(matches!(s.outcome, Outcome::Matched(_)), "{:?}", s.outcome);
+    let mut odom = pose(0.0, 0.0, 0.0);
+    for k in 0..20_000 {
+        odom = odom * pose(0.01, 0.0, 0.013);
+        let s = t.step(&[], if k % 2 == 0 { Some(&odom) } else { None });
+        assert!(matches!(s.outcome, Outcome::Failed(IcpError::EmptyScan)));
+    }
+    let p = t.pose();
+    assert!(p.translation.x.is_finite() && p.translation.y.is_finite());
+    assert!(
+        (p.rotation.norm() - 1.0).abs() < 1e-12,
+        "{}",
+        p.rotation.norm()
+    );
+}

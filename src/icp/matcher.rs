@@ -544,7 +544,9 @@ fn apply_about(pose: &Pose, c: &Vector2<f64>, dx: f64, dy: f64, dth: f64) -> Pos
     // delta(x) = R(dth)(x - c) + c + d
     let tx = c.x - (co * c.x - s * c.y) + dx;
     let ty = c.y - (s * c.x + co * c.y) + dy;
-    crate::geom::pose(tx, ty, dth) * pose
+    let p = crate::geom::pose(tx, ty, dth) * pose;
+    // Rebuilt from its angle: products of unit complex numbers drift off unit length.
+    crate::geom::pose(p.translation.x, p.translation.y, p.rotation.angle())
 }
 
 fn centroid_radius(pairs: &[Pair], pose: &Pose) -> (Vector2<f64>, f64) {

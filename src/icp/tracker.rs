@@ -4,6 +4,13 @@
 
 use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Rejection};
 
+/// `p` with its rotation re-normalised: nalgebra does not renormalise unit
+/// complex numbers after products, and the rounding drift of thousands of
+/// chained poses would otherwise grow without bound under repeated prediction.
+fn unit(p: Pose) -> Pose {
+    crate::geom::pose(p.translation.x, p.translation.y, p.rotation.angle())
+}
+
 /// Of two failed attempts, the one to report: a rejected match (it ran) over a
 /// failure, else the first.
 fn better_failure(a: Outcome, b: Outcome) -> Outcome {
@@ -89,7 +96,7 @@ impl Tracker {
         // nothing, so the constant-velocity prior is used instead.
         let fresh_odom = match (odom, self.odom_anchor) {
             (Some(now), Some((before, at))) if *now != before => {
-                Some((*now, at * (before.inverse() * now)))
+                Some((*now, unit(at * (before.inverse() * now))))
             }
             (Some(now), None) => Some((*now, self.pose)),
             _ => None,
@@ -121,7 +128,7 @@ impl Tracker {
             }
             return step;
         }
-        let cv_guess = self.pose * self.velocity;
+        let cv_guess = unit(self.pose * self.velocity);
         let guess = match (self.matcher.params().prior, fresh_odom) {
             (Prior::Odometry, Some((_, g))) => g,
             _ => cv_guess,
@@ -160,8 +167,8 @@ impl Tracker {
         };
         match outcome {
             Ok(m) => {
-                self.velocity = self.pose.inverse() * m.pose;
-                self.pose = m.pose;
+                self.velocity = unit(self.pose.inverse() * m.pose);
+                self.pose = unit(m.pose);
                 let keyframe = self.maybe_keyframe();
                 Step {
                     pose: self.pose,
@@ -190,8 +197,8 @@ impl Tracker {
     }
 
     fn predict(&mut self, guess: Pose, outcome: Outcome) -> Step {
-        self.velocity = self.pose.inverse() * guess;
-        self.pose = guess;
+        self.velocity = unit(self.pose.inverse() * guess);
+        self.pose = unit(guess);
         Step {
             pose: guess,
             outcome,
