@@ -289,7 +289,7 @@ fn long_runs_of_predictions_stay_finite() {
     assert!(matches!(s.outcome, Outcome::Matched(_)), "{:?}", s.outcome);
     let mut odom = pose(0.0, 0.0, 0.0);
     for k in 0..20_000 {
-        odom = odom * pose(0.01, 0.0, 0.013);
+        odom *= pose(0.01, 0.0, 0.013);
         let s = t.step(&[], if k % 2 == 0 { Some(&odom) } else { None });
         assert!(matches!(s.outcome, Outcome::Failed(IcpError::EmptyScan)));
     }
