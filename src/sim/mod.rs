@@ -2,3 +2,5 @@
 //! ptys, and replay of recorded logs.
 pub mod world;
 pub mod urg_emu;
+
+pub mod carmen;
