@@ -1,1 +1,0 @@
-//! Checkpoints (placeholder while being written).
