@@ -63,7 +63,7 @@ impl StageBudgets {
         ] {
             positive(k, v)?;
             if v > 10.0 {
-                return Err(invalid(k, &format!("must be at most 10 s, got {v}")));
+                return Err(invalid(k, &format!("must be at most 10 s, got {v:?}")));
             }
         }
         Ok(())
@@ -140,7 +140,10 @@ impl PipelineParams {
         if !(self.watchdog_period.is_finite() && self.watchdog_period >= 0.0) {
             return Err(invalid(
                 "pipeline.watchdog_period",
-                &format!("must be a finite number >= 0, got {}", self.watchdog_period),
+                &format!(
+                    "must be a finite number >= 0, got {:?}",
+                    self.watchdog_period
+                ),
             ));
         }
         if self.poll_timeout > 1.0 {
@@ -182,7 +185,7 @@ impl PipelineParams {
             ("pipeline.stall_after", self.stall_after),
         ] {
             if v > 3600.0 {
-                return Err(invalid(k, &format!("must be at most 3600 s, got {v}")));
+                return Err(invalid(k, &format!("must be at most 3600 s, got {v:?}")));
             }
         }
         self.budget.validate()
