@@ -15,6 +15,7 @@ pub mod edge;
 pub mod metrics;
 pub mod notify;
 pub mod params;
+pub mod periodic;
 pub mod signals;
 pub mod stage;
 pub mod supervisor;
