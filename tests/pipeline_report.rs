@@ -5,6 +5,7 @@
 //! Set `SWEEPLINE_KEEP_REPORT=DIR` to keep the report folder for a look.
 
 use std::path::PathBuf;
+use std::process::Command;
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
@@ -16,7 +17,7 @@ use sweepline::pipeline::{
     Tx,
 };
 use sweepline::report::budget::{histogram_file, REPORT_FILE};
-use sweepline::report::write_budget_report;
+use sweepline::report::{write_budget_report, RunFolderHooks};
 
 #[derive(Clone, Copy)]
 struct Msg {
@@ -152,10 +153,24 @@ fn a_real_time_run_writes_metrics_and_a_budget_report() {
     p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
         .unwrap();
     p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let (dir, keep) = out_dir();
+    let _ = std::fs::remove_dir_all(&dir);
     let sup = Supervisor::new(&params);
-    let out = sup.run(p, &mut Coverage(0));
+    let mut hooks = RunFolderHooks::new(Coverage(0), &dir, &params);
+    let out = sup.run(p, &mut hooks);
     assert_eq!(out.reason, StopReason::AllStagesDone);
     let snap = out.snapshot;
+    // The hooks wrote the final metrics and the report by themselves.
+    assert_eq!(hooks.report(), Some(dir.join(REPORT_FILE).as_path()));
+    assert!(hooks.writes() >= 1);
+    assert_eq!(
+        MetricsSnapshot::read(&dir.join(METRICS_FILE)).unwrap(),
+        snap
+    );
+    assert!(
+        hooks.into_inner().0 >= 2,
+        "STATUS text asked for every second"
+    );
 
     // Every scan reached the motor: nothing dropped at 10 Hz.
     let by_name = |n: &str| snap.stages.iter().find(|s| s.name == n).unwrap();
@@ -173,14 +188,6 @@ fn a_real_time_run_writes_metrics_and_a_budget_report() {
     assert!(by_name("localise").cpu > 0.0);
     assert_eq!(snap.cores, sweepline::pipeline::clock::core_count());
 
-    let (dir, keep) = out_dir();
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    snap.write(&dir.join(METRICS_FILE)).unwrap();
-    assert_eq!(
-        MetricsSnapshot::read(&dir.join(METRICS_FILE)).unwrap(),
-        snap
-    );
     let report = write_budget_report(&dir, &snap).unwrap();
     let md = std::fs::read_to_string(&report).unwrap();
     for want in [
@@ -219,4 +226,97 @@ fn a_real_time_run_writes_metrics_and_a_budget_report() {
     if !keep {
         std::fs::remove_dir_all(&dir).unwrap();
     }
+}
+
+/// Kills the busy child processes even when an assertion fails.
+struct Hogs(Vec<std::process::Child>);
+
+impl Drop for Hogs {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+#[test]
+fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() {
+    // Both cores busy with other processes.
+    let hogs = Hogs(
+        (0..2)
+            .map(|_| {
+                Command::new("sh")
+                    .args(["-c", "while :; do :; done"])
+                    .spawn()
+                    .unwrap()
+            })
+            .collect(),
+    );
+    let params = PipelineParams::default();
+    let mut p = Pipeline::new(&params);
+    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
+    let (pose_tx, pose_rx) = latest::<Msg>("pose");
+    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
+    p.register_edge(&scan_tx);
+    p.register_edge(&pose_tx);
+    p.register_edge(&cmd_tx);
+    let scans = 40;
+    p.spawn(
+        "scanner",
+        Scanner {
+            next: Instant::now(),
+            left: scans,
+            out: scan_tx,
+        },
+    )
+    .unwrap();
+    // ~1 ms of work at full quality against the 2 ms budget: under load some
+    // items overrun and the stage degrades.
+    p.spawn("localise", worker(scan_rx, Some(pose_tx), 160))
+        .unwrap();
+    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
+        .unwrap();
+    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let out = Supervisor::new(&params).run(p, &mut Coverage(0));
+    drop(hogs);
+    let snap = out.snapshot;
+    assert_eq!(out.reason, StopReason::AllStagesDone);
+    let motor = snap.stages.iter().find(|s| s.name == "motor").unwrap();
+    assert_eq!(snap.edges[0].sent, u64::from(scans));
+    assert_eq!(
+        motor.iterations + snap.dropped(),
+        u64::from(scans),
+        "a scan is either delivered or counted as dropped"
+    );
+    assert_eq!(snap.end_to_end().count(), motor.iterations);
+    for st in &snap.stages {
+        let h = sweepline::pipeline::metrics::LatencyHistogram::from_buckets(&st.latency);
+        assert_eq!(h.count(), st.iterations, "{}", st.name);
+        let budget = Duration::from_secs_f64(st.budget);
+        // Histogram buckets are 0.1 % wide: compare with a bucket of slack.
+        assert!(
+            h.count_above(budget.mul_f64(1.002)) <= st.overruns,
+            "{}: every item over budget is an overrun",
+            st.name
+        );
+        assert!(
+            st.overruns <= h.count_above(budget.mul_f64(0.998)),
+            "{}: no overrun without a latency over budget",
+            st.name
+        );
+        assert!(st.degrade_raises <= st.overruns / u64::from(params.degrade_after));
+    }
+    let q = sweepline::pipeline::metrics::Quantiles::of(&snap.end_to_end());
+    eprintln!(
+        "under load: {} cores, process CPU {:.2} % of one core, end-to-end p50 {:.3} ms p99 {:.3} ms max {:.3} ms, dropped {}, localise overruns {} raises {}",
+        snap.cores,
+        snap.cpu_share() * 100.0,
+        q.p50 * 1e3,
+        q.p99 * 1e3,
+        q.max * 1e3,
+        snap.dropped(),
+        snap.stages[1].overruns,
+        snap.stages[1].degrade_raises
+    );
 }

@@ -3,5 +3,7 @@
 
 pub mod budget;
 pub mod histogram;
+pub mod run_folder;
 
 pub use budget::{report_run_dir, write_budget_report, ReportError};
+pub use run_folder::RunFolderHooks;
