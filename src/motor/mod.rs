@@ -2,6 +2,7 @@
 //! iRobot Create 2 Open Interface, drivers over a port, odometry and safety.
 
 pub mod crc16;
+pub mod create2;
 pub mod roboclaw;
 pub mod types;
 
