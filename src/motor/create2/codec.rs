@@ -182,7 +182,7 @@ pub type OiBytes = HVec<u8, 24>;
 pub fn encode(c: &OiCommand) -> OiBytes {
     let mut o = OiBytes::new();
     // Capacity 24 exceeds the longest command (2 + 16 ids): pushes cannot fail.
-    let mut two = |o: &mut OiBytes, opc: u8, a: i16, b: i16| {
+    let two = |o: &mut OiBytes, opc: u8, a: i16, b: i16| {
         let _ = o.push(opc);
         let _ = o.extend_from_slice(&a.to_be_bytes());
         let _ = o.extend_from_slice(&b.to_be_bytes());
