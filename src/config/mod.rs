@@ -126,6 +126,7 @@ impl Config {
         if !r.scanner_offset_x.is_finite() {
             return Err(invalid("robot.scanner_offset_x", "must be a finite number"));
         }
+        self.motor.validate()?;
         Ok(())
     }
 }

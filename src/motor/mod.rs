@@ -2,6 +2,10 @@
 //! iRobot Create 2 Open Interface, drivers over a port, odometry and safety.
 
 pub mod crc16;
+pub mod link;
+pub mod odometry;
+pub mod params;
+pub mod safety;
 pub mod create2;
 pub mod roboclaw;
 pub mod types;
@@ -9,10 +13,4 @@ pub mod types;
 pub use types::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
-
-/// Wheel-base link settings.
-/// Loaded from the `[motor]` table of the config file; every field is documented
-/// in `hw/robot.toml`.
-#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct MotorParams {}
+pub use params::{BaseKind, Create2Params, MotorParams, RoboClawParams};

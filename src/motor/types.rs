@@ -167,20 +167,20 @@ impl BaseFeedback {
 }
 
 /// A differential-drive base: wheel velocity set-points in, encoder odometry and
-/// safety events out. Time is injected: `now` is seconds on the daemon's
-/// monotonic clock.
+/// safety events out. Time comes from the driver's injected
+/// [`crate::clock::Clock`]; timestamps are seconds on that clock.
 pub trait DiffDriveBase: Send {
     /// Sets the wheel velocities (m/s). This also feeds the dead-man timer;
     /// safety latches (bumper, wheel drop) may override the command with a stop.
-    fn set_wheels(&mut self, cmd: WheelSpeeds, now: f64) -> Result<(), MotorError>;
+    fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError>;
 
     /// Runs one I/O cycle: reads encoders and sensors, enforces the dead-man,
     /// detects a silent or garbled link and re-establishes it.
-    fn poll(&mut self, now: f64) -> Result<BaseFeedback, MotorError>;
+    fn poll(&mut self) -> Result<BaseFeedback, MotorError>;
 
     /// Stops the wheels now (best effort) and leaves the base safe, e.g. on
     /// shutdown.
-    fn stop(&mut self, now: f64) -> Result<(), MotorError>;
+    fn stop(&mut self) -> Result<(), MotorError>;
 
     /// The link counters.
     fn health(&self) -> LinkHealth;
