@@ -74,7 +74,11 @@ pub struct Link {
 
 impl Link {
     /// A closed link; `reconnect_interval` (clock seconds) spaces open attempts.
-    pub fn new(opener: Box<dyn LinkOpener>, read_timeout: Duration, reconnect_interval: f64) -> Self {
+    pub fn new(
+        opener: Box<dyn LinkOpener>,
+        read_timeout: Duration,
+        reconnect_interval: f64,
+    ) -> Self {
         Self {
             opener,
             port: None,
@@ -112,7 +116,10 @@ impl Link {
             Err(e) => {
                 let msg = e.to_string();
                 if self.last_open_error.as_deref() != Some(&msg) {
-                    log::warn!("wheel base: {msg}; retrying every {:.1} s", self.reconnect_interval);
+                    log::warn!(
+                        "wheel base: {msg}; retrying every {:.1} s",
+                        self.reconnect_interval
+                    );
                     self.last_open_error = Some(msg);
                 }
                 false
@@ -123,7 +130,10 @@ impl Link {
     /// Closes the port (the device went away).
     pub fn close(&mut self) {
         if self.port.take().is_some() {
-            log::warn!("wheel base: {} went away; will re-open it", self.opener.describe());
+            log::warn!(
+                "wheel base: {} went away; will re-open it",
+                self.opener.describe()
+            );
         }
     }
 

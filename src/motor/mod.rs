@@ -2,15 +2,15 @@
 //! iRobot Create 2 Open Interface, drivers over a port, odometry and safety.
 
 pub mod crc16;
+pub mod create2;
 pub mod link;
 pub mod odometry;
 pub mod params;
-pub mod safety;
-pub mod create2;
 pub mod roboclaw;
+pub mod safety;
 pub mod types;
 
+pub use params::{BaseKind, Create2Params, MotorParams, RoboClawParams};
 pub use types::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
-pub use params::{BaseKind, Create2Params, MotorParams, RoboClawParams};

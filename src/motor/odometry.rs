@@ -173,7 +173,10 @@ mod tests {
         assert_eq!(o.update(l as u32, l as u32, 0.0), Ok(None));
         for i in 1..=100 {
             l = l.wrapping_add(45); // 0.02 m per 0.1 s
-            let d = o.update(l as u32, l as u32, i as f64 * 0.1).unwrap().unwrap();
+            let d = o
+                .update(l as u32, l as u32, i as f64 * 0.1)
+                .unwrap()
+                .unwrap();
             total *= d.delta;
         }
         assert!((total.translation.x - 2.0).abs() < 1e-9, "{total}");

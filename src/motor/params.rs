@@ -140,7 +140,9 @@ impl MotorParams {
 
     /// The RoboClaw serial-timeout byte (100 ms units).
     pub fn roboclaw_timeout_tenths(&self) -> u8 {
-        (self.roboclaw.serial_timeout * 10.0).round().clamp(1.0, 255.0) as u8
+        (self.roboclaw.serial_timeout * 10.0)
+            .round()
+            .clamp(1.0, 255.0) as u8
     }
 }
 
@@ -158,18 +160,31 @@ mod tests {
     fn bad_values_are_named() {
         let mut p = MotorParams::default();
         p.roboclaw.address = 0x10;
-        assert!(p.validate().unwrap_err().to_string().contains("motor.roboclaw.address"));
+        assert!(p
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("motor.roboclaw.address"));
         let mut p = MotorParams::default();
         p.deadman = 0.0;
-        assert!(p.validate().unwrap_err().to_string().contains("motor.deadman"));
+        assert!(p
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("motor.deadman"));
         let mut p = MotorParams::default();
         p.roboclaw.serial_timeout = 30.0;
-        assert!(p.validate().unwrap_err().to_string().contains("serial_timeout"));
+        assert!(p
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("serial_timeout"));
     }
 
     #[test]
     fn kind_parses_from_toml() {
-        let p: MotorParams = toml::from_str("kind = \"create2\"\n[create2]\nfull_mode = true\n").unwrap();
+        let p: MotorParams =
+            toml::from_str("kind = \"create2\"\n[create2]\nfull_mode = true\n").unwrap();
         assert_eq!(p.kind, BaseKind::Create2);
         assert!(p.create2.full_mode);
         assert!(toml::from_str::<MotorParams>("kind = \"kobuki\"\n").is_err());

@@ -121,17 +121,44 @@ mod tests {
     #[test]
     fn bumper_allows_only_reversing() {
         let mut g = SafetyGate::new();
-        let fwd = WheelSpeeds { left: 0.1, right: 0.1 };
-        let back = WheelSpeeds { left: -0.1, right: -0.05 };
-        let spin = WheelSpeeds { left: -0.1, right: 0.1 };
+        let fwd = WheelSpeeds {
+            left: 0.1,
+            right: 0.1,
+        };
+        let back = WheelSpeeds {
+            left: -0.1,
+            right: -0.05,
+        };
+        let spin = WheelSpeeds {
+            left: -0.1,
+            right: 0.1,
+        };
         assert_eq!(g.filter(fwd), fwd);
-        let e = g.set_bumper(Sides { left: true, right: false });
-        assert_eq!(e, Some(SafetyEvent::Bumper(Sides { left: true, right: false })));
-        assert_eq!(g.set_bumper(Sides { left: true, right: false }), None);
+        let e = g.set_bumper(Sides {
+            left: true,
+            right: false,
+        });
+        assert_eq!(
+            e,
+            Some(SafetyEvent::Bumper(Sides {
+                left: true,
+                right: false
+            }))
+        );
+        assert_eq!(
+            g.set_bumper(Sides {
+                left: true,
+                right: false
+            }),
+            None
+        );
         assert_eq!(g.filter(fwd), WheelSpeeds::STOP);
         assert_eq!(g.filter(spin), WheelSpeeds::STOP);
         assert_eq!(g.filter(back), back);
-        assert_eq!(g.set_bumper(Sides::default()), Some(SafetyEvent::BumperReleased));
+        assert_eq!(
+            g.set_bumper(Sides::default()),
+            Some(SafetyEvent::BumperReleased)
+        );
         assert_eq!(g.filter(fwd), fwd);
     }
 
@@ -139,11 +166,23 @@ mod tests {
     fn wheel_drop_blocks_everything() {
         let mut g = SafetyGate::new();
         assert!(matches!(
-            g.set_wheel_drop(Sides { left: false, right: true }),
+            g.set_wheel_drop(Sides {
+                left: false,
+                right: true
+            }),
             Some(SafetyEvent::WheelDrop(_))
         ));
-        assert_eq!(g.filter(WheelSpeeds { left: -0.1, right: -0.1 }), WheelSpeeds::STOP);
-        assert_eq!(g.set_wheel_drop(Sides::default()), Some(SafetyEvent::WheelDropCleared));
+        assert_eq!(
+            g.filter(WheelSpeeds {
+                left: -0.1,
+                right: -0.1
+            }),
+            WheelSpeeds::STOP
+        );
+        assert_eq!(
+            g.set_wheel_drop(Sides::default()),
+            Some(SafetyEvent::WheelDropCleared)
+        );
         assert!(!g.active());
     }
 }

@@ -190,7 +190,8 @@ impl RoboClawDriver {
     fn send_speeds(&mut self, w: WheelSpeeds) -> Result<(), TxError> {
         let (m1, m2) = self.counts(w);
         let retries = self.retries + 1;
-        self.transact(&Command::DriveSpeeds { m1, m2 }, retries).map(|_| ())
+        self.transact(&Command::DriveSpeeds { m1, m2 }, retries)
+            .map(|_| ())
     }
 
     /// Arms the controller timeout and takes an encoder baseline.
