@@ -165,8 +165,10 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("motor.roboclaw.address"));
-        let mut p = MotorParams::default();
-        p.deadman = 0.0;
+        let p = MotorParams {
+            deadman: 0.0,
+            ..MotorParams::default()
+        };
         assert!(p
             .validate()
             .unwrap_err()
