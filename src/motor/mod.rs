@@ -14,3 +14,22 @@ pub use params::{BaseKind, Create2Params, MotorParams, RoboClawParams};
 pub use types::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
+
+/// Builds the wheel-base driver the config selects, opening `p.device` as a
+/// tty (through [`link::TtyOpener`]) on its first poll.
+pub fn open_base(
+    p: &MotorParams,
+    robot: &crate::config::RobotParams,
+    clock: crate::clock::SharedClock,
+) -> Box<dyn DiffDriveBase> {
+    let opener = Box::new(link::TtyOpener {
+        path: p.device.clone(),
+        baud: p.baud,
+    });
+    match p.kind {
+        BaseKind::Roboclaw => Box::new(roboclaw::driver::RoboClawDriver::new(
+            p, robot, opener, clock,
+        )),
+        BaseKind::Create2 => Box::new(create2::driver::Create2Driver::new(p, robot, opener, clock)),
+    }
+}

@@ -2,3 +2,4 @@
 //! [`driver`] that owns the port.
 
 pub mod codec;
+pub mod driver;
