@@ -20,34 +20,17 @@ pub trait LinkOpener: Send {
     fn describe(&self) -> String;
 }
 
-/// Opens a tty device path raw (8N1, exclusive, no flow control) through the
-/// `serialport` crate.
-#[derive(Clone, Debug)]
-pub struct TtyOpener {
-    /// The device path.
-    pub path: String,
-    /// Bit rate (ignored by USB-CDC devices and ptys).
-    pub baud: u32,
-}
+/// A [`crate::serial::Connector`] (a tty path, a pty, a TCP socket) as the
+/// wheel base's opener: the port is opened raw and exclusive, and re-opened
+/// after the device went away.
+pub struct ConnectorOpener(pub Box<dyn crate::serial::Connector>);
 
-impl LinkOpener for TtyOpener {
+impl LinkOpener for ConnectorOpener {
     fn open(&mut self, read_timeout: Duration) -> io::Result<Box<dyn ByteLink>> {
-        let tty = serialport::new(self.path.clone(), self.baud)
-            .timeout(read_timeout)
-            .exclusive(true)
-            .open_native()
-            .map_err(|e| {
-                let kind = match e.kind() {
-                    serialport::ErrorKind::NoDevice => io::ErrorKind::NotFound,
-                    serialport::ErrorKind::Io(k) => k,
-                    _ => io::ErrorKind::Other,
-                };
-                io::Error::new(kind, format!("cannot open {}: {e}", self.path))
-            })?;
-        Ok(Box::new(tty))
+        Ok(Box::new(self.0.open(read_timeout)?))
     }
     fn describe(&self) -> String {
-        self.path.clone()
+        self.0.describe()
     }
 }
 

@@ -16,16 +16,16 @@ pub use types::{
 };
 
 /// Builds the wheel-base driver the config selects, opening `p.device` as a
-/// tty (through [`link::TtyOpener`]) on its first poll.
+/// tty (raw, exclusive, through [`crate::serial::DeviceConnector`]) on its
+/// first poll.
 pub fn open_base(
     p: &MotorParams,
     robot: &crate::config::RobotParams,
     clock: crate::clock::SharedClock,
 ) -> Box<dyn DiffDriveBase> {
-    let opener = Box::new(link::TtyOpener {
-        path: p.device.clone(),
-        baud: p.baud,
-    });
+    let mut dev = crate::serial::DeviceConnector::new(p.device.clone());
+    dev.baud = p.baud;
+    let opener = Box::new(link::ConnectorOpener(Box::new(dev)));
     match p.kind {
         BaseKind::Roboclaw => Box::new(roboclaw::driver::RoboClawDriver::new(
             p, robot, opener, clock,

@@ -154,11 +154,10 @@ impl DiffDriveSim {
         let blocked = match world {
             Some(w) if dl != 0.0 || dr != 0.0 => {
                 let c = candidate.translation.vector;
-                let now_free =
-                    w.disk_is_free(&Point2::from(self.pose.translation.vector), p.body_radius);
-                // Once stuck in a wall (bad start), any motion is allowed that
-                // does not make it worse; otherwise the disk must stay free.
-                now_free && !w.disk_is_free(&Point2::from(c), p.body_radius)
+                // A body already overlapping something (a bad start) may move;
+                // otherwise the disk must stay on free floor.
+                !w.disk_is_free(&Point2::from(c), p.body_radius)
+                    && w.disk_is_free(&Point2::from(self.pose.translation.vector), p.body_radius)
             }
             _ => false,
         };

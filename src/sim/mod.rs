@@ -1,4 +1,5 @@
 //! Simulation: worlds, ray casting, robot kinematics, device emulators on
 //! ptys, and replay of recorded logs.
+pub mod base_emu;
 pub mod kinematics;
 pub mod world;
