@@ -301,6 +301,11 @@ impl DiffDriveBase for Create2Driver {
                     for f in frames {
                         self.on_frame(f, t);
                     }
+                    // A short read drained the port: stop here rather than wait
+                    // for a read timeout (frames come every 15 ms anyway).
+                    if n < buf.len() {
+                        break;
+                    }
                 }
                 ReadOutcome::Timeout | ReadOutcome::Gone => break,
             }

@@ -54,6 +54,7 @@ pub struct RoboClawDriver {
     up: bool,
     ever_up: bool,
     last_ok: f64,
+    fail_streak: u32,
     next_probe: f64,
     pending: heapless::Vec<SafetyEvent, 8>,
 }
@@ -98,6 +99,7 @@ impl RoboClawDriver {
             up: false,
             ever_up: false,
             last_ok: 0.0,
+            fail_streak: 0,
             next_probe: f64::NEG_INFINITY,
             pending: heapless::Vec::new(),
         }
@@ -125,6 +127,7 @@ impl RoboClawDriver {
                 Ok(r) => {
                     self.health.received += 1;
                     self.last_ok = self.clock.now();
+                    self.fail_streak = 0;
                     return Ok(r);
                 }
                 Err(TxError::Closed) => return Err(TxError::Closed),
@@ -139,6 +142,7 @@ impl RoboClawDriver {
                 }
             }
         }
+        self.fail_streak += 1;
         Err(last)
     }
 
@@ -332,7 +336,9 @@ impl DiffDriveBase for RoboClawDriver {
             }
             if closed {
                 self.declare_lost("device went away");
-            } else if self.clock.now() - self.last_ok > self.link_timeout {
+            } else if self.fail_streak >= 2 && self.clock.now() - self.last_ok > self.link_timeout {
+                // Both conditions: a slow poll under a time-scaled clock is not
+                // a dead link; two failed requests in a row past the timeout are.
                 self.declare_lost("no valid reply");
             }
         }
