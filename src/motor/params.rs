@@ -15,6 +15,21 @@ pub enum BaseKind {
     Create2,
 }
 
+impl std::str::FromStr for BaseKind {
+    type Err = String;
+
+    /// Parses `roboclaw` or `create2` (as on the `sweepline emulate` command line).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "roboclaw" => Ok(BaseKind::Roboclaw),
+            "create2" | "create" | "roomba" => Ok(BaseKind::Create2),
+            other => Err(format!(
+                "unknown wheel base `{other}`: expected `roboclaw` or `create2`"
+            )),
+        }
+    }
+}
+
 /// Wheel-base link settings.
 /// Loaded from the `[motor]` table of the config file; every field is documented
 /// in `hw/robot.toml`.
@@ -197,5 +212,8 @@ mod tests {
         assert_eq!(p.kind, BaseKind::Create2);
         assert!(p.create2.full_mode);
         assert!(toml::from_str::<MotorParams>("kind = \"kobuki\"\n").is_err());
+        assert_eq!("Create2".parse::<BaseKind>(), Ok(BaseKind::Create2));
+        assert_eq!("roboclaw".parse::<BaseKind>(), Ok(BaseKind::Roboclaw));
+        assert!("kobuki".parse::<BaseKind>().unwrap_err().contains("kobuki"));
     }
 }
