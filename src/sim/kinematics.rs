@@ -32,6 +32,10 @@ pub struct KinematicsParams {
     /// Slip: standard deviation of ground travel relative to wheel travel
     /// (dimensionless, per unit of travel), drawn per wheel per step.
     pub slip: f64,
+    /// Systematic ground-travel error of the left and right wheel (worn or
+    /// mis-measured tyres: 0.002 = the wheel covers 0.2 % more floor than its
+    /// encoder counts). Makes odometry drift the way real bases do.
+    pub scale_error: (f64, f64),
     /// Standard deviation of encoder noise per step (m of wheel travel).
     pub encoder_noise: f64,
     /// How far beyond the body the bumper senses contact (m).
@@ -48,6 +52,7 @@ impl Default for KinematicsParams {
             max_accel: 1.0,
             max_wheel_speed: 0.5,
             slip: 0.01,
+            scale_error: (0.002, -0.001),
             encoder_noise: 2e-5,
             bumper_margin: 0.02,
             seed: 1,
@@ -148,8 +153,9 @@ impl DiffDriveSim {
         let dl = 0.5 * (self.wheel.left + next.left) * dt;
         let dr = 0.5 * (self.wheel.right + next.right) * dt;
         let (slip, noise) = (p.slip, p.encoder_noise);
-        let gl = dl * (1.0 + slip * self.gauss());
-        let gr = dr * (1.0 + slip * self.gauss());
+        let (el, er) = p.scale_error;
+        let gl = dl * (1.0 + el + slip * self.gauss());
+        let gr = dr * (1.0 + er + slip * self.gauss());
         let candidate = self.pose * arc_increment(gl, gr, p.wheel_base);
         let blocked = match world {
             Some(w) if dl != 0.0 || dr != 0.0 => {
@@ -212,6 +218,7 @@ mod tests {
     fn quiet() -> KinematicsParams {
         KinematicsParams {
             slip: 0.0,
+            scale_error: (0.0, 0.0),
             encoder_noise: 0.0,
             max_accel: 1e9,
             ..KinematicsParams::default()
