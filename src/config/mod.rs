@@ -194,6 +194,7 @@ impl Config {
             return Err(invalid("robot.scanner_offset_x", "must be a finite number"));
         }
         self.pipeline.validate()?;
+        self.motor.validate()?;
         Ok(())
     }
 }

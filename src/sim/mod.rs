@@ -1,5 +1,7 @@
 //! Simulation: worlds, ray casting, robot kinematics, device emulators on
 //! ptys, and replay of recorded logs.
+pub mod base_emu;
+pub mod kinematics;
 pub mod world;
 pub mod urg_emu;
 
