@@ -2,7 +2,7 @@
 //! ptys, and replay of recorded logs.
 pub mod base_emu;
 pub mod kinematics;
-pub mod world;
 pub mod urg_emu;
+pub mod world;
 
 pub mod carmen;
