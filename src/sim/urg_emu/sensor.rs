@@ -499,6 +499,11 @@ impl Sensor {
         self.last_stamp = stamp;
         let mut block = std::mem::take(&mut self.block);
         block.clear();
+        if self.faults.noise_every > 0
+            && self.sent.is_multiple_of(u64::from(self.faults.noise_every))
+        {
+            block.extend_from_slice(b"\x00\x13\xfe\x07~\xff\n");
+        }
         let _ = echo.encode(&mut block);
         if fault == Some(ScanFault::ErrorStatus) {
             let _ = crate::scip::reply::write_status(st(&self.faults.status_code), &mut block);
