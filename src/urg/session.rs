@@ -16,8 +16,8 @@ use super::timesync::{continuity, ClockModel, Continuity, SyncHistory, TimeSampl
 use super::UrgParams;
 use crate::scip::{
     fill_laser_scan, ClockUnwrapper, Cluster, Command, CommandKind, DataKind, Decoder,
-    DecoderOptions, Event, FrameError, ModelFamily, RawReply, ReplyBody, ScanRequest, SensorInfo,
-    SensorParams, Status, StatusCode, StreamRequest, TaggedCommand, VersionInfo,
+    DecoderOptions, Event, FrameError, RawReply, ReplyBody, ScanRequest, SensorInfo, SensorParams,
+    Status, StatusCode, StreamRequest, TaggedCommand, VersionInfo,
 };
 use crate::serial::{is_link_gone, write_chunked, Port};
 
@@ -600,6 +600,9 @@ impl UrgSession {
         let _ = TaggedCommand::new(Command::Stream(req)).encode_line(&mut line);
         let kind = TaggedCommand::new(Command::Stream(req)).command.kind();
         self.simple(&line, kind)?;
+        // Revolutions skipped while the stream was deliberately stopped are
+        // not lost scans: gaps are judged within one stream only.
+        self.core.prev_ms = None;
         self.core.streaming = Some(req);
         self.core.last_scan_at = self.core.clock.now();
         self.core.health.streaming.store(true, Ordering::Relaxed);
@@ -849,9 +852,4 @@ impl Core {
         self.last_scan_at = now;
         (self.sink)(scan);
     }
-}
-
-/// The error-table family of a sensor, for printing readings.
-pub fn family_of(info: &SessionInfo) -> ModelFamily {
-    info.params.family()
 }

@@ -208,7 +208,8 @@ impl Sensor {
     }
 
     fn elapsed_ms(&self, now: f64) -> u64 {
-        ((now - self.t0).max(0.0) * 1000.0 * self.rate).floor() as u64
+        // The epsilon keeps k·period from flooring to the millisecond below.
+        ((now - self.t0).max(0.0) * 1000.0 * self.rate + 1e-6).floor() as u64
     }
 
     /// Makes the sensor's crystal run fast (positive) or slow by `ppm`
