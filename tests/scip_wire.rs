@@ -1022,6 +1022,8 @@ fn pp_geometry_helpers_use_the_sensors_own_values() {
     assert_eq!(p.step_count(), 682);
     assert!((p.scan_period() - 0.1).abs() < 1e-15);
     assert!((p.time_per_step() - 0.1 / 1024.0).abs() < 1e-15);
+    assert_eq!(p.time_of_step(44.0), 0.0);
+    assert!((p.time_of_step(725.0) - 681.0 * 0.1 / 1024.0).abs() < 1e-15);
     assert_eq!(p.angle_of_step(384.0), 0.0);
     assert!((p.angle_of_step(640.0) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
     assert_eq!(p.step_of_angle(0.0), 384);
