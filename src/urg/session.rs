@@ -83,6 +83,9 @@ pub enum UrgError {
     /// Shutdown was requested.
     #[error("driver is shutting down")]
     Stopped,
+    /// A `[scanner]` setting is out of range.
+    #[error("bad scanner setting: {0}")]
+    Config(String),
 }
 
 impl UrgError {
