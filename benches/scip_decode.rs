@@ -126,6 +126,19 @@ fn percentiles(what: &str, mut routine: impl FnMut() -> usize) {
     report("  thread CPU time", cpu);
 }
 
+/// The GD reply of the real URG-04LX capture, when ../shared is present.
+fn real_gd_reply() -> Option<Vec<u8>> {
+    let path = sweepline::testdata::shared_file("datasets/hokuyo-captures/example_urg_04lx.logr")?;
+    let data = std::fs::read(path).ok()?;
+    let bytes: Vec<u8> = scip::parse_capture(&data)
+        .ok()?
+        .into_iter()
+        .flat_map(|r| r.bytes)
+        .collect();
+    let at = bytes.windows(3).position(|w| w == b"GD0")?;
+    Some(bytes[at..].to_vec())
+}
+
 fn main() {
     let bytes = md_scan_bytes();
     let params = SensorParams::urg_04lx();
@@ -138,6 +151,11 @@ fn main() {
     percentiles("md_scan_682 to LaserScan (bytes -> LaserScan)", || {
         decode_fill(&mut dec, black_box(&bytes), &params, &mut out)
     });
+    if let Some(gd) = real_gd_reply() {
+        percentiles("real URG-04LX GD capture to LaserScan", || {
+            decode_fill(&mut dec, black_box(&gd), &params, &mut out)
+        });
+    }
 
     let mut c = Criterion::default().configure_from_args();
     let mut g = c.benchmark_group("scip");

@@ -319,6 +319,7 @@ fn fuzz(seed: u64, cases: usize) {
         "only {replies} replies in {cases} cases"
     );
     let s = dec.stats();
+    eprintln!("seed {seed:#x}: {cases} cases, {replies} replies; {s:?}");
     assert!(
         s.checksum_errors() > 0 && s.desyncs > 0 && s.truncated_replies > 0,
         "{s:?}"

@@ -342,3 +342,73 @@ const EXPECTED_UXM_TIMES: [u32; 10] = [
     3_292_603, 3_292_604, 3_292_605, 3_292_606, 3_292_607, 3_292_607, 3_292_608, 3_292_609,
     3_292_610, 3_292_611,
 ];
+
+/// Draws the real URG-04LX GD scan (valid beams as points, error readings as
+/// grey rays) to `target/tmp/scip_golden_urg04lx_gd.svg`, for a person to look at.
+#[test]
+fn urg_04lx_scan_picture() {
+    use svg::node::element::{Circle, Line, Rectangle};
+    sweepline::require_shared!(URG);
+    let mut doc = svg::Document::new().set("viewBox", (-6.0, -6.0, 12.0, 12.0));
+    doc = doc.add(
+        Rectangle::new()
+            .set("x", -6)
+            .set("y", -6)
+            .set("width", 12)
+            .set("height", 12)
+            .set("fill", "white"),
+    );
+    let mut params = None;
+    let mut drawn = 0;
+    let mut picture = Some(doc);
+    for_each_typed(URG, |_, reply| match &reply.body {
+        ReplyBody::Params(p) => params = Some(p.clone()),
+        ReplyBody::Scan(scan) => {
+            let p = params.as_ref().unwrap();
+            let mut ls = sweepline::scan::LaserScan::default();
+            scip::fill_laser_scan(scan, p, 0.0, 0, &mut ls).unwrap();
+            let mut d = picture.take().unwrap();
+            for b in ls.beams.iter() {
+                // SVG y grows downwards: flip so the picture is x right, y up.
+                let (s, c) = b.angle.sin_cos();
+                if b.valid {
+                    d = d.add(
+                        Circle::new()
+                            .set("cx", b.range * c)
+                            .set("cy", -b.range * s)
+                            .set("r", 0.03)
+                            .set("fill", "black"),
+                    );
+                    drawn += 1;
+                } else {
+                    d = d.add(
+                        Line::new()
+                            .set("x1", 0)
+                            .set("y1", 0)
+                            .set("x2", 0.5 * c)
+                            .set("y2", -0.5 * s)
+                            .set("stroke", "#bbb")
+                            .set("stroke-width", 0.01),
+                    );
+                }
+            }
+            // The sensor's front (+x) in red.
+            d = d.add(
+                Line::new()
+                    .set("x1", 0)
+                    .set("y1", 0)
+                    .set("x2", 1)
+                    .set("y2", 0)
+                    .set("stroke", "red")
+                    .set("stroke-width", 0.03),
+            );
+            picture = Some(d);
+        }
+        _ => {}
+    });
+    assert_eq!(drawn, 581);
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    std::fs::create_dir_all(dir).unwrap();
+    let out = dir.join("scip_golden_urg04lx_gd.svg");
+    svg::save(&out, &picture.unwrap()).unwrap();
+}

@@ -786,6 +786,34 @@ fn garbage_noise_and_overlong_lines_resync_at_the_next_reply() {
 }
 
 #[test]
+fn a_guessed_echo_without_a_status_is_skipped_silently() {
+    let input = b"junk line\nVV\nnot a status\nmore\n\nBM\n00P\n\n";
+    let mut dec = Decoder::default();
+    assert_eq!(
+        decode_stream_with(&mut dec, input),
+        [Got::Error(FrameError::UnexpectedLine), reply("BM")]
+    );
+    assert_eq!(dec.stats().desyncs, 1);
+}
+
+#[test]
+fn reset_forgets_a_partial_reply() {
+    let full = md_scan_bytes(0, 1);
+    let mut dec = Decoder::default();
+    assert_eq!(decode_stream_with(&mut dec, &full[..500]), []);
+    assert!(!dec.is_idle());
+    dec.reset();
+    assert!(dec.is_idle());
+    assert_eq!(
+        decode_stream_with(&mut dec, &full),
+        [reply("MD0044072501000")]
+    );
+    // Options can change between replies.
+    dec.set_options(DecoderOptions { lenient_kv: true });
+    assert!(dec.options().lenient_kv);
+}
+
+#[test]
 fn cr_and_crlf_streams_decode_like_lf() {
     let mut lf = md_scan_bytes(0, 1);
     lf.extend_from_slice(b"QT\n00P\n\n");
@@ -994,6 +1022,8 @@ fn pp_geometry_helpers_use_the_sensors_own_values() {
     assert_eq!(p.step_count(), 682);
     assert!((p.scan_period() - 0.1).abs() < 1e-15);
     assert!((p.time_per_step() - 0.1 / 1024.0).abs() < 1e-15);
+    assert_eq!(p.time_of_step(44.0), 0.0);
+    assert!((p.time_of_step(725.0) - 681.0 * 0.1 / 1024.0).abs() < 1e-15);
     assert_eq!(p.angle_of_step(384.0), 0.0);
     assert!((p.angle_of_step(640.0) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
     assert_eq!(p.step_of_angle(0.0), 384);

@@ -60,6 +60,13 @@ fn extra_bytes_lose_only_their_scan() {
 }
 
 #[test]
+fn line_noise_between_replies_loses_nothing() {
+    let (_, _, h) = run("noise", "noise=4", 30);
+    assert!(h.desyncs >= 6, "{h}");
+    assert_eq!(h.discarded_scans, 0, "{h}");
+}
+
+#[test]
 fn crlf_line_ends_are_accepted() {
     let (_, _, h) = run("crlf", "crlf", 20);
     assert_eq!(h.checksum_errors + h.desyncs, 0);

@@ -87,3 +87,17 @@ fn probe_of_a_missing_device_says_why() {
     let msg = e.to_string();
     assert!(msg.contains("/dev/does-not-exist-urg"), "{msg}");
 }
+
+#[test]
+fn probe_of_a_silent_device_says_it_did_not_answer() {
+    // A pty nobody answers on: the device exists but says nothing.
+    let pty = sweepline::serial::Pty::open().unwrap();
+    let params = UrgParams {
+        reply_timeout: 0.02,
+        ..UrgParams::default()
+    };
+    let t0 = std::time::Instant::now();
+    let e = probe(pty.slave_path(), &params, Arc::new(MonotonicClock::new())).unwrap_err();
+    assert!(e.to_string().contains("no reply to QT"), "{e}");
+    assert!(t0.elapsed().as_secs_f64() < 3.0);
+}

@@ -78,3 +78,57 @@ fn clean_session_streams_every_scan_once() {
     );
     assert_eq!(*cmds.last().unwrap(), "QT", "clean shutdown sends QT");
 }
+
+#[test]
+fn bad_settings_are_refused_before_anything_starts() {
+    use std::sync::Arc;
+    use sweepline::serial::DeviceConnector;
+    use sweepline::urg::{MonotonicClock, UrgDriver, UrgParams};
+    let p = UrgParams {
+        cluster: 0,
+        ..UrgParams::default()
+    };
+    let e = UrgDriver::start(
+        Box::new(DeviceConnector::new("/dev/null-urg")),
+        p,
+        Arc::new(MonotonicClock::new()),
+    )
+    .err()
+    .unwrap();
+    assert!(e.to_string().contains("scanner.cluster"), "{e}");
+}
+
+#[test]
+fn a_missing_device_is_waited_for_then_streamed() {
+    use std::sync::Arc;
+    use sweepline::serial::DeviceConnector;
+    use sweepline::sim::urg_emu::{Emulator, EmulatorConfig, RectRoom};
+    use sweepline::urg::{ScaledClock, UrgDriver};
+    let dir = temp_dir("late");
+    let link = dir.join("urg");
+    let clock = Arc::new(ScaledClock::new(RATE));
+    // The driver starts first: the path does not exist yet.
+    let driver = UrgDriver::start(
+        Box::new(DeviceConnector::new(&link)),
+        test_params(),
+        clock.clone(),
+    )
+    .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    assert!(driver.scans().try_recv().is_err());
+    assert!(!driver.health().snapshot().streaming);
+    let cfg = EmulatorConfig {
+        link: Some(link.clone()),
+        ..EmulatorConfig::default()
+    };
+    let emu = Emulator::spawn(cfg, Box::new(RectRoom::bench(2)), clock).unwrap();
+    let s = driver
+        .scans()
+        .recv_timeout(std::time::Duration::from_secs(10))
+        .expect("a scan once the device appeared");
+    assert_eq!(s.scan.beams.len(), 682);
+    assert!(driver.health().snapshot().streaming);
+    driver.shutdown();
+    drop(emu);
+    let _ = std::fs::remove_dir_all(&dir);
+}

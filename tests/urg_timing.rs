@@ -20,42 +20,78 @@ fn nearest(beams: &[Beam], angle: f64) -> Beam {
 
 #[test]
 fn host_stamps_match_the_measurement_time() {
-    let rig = rig("stamps", "", false, test_params());
-    let got = rig.collect(30, 10.0);
+    // Real time over the pty: round trips are real, so allow a few ms.
+    let rig = rig_cfg("stamps", EmulatorConfig::default(), 2.0, test_params());
+    let got = rig.collect(20, 10.0);
     let log = rig.finish();
     check_no_loss(&log, &got);
     for g in &got {
         let sent = log.sent.iter().find(|s| s.stamp == g.raw_stamp).unwrap();
         let err = g.scan.stamp - sent.at;
-        assert!(err.abs() < 0.0025, "stamp off by {:.2} ms", err * 1e3);
+        assert!(err.abs() < 0.005, "stamp off by {:.2} ms", err * 1e3);
     }
 }
 
+/// Lock-step (no pty, no thread): the session over the in-process link on a
+/// manual clock, so round trips are exact and only the 1 ms tick limits the
+/// estimate.
 #[test]
 fn drift_is_estimated_across_resyncs() {
-    let cfg = EmulatorConfig {
-        drift_ppm: 400.0,
-        ..EmulatorConfig::default()
-    };
-    let mut p = test_params();
-    p.resync_interval = 4.0;
-    let rig = rig_cfg("drift", cfg, 10.0, p);
-    let got = rig.collect(300, 20.0);
-    let h = rig.driver().health().snapshot();
-    let log = rig.finish();
-    assert_eq!(got.len(), 300);
-    check_no_loss(&log, &got);
+    use std::sync::atomic::AtomicBool;
+    use std::sync::{Arc, Mutex};
+    use sweepline::sim::urg_emu::{EmuLog, Faults, ModelSpec, RectRoom, Sensor, SensorLink};
+    use sweepline::urg::{ManualClock, UrgHealth, UrgParams, UrgSession};
+
+    let clock = Arc::new(ManualClock::new(0.0));
+    let log = Arc::new(Mutex::new(EmuLog::default()));
+    let mut sensor = Sensor::new(
+        ModelSpec::of(Model::Urg04lx),
+        Faults::default(),
+        false,
+        Box::new(RectRoom::bench(1)),
+        1,
+        log.clone(),
+        0.0,
+    );
+    sensor.set_drift_ppm(400.0);
+    let stamps = Arc::new(Mutex::new(Vec::new()));
+    let st = stamps.clone();
+    let health = Arc::new(UrgHealth::default());
+    let mut session = UrgSession::open(
+        Box::new(SensorLink::new(sensor, clock.clone())),
+        UrgParams::default(),
+        clock.clone(),
+        health.clone(),
+        Arc::new(AtomicBool::new(false)),
+        None,
+        Box::new(move |s: &sweepline::urg::UrgScan| {
+            st.lock().unwrap().push((s.raw_stamp, s.scan.stamp))
+        }),
+    )
+    .unwrap();
+    session.start_stream().unwrap();
+    for i in 1..=600 {
+        session.next_scan().unwrap();
+        if i % 50 == 0 {
+            session.resync().unwrap();
+        }
+    }
+    let h = health.snapshot();
     assert!(
-        (h.clock_drift_ppm - 400.0).abs() < 150.0,
+        (h.clock_drift_ppm - 400.0).abs() < 60.0,
         "drift estimate {:.0} ppm",
         h.clock_drift_ppm
     );
-    let syncs = log.commands.iter().filter(|c| *c == "TM0").count();
-    assert!(syncs >= 5, "{syncs} syncs");
-    for g in got.iter().skip(200) {
-        let sent = log.sent.iter().find(|s| s.stamp == g.raw_stamp).unwrap();
-        let err = g.scan.stamp - sent.at;
-        assert!(err.abs() < 0.004, "stamp off by {:.2} ms", err * 1e3);
+    // Late in the run every stamp is within a tick of the measurement time.
+    let log = log.lock().unwrap();
+    let stamps = stamps.lock().unwrap();
+    for (raw, stamp) in stamps.iter().skip(500) {
+        let sent = log.sent.iter().find(|s| s.stamp == *raw).unwrap();
+        assert!(
+            (stamp - sent.at).abs() < 0.0015,
+            "{:.2} ms",
+            (stamp - sent.at) * 1e3
+        );
     }
 }
 
@@ -110,8 +146,11 @@ fn utm_me_mode_delivers_1081_beams_with_intensity() {
         (front.range - 2.5).abs() < 0.03 && front.intensity > 3000.0,
         "{front:?}"
     );
-    // 40 Hz: 25 ms between scans.
+    // 40 Hz: 25 ms between scans; a revolution the emulator could not send
+    // in time (a loaded machine) shows as a gap the driver reports.
     for w in got.windows(2) {
-        assert_eq!(w[1].sensor_ms - w[0].sensor_ms, 25);
+        let d = w[1].sensor_ms - w[0].sensor_ms;
+        assert_eq!(d % 25, 0, "{d}");
+        assert_eq!(w[1].dropped_before, d / 25 - 1);
     }
 }

@@ -19,6 +19,9 @@ pub struct Args {
     /// Skip the TM clock sync (stamps then use the arrival time).
     #[arg(long)]
     pub no_time_sync: bool,
+    /// Also draw the scan from above into this SVG file.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
 }
 
 /// Runs `sweepline probe`.
@@ -28,14 +31,29 @@ pub fn run(args: Args) -> CliResult {
         time_sync_samples: if args.no_time_sync { 0 } else { 10 },
         ..UrgParams::default()
     };
-    let text = probe(&args.port, &params, Arc::new(MonotonicClock::new()))?;
+    let (text, scan) = probe_scan(&args.port, &params, Arc::new(MonotonicClock::new()))?;
     print!("{text}");
+    if let (Some(path), Some(scan)) = (&args.svg, scan) {
+        let title = args.port.display().to_string();
+        crate::urg::picture::write_scan_svg(&scan, 12.0, &title, path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        println!("scan picture written to {}", path.display());
+    }
     Ok(())
 }
 
 /// Opens the scanner at `port` as the daemon would, identifies it, takes one
 /// scan (`MD…01`) and returns the printed summary.
 pub fn probe(port: &Path, params: &UrgParams, clock: Arc<dyn Clock>) -> Result<String, UrgError> {
+    probe_scan(port, params, clock).map(|(text, _)| text)
+}
+
+/// [`probe`], also returning the scan it took (if any).
+pub fn probe_scan(
+    port: &Path,
+    params: &UrgParams,
+    clock: Arc<dyn Clock>,
+) -> Result<(String, Option<UrgScan>), UrgError> {
     let mut conn = DeviceConnector::new(port);
     conn.baud = params.baud;
     let link = conn
@@ -111,8 +129,8 @@ pub fn probe(port: &Path, params: &UrgParams, clock: Arc<dyn Clock>) -> Result<S
         }
     }
     let scan = slot.lock().ok().and_then(|g| g.clone());
-    match (scan_result, scan) {
-        (Ok(()), Some(s)) => summarise(&mut out, &s),
+    match (scan_result, &scan) {
+        (Ok(()), Some(s)) => summarise(&mut out, s),
         (Err(e), _) => {
             let _ = writeln!(out, "scan         FAILED: {e}");
         }
@@ -132,7 +150,7 @@ pub fn probe(port: &Path, params: &UrgParams, clock: Arc<dyn Clock>) -> Result<S
     for line in health.snapshot().to_string().lines() {
         let _ = writeln!(out, "  {line}");
     }
-    Ok(out)
+    Ok((out, scan))
 }
 
 fn summarise(out: &mut String, s: &UrgScan) {

@@ -14,6 +14,40 @@
 //!
 //! Millimetres and sensor steps appear only inside this module; everything it
 //! hands to the rest of the daemon is in metres, radians and seconds.
+//!
+//! ```
+//! use sweepline::scip::{Command, Decoder, Event, ReplyBody, SensorParams, TaggedCommand};
+//!
+//! // Host → sensor: exact bytes.
+//! let mut out = Vec::new();
+//! TaggedCommand::new(Command::Pp).encode(&mut out).unwrap();
+//! assert_eq!(out, b"PP\n");
+//!
+//! // Sensor → host: bytes in whatever chunks read() returns.
+//! let reply = b"PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\n\
+//!     DMAX:5600;_\nARES:1024;\\\nAMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n";
+//! let mut dec = Decoder::default();
+//! let mut params = None;
+//! for chunk in reply.chunks(7) {
+//!     dec.feed_each(chunk, |ev| match ev {
+//!         Event::Reply(raw) => {
+//!             if let Ok(r) = raw.decode() {
+//!                 if let ReplyBody::Params(p) = r.body {
+//!                     params = Some(p);
+//!                 }
+//!             }
+//!         }
+//!         Event::Error(e) => eprintln!("dropped: {e}"),
+//!     });
+//! }
+//! assert_eq!(params, Some(SensorParams::urg_04lx()));
+//! assert_eq!(dec.stats().checksum_errors(), 0);
+//! ```
+//!
+//! Recovery: a broken reply (bad checksum, noise, overlong line, lost line
+//! end) is reported once as [`FrameError`] and counted in [`DecoderStats`];
+//! the decoder skips to the next reply boundary by itself, or to the next
+//! valid echo (so the `QT` echo is found even in the middle of a stream).
 
 pub mod capture;
 pub mod checksum;

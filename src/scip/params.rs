@@ -316,6 +316,12 @@ impl SensorParams {
         self.scan_period() / f64::from(self.ares.max(1))
     }
 
+    /// Time of step `step` after the first measurable step (AMIN) within one
+    /// scan (s), for deskewing a scan taken while moving.
+    pub fn time_of_step(&self, step: f64) -> f64 {
+        (step - f64::from(self.amin)) * self.time_per_step()
+    }
+
     /// Field of view from AMIN to AMAX (rad).
     pub fn field_of_view(&self) -> f64 {
         f64::from(self.amax.saturating_sub(self.amin)) * self.step_angle()

@@ -44,7 +44,7 @@ impl StatusCode {
     }
 
     /// True when the code means the command worked for `cmd` (`00`; `99` for
-    /// streams; `02` for BM, laser already on; `03` for CR, already at that speed).
+    /// streams; "already so" answers: BM `02`, CR `03`, SS `03`, HS `02`).
     pub fn is_success(&self, cmd: CommandKind) -> bool {
         use CommandKind as K;
         matches!(
@@ -54,6 +54,7 @@ impl StatusCode {
                 | (b"02", K::Bm)
                 | (b"03", K::Cr)
                 | (b"03", K::Ss)
+                | (b"02", K::Hs)
         )
     }
 
@@ -175,6 +176,8 @@ mod tests {
         assert_eq!(c.meaning(CommandKind::Gd), "end step is not numeric");
         assert_eq!(c.meaning(CommandKind::Tm), "already in time-adjust mode");
         assert!(StatusCode::DATA.is_success(CommandKind::Md));
+        assert!(StatusCode(*b"02").is_success(CommandKind::Hs));
+        assert!(!StatusCode(*b"03").is_success(CommandKind::Hs));
         assert!(!StatusCode::DATA.is_success(CommandKind::Gd));
         assert_eq!(
             StatusCode(*b"55").meaning(CommandKind::Md),

@@ -99,11 +99,13 @@ pub struct UrgDriver {
 impl UrgDriver {
     /// Starts the reader thread on `connector`. It opens (and keeps
     /// re-opening) the device by itself; watch [`UrgDriver::health`].
+    /// Fails at once only on out-of-range `params`.
     pub fn start(
         connector: Box<dyn Connector>,
         params: UrgParams,
         clock: Arc<dyn Clock>,
     ) -> Result<UrgDriver, UrgError> {
+        params.validate().map_err(UrgError::Config)?;
         let (tx, rx) = crossbeam_channel::bounded(params.queue.max(1));
         let health = Arc::new(UrgHealth::default());
         let info = Arc::new(Mutex::new(None));

@@ -12,10 +12,12 @@
 //! * [`health`]: lock-free counters for the rest of the daemon.
 //! * [`timesync`]: clock offset/drift estimation, dropped-scan detection.
 //! * [`clock`]: the injected clock.
+//! * [`picture`]: an SVG of one scan (for `sweepline probe --svg`).
 
 pub mod clock;
 pub mod driver;
 pub mod health;
+pub mod picture;
 pub mod session;
 pub mod timesync;
 

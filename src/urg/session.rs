@@ -16,8 +16,8 @@ use super::timesync::{continuity, ClockModel, Continuity, SyncHistory, TimeSampl
 use super::UrgParams;
 use crate::scip::{
     fill_laser_scan, ClockUnwrapper, Cluster, Command, CommandKind, DataKind, Decoder,
-    DecoderOptions, Event, FrameError, ModelFamily, RawReply, ReplyBody, ScanRequest, SensorInfo,
-    SensorParams, Status, StatusCode, StreamRequest, TaggedCommand, VersionInfo,
+    DecoderOptions, Event, FrameError, RawReply, ReplyBody, ScanRequest, SensorInfo, SensorParams,
+    Status, StatusCode, StreamRequest, TaggedCommand, VersionInfo,
 };
 use crate::serial::{is_link_gone, write_chunked, Port};
 
@@ -83,6 +83,9 @@ pub enum UrgError {
     /// Shutdown was requested.
     #[error("driver is shutting down")]
     Stopped,
+    /// A `[scanner]` setting is out of range.
+    #[error("bad scanner setting: {0}")]
+    Config(String),
 }
 
 impl UrgError {
@@ -128,6 +131,7 @@ struct Core {
     new_scan: bool,
     last_scan_at: f64,
     streaming: Option<StreamRequest>,
+    dropped_seen: u64,
     sink: Box<dyn FnMut(&UrgScan) + Send>,
 }
 
@@ -141,6 +145,7 @@ pub struct UrgSession {
     buf: Box<[u8; 4096]>,
     tx: Vec<u8>,
     in_adjust: bool,
+    closing: bool,
     tm_tag: u32,
     last_sync: f64,
 }
@@ -190,12 +195,14 @@ impl UrgSession {
                 new_scan: false,
                 last_scan_at: now,
                 streaming: None,
+                dropped_seen: 0,
                 sink,
             },
             stop,
             buf: Box::new([0u8; 4096]),
             tx: Vec::with_capacity(64),
             in_adjust: false,
+            closing: false,
             tm_tag: 0,
             last_sync: now,
         };
@@ -277,7 +284,7 @@ impl UrgSession {
             if done(&self.core) {
                 return Ok(true);
             }
-            if self.stop.load(Ordering::Relaxed) {
+            if !self.closing && self.stop.load(Ordering::Relaxed) {
                 return Err(UrgError::Stopped);
             }
             if self.core.clock.now() >= deadline {
@@ -297,6 +304,17 @@ impl UrgSession {
                         rest = &rest[used..];
                         if let Some(ev) = ev {
                             self.core.on_event(ev);
+                            // A reply the decoder dropped while streaming is
+                            // a scan we lost (noise between replies is not).
+                            let dropped = self.dec.stats().dropped_replies;
+                            let new = dropped - self.core.dropped_seen.min(dropped);
+                            self.core.dropped_seen = dropped;
+                            if new > 0 && self.core.streaming.is_some() {
+                                self.core
+                                    .health
+                                    .discarded_scans
+                                    .fetch_add(new, Ordering::Relaxed);
+                            }
                         }
                     }
                 }
@@ -422,10 +440,19 @@ impl UrgSession {
                 Err(e) => return Err(e),
             }
         }
-        Err(UrgError::NoResponse {
-            command: "QT".into(),
-            timeout: self.core.params.reply_timeout,
-        })
+        // Last resort before giving up: RS stops everything and resets the
+        // sensor's modes (as hokuyo_node does), then one more QT.
+        log::warn!("{}: no answer to QT, trying RS", self.name);
+        UrgHealth::bump(&self.core.health.resets);
+        self.drain_quiet(0.05, 0.3)?;
+        let _ = self.command(b"RS");
+        match self.command(b"QT")? {
+            (Status::Scip2(StatusCode::OK), _, _) => Ok(()),
+            _ => Err(UrgError::NoResponse {
+                command: "QT".into(),
+                timeout: self.core.params.reply_timeout,
+            }),
+        }
     }
 
     /// PP (required, validated), VV, and II once.
@@ -576,6 +603,9 @@ impl UrgSession {
         let _ = TaggedCommand::new(Command::Stream(req)).encode_line(&mut line);
         let kind = TaggedCommand::new(Command::Stream(req)).command.kind();
         self.simple(&line, kind)?;
+        // Revolutions skipped while the stream was deliberately stopped are
+        // not lost scans: gaps are judged within one stream only.
+        self.core.prev_ms = None;
         self.core.streaming = Some(req);
         self.core.last_scan_at = self.core.clock.now();
         self.core.health.streaming.store(true, Ordering::Relaxed);
@@ -681,13 +711,15 @@ impl UrgSession {
     /// Clean shutdown: QT (stream off, laser off), TM2 if in time-adjust
     /// mode. Errors are ignored: the port closes anyway.
     pub fn shutdown(mut self) {
-        let stop = self.stop.swap(false, Ordering::Relaxed);
+        // The stop flag may already be set (that is why we are here): let
+        // the last commands through regardless.
+        self.closing = true;
         if self.in_adjust {
             let _ = self.command(b"TM2");
         }
         let _ = self.command(b"QT");
+        self.core.streaming = None;
         self.core.health.streaming.store(false, Ordering::Relaxed);
-        self.stop.store(stop, Ordering::Relaxed);
     }
 }
 
@@ -702,10 +734,6 @@ impl Core {
                     | FrameError::DataChecksum { .. }
                     | FrameError::KvChecksum { .. } => UrgHealth::bump(&h.checksum_errors),
                     _ => UrgHealth::bump(&h.desyncs),
-                }
-                if self.streaming.is_some() && !matches!(e, FrameError::Truncated(_)) {
-                    // While streaming, a broken reply is a scan we lost.
-                    UrgHealth::bump(&h.discarded_scans);
                 }
                 log::debug!("scanner: {e}");
             }
@@ -827,9 +855,4 @@ impl Core {
         self.last_scan_at = now;
         (self.sink)(scan);
     }
-}
-
-/// The error-table family of a sensor, for printing readings.
-pub fn family_of(info: &SessionInfo) -> ModelFamily {
-    info.params.family()
 }

@@ -208,7 +208,8 @@ impl Sensor {
     }
 
     fn elapsed_ms(&self, now: f64) -> u64 {
-        ((now - self.t0).max(0.0) * 1000.0 * self.rate).floor() as u64
+        // The epsilon keeps k·period from flooring to the millisecond below.
+        ((now - self.t0).max(0.0) * 1000.0 * self.rate + 1e-6).floor() as u64
     }
 
     /// Makes the sensor's crystal run fast (positive) or slow by `ppm`
@@ -499,6 +500,11 @@ impl Sensor {
         self.last_stamp = stamp;
         let mut block = std::mem::take(&mut self.block);
         block.clear();
+        if self.faults.noise_every > 0
+            && self.sent.is_multiple_of(u64::from(self.faults.noise_every))
+        {
+            block.extend_from_slice(b"\x00\x13\xfe\x07~\xff\n");
+        }
         let _ = echo.encode(&mut block);
         if fault == Some(ScanFault::ErrorStatus) {
             let _ = crate::scip::reply::write_status(st(&self.faults.status_code), &mut block);
