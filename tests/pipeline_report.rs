@@ -320,3 +320,55 @@ fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() 
         snap.stages[1].degrade_raises
     );
 }
+
+/// The machinery's own cost over a long real-time run at 10 Hz (no real
+/// stage work): `SWEEPLINE_SOAK_SECS=600 SWEEPLINE_KEEP_REPORT=out/soak
+/// cargo test --test pipeline_report soak -- --ignored --nocapture`.
+#[test]
+#[ignore = "long: run by hand (see doc comment)"]
+fn soak() {
+    let secs: u32 = std::env::var("SWEEPLINE_SOAK_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(600);
+    let params = PipelineParams::default();
+    let mut p = Pipeline::new(&params);
+    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
+    let (pose_tx, pose_rx) = latest::<Msg>("pose");
+    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
+    p.register_edge(&scan_tx);
+    p.register_edge(&pose_tx);
+    p.register_edge(&cmd_tx);
+    let scans = secs * 10;
+    p.spawn(
+        "scanner",
+        Scanner {
+            next: Instant::now(),
+            left: scans,
+            out: scan_tx,
+        },
+    )
+    .unwrap();
+    p.spawn("localise", worker(scan_rx, Some(pose_tx), 8))
+        .unwrap();
+    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
+        .unwrap();
+    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let (dir, _) = out_dir();
+    let mut hooks = RunFolderHooks::new(Coverage(0), &dir, &params);
+    let out = Supervisor::new(&params).run(p, &mut hooks);
+    let snap = out.snapshot;
+    let q = sweepline::pipeline::metrics::Quantiles::of(&snap.end_to_end());
+    eprintln!(
+        "soak {secs} s: {} scans, process CPU {:.3} % of one core, end-to-end p50 {:.3} ms p99 {:.3} ms max {:.3} ms, dropped {}, late {}; report {}",
+        snap.stages[0].iterations,
+        snap.cpu_share() * 100.0,
+        q.p50 * 1e3,
+        q.p99 * 1e3,
+        q.max * 1e3,
+        snap.dropped(),
+        snap.late(),
+        dir.display()
+    );
+    assert_eq!(snap.stages[0].iterations, u64::from(scans));
+}

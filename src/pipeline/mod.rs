@@ -9,6 +9,7 @@
 //! [`supervisor::Supervisor`], which runs until a signal, a stop request or a
 //! failed stage, then shuts down in order.
 
+pub mod cgroup;
 pub mod checkpoint;
 pub mod clock;
 pub mod edge;
@@ -31,7 +32,7 @@ pub use stage::{Poll, RunState, Stage, StageCtx, StageFault, StageHealth};
 
 use clock::{core_count, process_cpu_time, Stamp};
 use edge::EdgeStats;
-use metrics::{EdgeMetrics, MetricsSnapshot, SupervisorMetrics, METRICS_VERSION};
+use metrics::{EdgeMetrics, MetricsSnapshot, SupervisorMetrics, ThrottleMetrics, METRICS_VERSION};
 use stage::StageBudget;
 
 /// Why the pipeline could not be set up.
@@ -83,6 +84,7 @@ pub struct Pipeline {
     edges: Vec<EdgeEntry>,
     started: Stamp,
     cpu0: Duration,
+    throttle0: Option<cgroup::Throttling>,
     supervisor: Arc<SupervisorCounters>,
 }
 
@@ -97,6 +99,7 @@ impl Pipeline {
             edges: Vec::new(),
             started: Stamp::now(),
             cpu0: process_cpu_time(),
+            throttle0: cgroup::read_throttling(),
             supervisor: Arc::new(SupervisorCounters::default()),
         }
     }
@@ -225,6 +228,16 @@ impl Pipeline {
                 stall_checks: sup.stall_checks.load(Ordering::Relaxed),
                 notify_errors: sup.notify_errors.load(Ordering::Relaxed),
             },
+            throttling: self.throttle0.as_ref().and_then(|t0| {
+                cgroup::read_throttling().map(|t| {
+                    let d = t.since(t0);
+                    ThrottleMetrics {
+                        periods: d.periods,
+                        throttled: d.throttled,
+                        throttled_time: d.throttled_us as f64 * 1e-6,
+                    }
+                })
+            }),
         }
     }
 
