@@ -243,7 +243,9 @@ impl Pipeline {
 
     /// Stops every stage (each sees the flag within one poll timeout, then
     /// runs its `on_stop`), joins every thread, and returns the final snapshot.
-    /// A stage stuck in `process` delays this until it returns.
+    /// A stage still stuck in `process` after `pipeline.stop_timeout` is left
+    /// behind (logged, its thread detached; it dies with the process) so that
+    /// shutdown finishes inside systemd's `TimeoutStopSec=`.
     pub fn stop(mut self) -> MetricsSnapshot {
         self.join_all();
         self.snapshot()
@@ -251,11 +253,27 @@ impl Pipeline {
 
     fn join_all(&mut self) {
         self.stop.store(true, Ordering::Release);
+        let deadline = Stamp::now().after(Duration::from_secs_f64(self.params.stop_timeout));
+        while Stamp::now() < deadline
+            && self
+                .stages
+                .iter()
+                .any(|s| s.thread.is_some() && s.health.state() == RunState::Running)
+        {
+            std::thread::sleep(Duration::from_millis(2));
+        }
         for s in &mut self.stages {
-            if let Some(t) = s.thread.take() {
-                if t.join().is_err() {
-                    stage::mark_failed(&s.health);
-                }
+            let Some(t) = s.thread.take() else { continue };
+            if s.health.state() == RunState::Running && !t.is_finished() {
+                log::error!(
+                    "stage {} did not stop within {} s; leaving its thread behind",
+                    s.health.name(),
+                    self.params.stop_timeout
+                );
+                continue;
+            }
+            if t.join().is_err() {
+                stage::mark_failed(&s.health);
             }
         }
     }
