@@ -8,6 +8,56 @@
 //! [`Stage`] per box of the DESIGN data path, and hands the pipeline to a
 //! [`supervisor::Supervisor`], which runs until a signal, a stop request or a
 //! failed stage, then shuts down in order.
+//!
+//! ```
+//! use std::time::Duration;
+//! use sweepline::pipeline::supervisor::{NoHooks, Supervisor};
+//! use sweepline::pipeline::{
+//!     latest, Pipeline, PipelineParams, Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx,
+//! };
+//!
+//! /// Produces 100 numbers, then ends.
+//! struct Source { left: u32, out: Tx<u32> }
+//! impl Stage for Source {
+//!     type Work = u32;
+//!     fn wait(&mut self, _timeout: Duration) -> Poll<u32> {
+//!         if self.left == 0 { return Poll::Done; }
+//!         self.left -= 1;
+//!         Poll::Work(self.left)
+//!     }
+//!     fn process(&mut self, n: u32, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+//!         self.out.send(n).map(|_| ()).map_err(|e| StageFault::Fatal(e.to_string()))
+//!     }
+//! }
+//!
+//! /// Takes the newest number; does less work when told to degrade.
+//! struct Sink { input: Rx<u32> }
+//! impl Stage for Sink {
+//!     type Work = u32;
+//!     fn wait(&mut self, timeout: Duration) -> Poll<u32> {
+//!         match self.input.recv_timeout(timeout) {
+//!             Recv::Msg(n) => Poll::Work(n),
+//!             Recv::Empty => Poll::Idle,
+//!             Recv::Closed => Poll::Done,
+//!         }
+//!     }
+//!     fn process(&mut self, _n: u32, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+//!         let _iterations = 20 >> ctx.degrade(); // e.g. fewer ICP iterations
+//!         Ok(())
+//!     }
+//! }
+//!
+//! let params = PipelineParams::default();
+//! let mut p = Pipeline::new(&params);
+//! let (tx, rx) = latest::<u32>("pose");
+//! p.register_edge(&tx);
+//! p.spawn("localise", Source { left: 100, out: tx })?;
+//! p.spawn("plan", Sink { input: rx })?;
+//! let out = Supervisor::new(&params).run(p, &mut NoHooks);
+//! let e = &out.snapshot.edges[0];
+//! assert_eq!(e.received + e.dropped, 100); // newest-wins: taken or counted
+//! # Ok::<(), sweepline::pipeline::PipelineError>(())
+//! ```
 
 pub mod cgroup;
 pub mod checkpoint;
