@@ -234,7 +234,12 @@ struct Hogs(Vec<std::process::Child>);
 impl Drop for Hogs {
     fn drop(&mut self) {
         for c in &mut self.0 {
-            let _ = c.kill();
+            // SIGTERM, which `timeout` forwards to its busy child (SIGKILL
+            // would orphan the child).
+            // SAFETY: kill(2) on the pid of a child we spawned and have not reaped.
+            unsafe {
+                libc::kill(c.id() as i32, libc::SIGTERM);
+            }
             let _ = c.wait();
         }
     }
@@ -246,8 +251,9 @@ fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() 
     let hogs = Hogs(
         (0..2)
             .map(|_| {
-                Command::new("sh")
-                    .args(["-c", "while :; do :; done"])
+                // `timeout` bounds the loop even if this test process is killed.
+                Command::new("timeout")
+                    .args(["60", "sh", "-c", "while :; do :; done"])
                     .spawn()
                     .unwrap()
             })
