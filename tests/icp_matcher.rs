@@ -174,3 +174,33 @@ fn tracker_follows_a_path_against_an_external_map() {
     }
     assert!(t.map().is_empty(), "the keyframe map is not used");
 }
+
+#[test]
+fn prior_weight_holds_the_translation_to_the_guess() {
+    let walls = scene();
+    let truth = pose(2.0, 1.5, 0.3);
+    let params = IcpParams::default();
+    let mut reference = Reference::new();
+    reference
+        .rebuild_ordered(&world_points(&walls, &truth, 11), &params)
+        .unwrap();
+    let scan = cast(
+        &walls,
+        &truth,
+        &ScanSpec {
+            seed: 12,
+            ..ScanSpec::default()
+        },
+    );
+    let guess = truth * pose(0.06, -0.04, 0.0);
+    let mut m = Matcher::new(params).unwrap();
+    let free = m.match_prepared_weighted(&reference, &guess, 0.0);
+    assert!(free.is_err(), "nothing prepared yet");
+    m.prepare_points(&scan).unwrap();
+    let free = m.match_prepared_weighted(&reference, &guess, 0.0).unwrap();
+    let held = m.match_prepared_weighted(&reference, &guess, 1e6).unwrap();
+    assert!(err(&free.pose, &truth).0 < 0.01, "{:?}", free.pose);
+    // A huge prior weight keeps the translation at the guess.
+    let d = (held.pose.translation.vector - guess.translation.vector).norm();
+    assert!(d < 0.005, "moved {d} m from the guess");
+}
