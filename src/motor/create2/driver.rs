@@ -372,3 +372,15 @@ impl DiffDriveBase for Create2Driver {
         self.health
     }
 }
+
+impl Drop for Create2Driver {
+    /// Leaves the robot stopped: the Create 2 has no command timeout and would
+    /// otherwise keep executing its last Drive Direct.
+    fn drop(&mut self) {
+        if self.link.is_open() {
+            let _ = self
+                .link
+                .write_all(&encode(&OiCommand::drive_direct(0.0, 0.0)));
+        }
+    }
+}

@@ -246,8 +246,12 @@ impl RoboClawDriver {
                 log::info!("wheel base {}: link restored", self.link.describe());
                 self.push(SafetyEvent::LinkRestored);
             } else {
+                let version = match self.transact(&Command::ReadVersion, 2) {
+                    Ok(Reply::Version(v)) => String::from_utf8_lossy(&v).into_owned(),
+                    _ => "version unknown".into(),
+                };
                 log::info!(
-                    "wheel base {}: RoboClaw at address {} answers; serial timeout armed at {:.1} s",
+                    "wheel base {}: RoboClaw at address {} answers ({version}); serial timeout armed at {:.1} s",
                     self.link.describe(),
                     self.address,
                     self.timeout_tenths as f64 / 10.0
@@ -374,5 +378,16 @@ impl DiffDriveBase for RoboClawDriver {
 
     fn health(&self) -> LinkHealth {
         self.health
+    }
+}
+
+impl Drop for RoboClawDriver {
+    /// Leaves the wheels stopped: a zero set-point is written (without waiting
+    /// for the ACK); the controller's serial timeout is the backstop.
+    fn drop(&mut self) {
+        if self.link.is_open() {
+            let p = encode_command(self.address, &Command::DriveSpeeds { m1: 0, m2: 0 });
+            let _ = self.link.write_all(&p);
+        }
     }
 }
