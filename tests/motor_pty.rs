@@ -207,6 +207,11 @@ fn commands_move_the_robot_and_odometry_follows() {
             "{kind:?}: odometry {} vs truth {t}",
             r.odom
         );
+        let line = r.emu.status_line();
+        assert!(
+            line.contains("pose=(") && line.contains("packets ok="),
+            "{line}"
+        );
         let h = r.base.health();
         assert!(h.received > 10, "{kind:?}: {h:?}");
         assert_eq!(h.checksum_errors, 0, "{kind:?}: {h:?}");

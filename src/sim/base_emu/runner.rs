@@ -222,6 +222,37 @@ impl EmulatorHandle {
         self.with(|s| s.truth)
     }
 
+    /// The robot's true pose with the clock time it was reached (s), for
+    /// pose-error evaluation against timestamped estimates.
+    pub fn truth_stamped(&self) -> (f64, Pose) {
+        self.with(|s| (s.now, s.truth))
+    }
+
+    /// One human-readable status line: true pose, wheel speeds, counters.
+    pub fn status_line(&self) -> String {
+        self.with(|s| {
+            let t = s.truth;
+            let d = s.stats.device;
+            format!(
+                "t={:.1}s pose=({:.3} m, {:.3} m, {:.1} deg) wheels=({:+.3}, {:+.3}) m/s packets ok={} rejected={} frames={} device-timeouts={} bumps={} corrupted={} silenced={} unplugs={}",
+                s.now,
+                t.translation.x,
+                t.translation.y,
+                t.rotation.angle().to_degrees(),
+                s.wheels.left,
+                s.wheels.right,
+                d.packets_ok,
+                d.packets_rejected,
+                d.frames_out,
+                d.device_timeouts,
+                s.stats.bumps,
+                s.stats.corrupted_bytes,
+                s.stats.silenced_bytes,
+                s.stats.unplugs
+            )
+        })
+    }
+
     /// The wheel speeds the motors currently run at (m/s).
     pub fn wheels(&self) -> WheelSpeeds {
         self.with(|s| s.wheels)
