@@ -506,3 +506,75 @@ fn time_scaled_clock_runs_the_same_code_path() {
         assert!(fired, "{kind:?}: {:?}", r.events);
     }
 }
+
+#[test]
+fn create2_stream_pause_is_not_a_lost_link_and_resume_restores_odometry() {
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let cfg = {
+        let mut c = Config::default();
+        c.motor.kind = BaseKind::Create2;
+        tolerant(&mut c.motor);
+        c
+    };
+    let emu = spawn_on_pty(
+        EmulatorConfig::from_config(&cfg, BaseKind::Create2),
+        None,
+        clock.clone(),
+    )
+    .unwrap();
+    let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
+        emu.path().unwrap(),
+    ))));
+    let mut d = Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock.clone());
+    let mut events = Vec::new();
+    let step = |d: &mut Create2Driver, cmd: WheelSpeeds, ev: &mut Vec<SafetyEvent>| {
+        d.set_wheels(cmd).unwrap();
+        let fb = d.poll().unwrap();
+        ev.extend(fb.events.iter().copied());
+        clock.sleep(0.05);
+        fb
+    };
+    let mut up = false;
+    for _ in 0..100 {
+        up = step(&mut d, FWD, &mut events).link_up;
+        if up && emu.wheels().left > 0.1 {
+            break;
+        }
+    }
+    assert!(up && emu.wheels().left > 0.1, "never drove");
+    assert!(d.pause_stream());
+    let frames = emu.stats().device.frames_out;
+    for _ in 0..20 {
+        let fb = step(&mut d, FWD, &mut events);
+        assert!(fb.odometry.is_none() || d.stream_paused());
+    }
+    assert_eq!(
+        emu.motor_targets(),
+        WheelSpeeds::STOP,
+        "moving while paused"
+    );
+    assert!(
+        emu.stats().device.frames_out <= frames + 2,
+        "stream did not pause"
+    );
+    assert!(
+        !events.iter().any(|e| matches!(e, SafetyEvent::LinkLost)),
+        "{events:?}"
+    );
+    assert!(d.resume_stream());
+    let mut odometry = 0;
+    for _ in 0..100 {
+        odometry += usize::from(step(&mut d, FWD, &mut events).odometry.is_some());
+        if odometry > 3 && emu.wheels().left > 0.1 {
+            break;
+        }
+    }
+    assert!(
+        odometry > 3 && emu.wheels().left > 0.1,
+        "no odometry or motion after resume"
+    );
+    assert!(
+        !events.iter().any(|e| matches!(e, SafetyEvent::LinkLost)),
+        "{events:?}"
+    );
+}

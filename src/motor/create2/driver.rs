@@ -49,6 +49,7 @@ pub struct Create2Driver {
     last_frame: f64,
     next_probe: f64,
     mode_warned: bool,
+    paused: bool,
     pending: heapless::Vec<SafetyEvent, 8>,
     acc: Option<Odometry>,
 }
@@ -95,6 +96,7 @@ impl Create2Driver {
             last_frame: 0.0,
             next_probe: f64::NEG_INFINITY,
             mode_warned: false,
+            paused: false,
             pending: heapless::Vec::new(),
             acc: None,
         }
@@ -135,17 +137,28 @@ impl Create2Driver {
         self.odo.rebase();
     }
 
-    /// Pauses the sensor stream (opcode 150, 0).
+    /// Pauses the sensor stream (opcode 150, 0) and stops the wheels: without
+    /// frames there is no bumper or link supervision, so nothing may move.
+    /// Silence is expected until [`Create2Driver::resume_stream`].
     pub fn pause_stream(&mut self) -> bool {
-        self.send(&OiCommand::StreamEnable(false))
+        self.paused = true;
+        self.requested = WheelSpeeds::STOP;
+        self.send(&OiCommand::drive_direct(0.0, 0.0)) && self.send(&OiCommand::StreamEnable(false))
     }
 
-    /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts.
+    /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts and
+    /// the next frame is the new odometry baseline.
     pub fn resume_stream(&mut self) -> bool {
+        self.paused = false;
         self.last_frame = self.clock.now();
         self.parser.reset();
         self.odo.rebase();
         self.send(&OiCommand::StreamEnable(true))
+    }
+
+    /// Whether the stream is paused on purpose.
+    pub fn stream_paused(&self) -> bool {
+        self.paused
     }
 
     fn effective(&self) -> WheelSpeeds {
@@ -263,7 +276,9 @@ impl DiffDriveBase for Create2Driver {
             right: cmd.right.clamp(-m, m),
         };
         self.deadman.feed(self.clock.now());
-        if self.up {
+        if self.paused {
+            self.requested = WheelSpeeds::STOP;
+        } else if self.up {
             self.send_wheels();
         }
         Ok(())
@@ -312,7 +327,10 @@ impl DiffDriveBase for Create2Driver {
         }
         self.health.discarded_bytes = self.parser.discarded;
         let now = self.clock.now();
-        if self.up && (now - self.last_frame > self.link_timeout || !self.link.is_open()) {
+        if self.paused {
+            // Deliberate silence: no supervision to do, and nothing may move.
+            self.last_frame = now;
+        } else if self.up && (now - self.last_frame > self.link_timeout || !self.link.is_open()) {
             self.up = false;
             self.health.link_losses += 1;
             log::warn!(
@@ -325,11 +343,11 @@ impl DiffDriveBase for Create2Driver {
             self.odo.rebase();
             self.next_probe = now;
         }
-        if !self.up && self.link.is_open() && now >= self.next_probe {
+        if !self.up && !self.paused && self.link.is_open() && now >= self.next_probe {
             self.next_probe = now + self.probe_interval;
             self.initialise();
         }
-        if self.up {
+        if self.up && !self.paused {
             self.send_wheels();
         }
         let mut fb = BaseFeedback {
