@@ -578,3 +578,26 @@ fn create2_stream_pause_is_not_a_lost_link_and_resume_restores_odometry() {
         "{events:?}"
     );
 }
+
+#[test]
+fn serve_reports_status_until_stopped() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let world = Arc::new(World::parse("room 0 0 3 0 3 3 0 3\nstart 1 1 0.5\n").unwrap());
+    let cfg = EmulatorConfig::from_config(&Config::default(), BaseKind::Roboclaw).in_world(world);
+    let emu = spawn_on_pty(cfg, None, clock.clone()).unwrap();
+    let stop = AtomicBool::new(false);
+    let mut lines = Vec::new();
+    sweepline::sim::base_emu::serve(&emu, &*clock, &stop, 0.05, |l| {
+        lines.push(l.to_string());
+        if lines.len() == 3 {
+            stop.store(true, Ordering::SeqCst);
+        }
+    });
+    assert_eq!(lines.len(), 3);
+    assert!(
+        lines[0].contains("pose=(1.000 m, 1.000 m, 28.6 deg)"),
+        "{}",
+        lines[0]
+    );
+}

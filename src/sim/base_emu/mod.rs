@@ -65,3 +65,24 @@ pub trait BaseDevice: Send {
     /// The device's counters.
     fn stats(&self) -> DeviceStats;
 }
+
+/// Keeps an emulator running until `stop` is set, handing its status line to
+/// `report` every `every` seconds of clock time; for `sweepline emulate`,
+/// whose `main` owns the signal handling.
+pub fn serve(
+    handle: &EmulatorHandle,
+    clock: &dyn crate::clock::Clock,
+    stop: &std::sync::atomic::AtomicBool,
+    every: f64,
+    mut report: impl FnMut(&str),
+) {
+    let mut next = clock.now();
+    while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        let now = clock.now();
+        if now >= next {
+            report(&handle.status_line());
+            next = now + every.max(0.01);
+        }
+        clock.sleep(0.05_f64.min(every.max(0.01)));
+    }
+}

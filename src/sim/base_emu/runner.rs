@@ -160,6 +160,14 @@ impl EmulatorConfig {
         }
     }
 
+    /// The same emulator placed in `world`: it starts at the world's start
+    /// pose and collides with its walls and obstacles.
+    pub fn in_world(mut self, world: Arc<World>) -> Self {
+        self.start = world.start;
+        self.world = Some(world);
+        self
+    }
+
     fn device(&self) -> Box<dyn BaseDevice> {
         let circ = 2.0 * std::f64::consts::PI * self.wheel_radius;
         match self.kind {
