@@ -6,6 +6,7 @@
 //! its device) in a thread, stepping [`DiffDriveSim`] on the injected clock.
 
 pub mod create2;
+pub mod loopback;
 pub mod pty_wire;
 pub mod roboclaw;
 pub mod runner;

@@ -168,7 +168,8 @@ impl EmulatorConfig {
         self
     }
 
-    fn device(&self) -> Box<dyn BaseDevice> {
+    /// The device core this configuration describes.
+    pub(crate) fn device(&self) -> Box<dyn BaseDevice> {
         let circ = 2.0 * std::f64::consts::PI * self.wheel_radius;
         match self.kind {
             BaseKind::Roboclaw => Box::new(RoboClawDevice::new(
