@@ -21,6 +21,9 @@ use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
 };
 
+/// The Create 2 sends a stream frame every 15 ms.
+pub const STREAM_PERIOD: f64 = 0.015;
+
 /// The packets the driver streams.
 pub const STREAM_IDS: [u8; 4] = [
     pkt::BUMPS_WHEEL_DROPS,
@@ -312,9 +315,14 @@ impl DiffDriveBase for Create2Driver {
                         }
                         Err(_) => health.checksum_errors += 1,
                     });
+                    // Frames read together were sent one stream period apart:
+                    // the last one is the newest.
                     let t = self.clock.now();
-                    for f in frames {
-                        self.on_frame(f, t);
+                    let n_frames = frames.len();
+                    for (i, f) in frames.into_iter().enumerate() {
+                        let age = (n_frames - 1 - i) as f64 * STREAM_PERIOD;
+                        let tf = (t - age).max(self.last_frame);
+                        self.on_frame(f, tf);
                     }
                     // A short read drained the port: stop here rather than wait
                     // for a read timeout (frames come every 15 ms anyway).

@@ -43,6 +43,7 @@ pub struct RoboClawDriver {
     m1_is_left: bool,
     counts_per_metre: f64,
     max_wheel_speed: f64,
+    reply_timeout: f64,
     link_timeout: f64,
     probe_interval: f64,
     odo: Odometer,
@@ -83,6 +84,7 @@ impl RoboClawDriver {
             m1_is_left: p.roboclaw.m1_is_left,
             counts_per_metre,
             max_wheel_speed: p.max_wheel_speed,
+            reply_timeout: p.roboclaw.reply_timeout,
             link_timeout: p.link_timeout,
             probe_interval: p.reconnect_interval,
             odo: Odometer::new(
@@ -313,10 +315,17 @@ impl DiffDriveBase for RoboClawDriver {
         if self.up {
             let w = self.effective();
             let mut closed = self.send_speeds(w) == Err(TxError::Closed);
+            let asked = self.clock.now();
             match self.transact(&Command::ReadEncoders, self.retries + 1) {
                 Ok(Reply::Encoders { m1, m2 }) => {
                     let (l, r) = if self.m1_is_left { (m1, m2) } else { (m2, m1) };
-                    match self.odo.update(l, r, self.clock.now()) {
+                    // The counters were latched somewhere between request and
+                    // reply: stamp the reading with the midpoint. (A retried
+                    // request widens the window; the last attempt is what
+                    // counts, so use the reply time minus half the last RTT.)
+                    let answered = self.clock.now();
+                    let stamp = answered - 0.5 * (answered - asked).min(self.reply_timeout);
+                    match self.odo.update(l, r, stamp) {
                         Ok(o) => odometry = o,
                         Err(g) => {
                             self.health.odometry_glitches += 1;

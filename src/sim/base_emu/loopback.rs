@@ -243,6 +243,37 @@ mod tests {
     }
 
     #[test]
+    fn odometry_stamps_are_continuous_and_not_in_the_future() {
+        for kind in [BaseKind::Roboclaw, BaseKind::Create2] {
+            let cfg = Config::default();
+            let clock = Arc::new(ManualClock::new());
+            let e = EmulatorConfig::from_config(&cfg, kind);
+            let (mut base, _truth) = loopback_base(e, &cfg.robot, clock.clone());
+            let mut prev: Option<f64> = None;
+            let mut n = 0;
+            for _ in 0..60 {
+                base.set_wheels(WheelSpeeds {
+                    left: 0.1,
+                    right: 0.1,
+                })
+                .unwrap();
+                let fb = base.poll().unwrap();
+                if let Some(o) = fb.odometry {
+                    assert!(o.t1 > o.t0, "{kind:?}: {o:?}");
+                    assert!(o.t1 <= clock.now() + 1e-12, "{kind:?}: stamp in the future");
+                    if let Some(p) = prev {
+                        assert!((o.t0 - p).abs() < 1e-9, "{kind:?}: gap {p} -> {}", o.t0);
+                    }
+                    prev = Some(o.t1);
+                    n += 1;
+                }
+                clock.sleep(0.05);
+            }
+            assert!(n > 40, "{kind:?}: {n}");
+        }
+    }
+
+    #[test]
     fn lock_step_runs_are_repeatable_and_odometry_tracks_truth() {
         for kind in [BaseKind::Roboclaw, BaseKind::Create2] {
             let (o1, t1, ev1) = drive(kind, 5);
