@@ -601,3 +601,29 @@ fn serve_reports_status_until_stopped() {
         lines[0]
     );
 }
+
+#[test]
+fn roboclaw_at_another_address_never_counts_as_up() {
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let cfg = Config::default();
+    // The emulated controller answers at 0x80; the driver asks 0x81.
+    let emu = spawn_on_pty(
+        EmulatorConfig::from_config(&cfg, BaseKind::Roboclaw),
+        None,
+        clock.clone(),
+    )
+    .unwrap();
+    let mut motor = cfg.motor.clone();
+    motor.roboclaw.address = 0x81;
+    let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
+        emu.path().unwrap(),
+    ))));
+    let mut d = RoboClawDriver::new(&motor, &cfg.robot, opener, clock.clone());
+    for _ in 0..5 {
+        d.set_wheels(FWD).unwrap();
+        assert!(!d.poll().unwrap().link_up);
+        clock.sleep(0.2);
+    }
+    assert!(d.health().timeouts > 0, "{:?}", d.health());
+    assert_eq!(emu.motor_targets(), WheelSpeeds::STOP);
+}

@@ -53,6 +53,7 @@ pub struct Create2Driver {
     next_probe: f64,
     mode_warned: bool,
     paused: bool,
+    silent_warned: bool,
     pending: heapless::Vec<SafetyEvent, 8>,
     acc: Option<Odometry>,
 }
@@ -100,6 +101,7 @@ impl Create2Driver {
             next_probe: f64::NEG_INFINITY,
             mode_warned: false,
             paused: false,
+            silent_warned: false,
             pending: heapless::Vec::new(),
             acc: None,
         }
@@ -186,6 +188,7 @@ impl Create2Driver {
         self.last_frame = now;
         if !self.up {
             self.up = true;
+            self.silent_warned = false;
             if self.ever_up {
                 log::info!(
                     "wheel base {}: sensor stream back; link restored",
@@ -352,6 +355,15 @@ impl DiffDriveBase for Create2Driver {
             self.next_probe = now;
         }
         if !self.up && !self.paused && self.link.is_open() && now >= self.next_probe {
+            if self.next_probe.is_finite() && !self.silent_warned {
+                self.silent_warned = true;
+                log::warn!(
+                    "wheel base {}: no sensor stream from the Create 2 (is it awake and powered? Start, {:?} and the stream request are re-sent every {:.1} s)",
+                    self.link.describe(),
+                    self.mode,
+                    self.probe_interval
+                );
+            }
             self.next_probe = now + self.probe_interval;
             self.initialise();
         }

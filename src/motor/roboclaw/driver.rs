@@ -56,6 +56,7 @@ pub struct RoboClawDriver {
     ever_up: bool,
     last_ok: f64,
     fail_streak: u32,
+    silent_warned: bool,
     next_probe: f64,
     pending: heapless::Vec<SafetyEvent, 8>,
 }
@@ -102,6 +103,7 @@ impl RoboClawDriver {
             ever_up: false,
             last_ok: 0.0,
             fail_streak: 0,
+            silent_warned: false,
             next_probe: f64::NEG_INFINITY,
             pending: heapless::Vec::new(),
         }
@@ -241,7 +243,18 @@ impl RoboClawDriver {
         }
         self.next_probe = now + self.probe_interval;
         self.health.discarded_bytes += self.link.drain();
-        if self.initialise().is_ok() {
+        let ok = self.initialise().is_ok();
+        if !ok && !self.silent_warned {
+            self.silent_warned = true;
+            log::warn!(
+                "wheel base {}: no valid answer from a RoboClaw at address {} (check the address, the baud rate and that packet serial mode is set); retrying every {:.1} s",
+                self.link.describe(),
+                self.address,
+                self.probe_interval
+            );
+        }
+        if ok {
+            self.silent_warned = false;
             self.up = true;
             self.last_ok = self.clock.now();
             if self.ever_up {
