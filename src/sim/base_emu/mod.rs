@@ -3,7 +3,7 @@
 //!
 //! Each device is a sans-IO core ([`BaseDevice`]: bytes in, bytes and wheel
 //! set-points out); [`spawn`] runs one on a wire (a pty the daemon opens as
-//! its device) in a thread, stepping [`DiffDriveSim`] on the injected clock.
+//! its device) in a thread, stepping [`crate::sim::kinematics::DiffDriveSim`] on the injected clock.
 
 pub mod create2;
 pub mod loopback;
