@@ -25,6 +25,7 @@ struct Rig {
     base: Box<dyn DiffDriveBase>,
     odom: Pose,
     events: Vec<SafetyEvent>,
+    battery: Option<f64>,
     _dir: Option<TempDir>,
 }
 
@@ -108,6 +109,7 @@ fn rig_on(
         base,
         odom: Pose::identity(),
         events: Vec::new(),
+        battery: None,
         _dir: dir,
     };
     // Wait for the link to come up (how long depends on the machine's load).
@@ -139,6 +141,7 @@ impl Rig {
                 self.odom *= o.delta;
             }
             self.events.extend(fb.events.iter().copied());
+            self.battery = fb.battery.or(self.battery);
             let spent = self.clock.now() - tick;
             self.clock.sleep(0.05 - spent);
         }
@@ -206,6 +209,17 @@ fn commands_move_the_robot_and_odometry_follows() {
             e < 0.01 && eh < 0.02,
             "{kind:?}: odometry {} vs truth {t}",
             r.odom
+        );
+        // The emulated RoboClaw reports 12.1 V, the Create 2 14.8 V.
+        let want = if kind == BaseKind::Roboclaw {
+            12.1
+        } else {
+            14.8
+        };
+        assert!(
+            r.battery.is_some_and(|v| (v - want).abs() < 1e-9),
+            "{kind:?}: {:?}",
+            r.battery
         );
         let line = r.emu.status_line();
         assert!(

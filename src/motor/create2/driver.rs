@@ -25,11 +25,12 @@ use crate::motor::{
 pub const STREAM_PERIOD: f64 = 0.015;
 
 /// The packets the driver streams.
-pub const STREAM_IDS: [u8; 4] = [
+pub const STREAM_IDS: [u8; 5] = [
     pkt::BUMPS_WHEEL_DROPS,
     pkt::OI_MODE,
     pkt::LEFT_ENCODER,
     pkt::RIGHT_ENCODER,
+    pkt::VOLTAGE,
 ];
 
 /// A Create 2 (or Roomba 600-series) over its Open Interface.
@@ -53,6 +54,7 @@ pub struct Create2Driver {
     next_probe: f64,
     mode_warned: bool,
     paused: bool,
+    battery: Option<f64>,
     silent_warned: bool,
     pending: heapless::Vec<SafetyEvent, 8>,
     acc: Option<Odometry>,
@@ -101,6 +103,7 @@ impl Create2Driver {
             next_probe: f64::NEG_INFINITY,
             mode_warned: false,
             paused: false,
+            battery: None,
             silent_warned: false,
             pending: heapless::Vec::new(),
             acc: None,
@@ -244,6 +247,9 @@ impl Create2Driver {
                 self.mode_warned = false;
             }
         }
+        if let Some(mv) = f.voltage_mv {
+            self.battery = Some(mv as f64 / 1000.0);
+        }
         if let (Some(l), Some(r)) = (f.left_encoder, f.right_encoder) {
             match self.odo.update(l as u32, r as u32, now) {
                 Ok(Some(d)) => {
@@ -374,6 +380,7 @@ impl DiffDriveBase for Create2Driver {
             odometry: self.acc.take(),
             events: heapless::Vec::new(),
             link_up: self.up,
+            battery: self.battery,
         };
         for e in self.pending.iter() {
             fb.push_event(*e);

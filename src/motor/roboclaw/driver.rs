@@ -22,6 +22,9 @@ use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
 
+/// Polls between two main-battery readings.
+const BATTERY_EVERY: u64 = 20;
+
 /// Why one request failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum TxError {
@@ -57,6 +60,8 @@ pub struct RoboClawDriver {
     last_ok: f64,
     fail_streak: u32,
     silent_warned: bool,
+    battery: Option<f64>,
+    polls: u64,
     next_probe: f64,
     pending: heapless::Vec<SafetyEvent, 8>,
 }
@@ -104,6 +109,8 @@ impl RoboClawDriver {
             last_ok: 0.0,
             fail_streak: 0,
             silent_warned: false,
+            battery: None,
+            polls: 0,
             next_probe: f64::NEG_INFINITY,
             pending: heapless::Vec::new(),
         }
@@ -360,6 +367,15 @@ impl DiffDriveBase for RoboClawDriver {
                 Ok(_) => {}
                 Err(e) => closed |= e == TxError::Closed,
             }
+            // The battery changes slowly: once every BATTERY_EVERY polls.
+            if self.polls.is_multiple_of(BATTERY_EVERY) {
+                match self.transact(&Command::ReadMainBattery, 1) {
+                    Ok(Reply::MainBattery(dv)) => self.battery = Some(dv as f64 / 10.0),
+                    Ok(_) => {}
+                    Err(e) => closed |= e == TxError::Closed,
+                }
+            }
+            self.polls += 1;
             if closed {
                 self.declare_lost("device went away");
             } else if self.fail_streak >= 2 && self.clock.now() - self.last_ok > self.link_timeout {
@@ -372,6 +388,7 @@ impl DiffDriveBase for RoboClawDriver {
             odometry,
             events: heapless::Vec::new(),
             link_up: self.up,
+            battery: self.battery,
         };
         for e in self.pending.iter() {
             fb.push_event(*e);
