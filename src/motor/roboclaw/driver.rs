@@ -62,6 +62,8 @@ pub struct RoboClawDriver {
     silent_warned: bool,
     battery: Option<f64>,
     polls: u64,
+    accel_counts: u32,
+    stopping: bool,
     next_probe: f64,
     pending: heapless::Vec<SafetyEvent, 8>,
 }
@@ -111,6 +113,10 @@ impl RoboClawDriver {
             silent_warned: false,
             battery: None,
             polls: 0,
+            accel_counts: (p.roboclaw.accel * counts_per_metre)
+                .round()
+                .clamp(0.0, u32::MAX as f64) as u32,
+            stopping: false,
             next_probe: f64::NEG_INFINITY,
             pending: heapless::Vec::new(),
         }
@@ -202,11 +208,23 @@ impl RoboClawDriver {
         }
     }
 
+    /// Sends set-points: ramped at the configured acceleration (command 40)
+    /// in normal driving; at once (command 37, the PID's full authority) for
+    /// safety stops and when no acceleration is configured.
     fn send_speeds(&mut self, w: WheelSpeeds) -> Result<(), TxError> {
         let (m1, m2) = self.counts(w);
         let retries = self.retries + 1;
-        self.transact(&Command::DriveSpeeds { m1, m2 }, retries)
-            .map(|_| ())
+        let urgent = self.deadman.tripped() || self.gate.active() || self.stopping;
+        let cmd = if self.accel_counts > 0 && !urgent {
+            Command::DriveSpeedsAccel {
+                accel: self.accel_counts,
+                m1,
+                m2,
+            }
+        } else {
+            Command::DriveSpeeds { m1, m2 }
+        };
+        self.transact(&cmd, retries).map(|_| ())
     }
 
     /// Arms the controller timeout and takes an encoder baseline.
@@ -405,14 +423,16 @@ impl DiffDriveBase for RoboClawDriver {
                 device: self.link.describe(),
             });
         }
-        self.send_speeds(WheelSpeeds::STOP)
-            .map_err(|e| MotorError::Io {
-                device: self.link.describe(),
-                source: std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    format!("stop command not acknowledged ({e:?})"),
-                ),
-            })
+        self.stopping = true;
+        let r = self.send_speeds(WheelSpeeds::STOP);
+        self.stopping = false;
+        r.map_err(|e| MotorError::Io {
+            device: self.link.describe(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                format!("stop command not acknowledged ({e:?})"),
+            ),
+        })
     }
 
     fn health(&self) -> LinkHealth {
