@@ -63,6 +63,10 @@ pub struct UrgParams {
     pub lenient_info: bool,
     /// Granularity of port reads (s): how often a blocked read checks for shutdown.
     pub poll: f64,
+    /// When the sensor answers neither QT nor RS, reboot it (RB twice).
+    pub reboot_last_resort: bool,
+    /// How long a rebooting sensor is left alone before talking to it (s).
+    pub reboot_wait: f64,
 }
 
 impl Default for UrgParams {
@@ -83,6 +87,8 @@ impl Default for UrgParams {
             resync_interval: 0.0,
             lenient_info: true,
             poll: 0.01,
+            reboot_last_resort: true,
+            reboot_wait: 2.0,
         }
     }
 }
@@ -118,6 +124,7 @@ impl UrgParams {
         pos("reconnect_min", self.reconnect_min)?;
         pos("reconnect_max", self.reconnect_max)?;
         pos("poll", self.poll)?;
+        pos("reboot_wait", self.reboot_wait)?;
         if !(self.scan_timeout_periods.is_finite() && self.scan_timeout_periods >= 1.5) {
             return Err(format!(
                 "scanner.scan_timeout_periods must be at least 1.5, got {}",

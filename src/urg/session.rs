@@ -440,18 +440,46 @@ impl UrgSession {
                 Err(e) => return Err(e),
             }
         }
-        // Last resort before giving up: RS stops everything and resets the
-        // sensor's modes (as hokuyo_node does), then one more QT.
+        // Before giving up: RS stops everything and resets the sensor's
+        // modes (as hokuyo_node does), then one more QT.
         log::warn!("{}: no answer to QT, trying RS", self.name);
         UrgHealth::bump(&self.core.health.resets);
         self.drain_quiet(0.05, 0.3)?;
-        let _ = self.command(b"RS");
-        match self.command(b"QT")? {
-            (Status::Scip2(StatusCode::OK), _, _) => Ok(()),
-            _ => Err(UrgError::NoResponse {
-                command: "QT".into(),
-                timeout: self.core.params.reply_timeout,
+        if self.quiet_command(b"RS")? && self.quiet_command(b"QT")? {
+            return Ok(());
+        }
+        // Last resort: RB twice within a second reboots the sensor (the
+        // only cure for firmware that stops answering, urg_c #9).
+        if self.core.params.reboot_last_resort {
+            log::warn!(
+                "{}: no answer to RS either, rebooting the sensor (RB RB)",
+                self.name
+            );
+            UrgHealth::bump(&self.core.health.reboots);
+            let _ = self.quiet_command(b"RB")?;
+            let _ = self.quiet_command(b"RB")?;
+            let wait = self.core.params.reboot_wait;
+            self.drain_quiet(wait, wait)?;
+            if self.quiet_command(b"QT")? {
+                return Ok(());
+            }
+        }
+        Err(UrgError::NoResponse {
+            command: "QT".into(),
+            timeout: self.core.params.reply_timeout,
+        })
+    }
+
+    /// Sends a command; Ok(true) if it was answered with success, Ok(false)
+    /// if unanswered or refused; Err only for a gone link or shutdown.
+    fn quiet_command(&mut self, line: &[u8]) -> Result<bool, UrgError> {
+        match self.command(line) {
+            Ok((status, _, _)) => Ok(match status {
+                Status::Scip2(c) => c == StatusCode::OK || (line == b"RB" && c.0 == *b"01"),
+                Status::Scip1(_) => false,
             }),
+            Err(e) if e.link_gone() || matches!(e, UrgError::Stopped) => Err(e),
+            Err(_) => Ok(false),
         }
     }
 
