@@ -26,7 +26,8 @@ pub struct Args {
     #[arg(long)]
     pub scip1: bool,
     /// Fault switches, comma separated: checksum=N, drop=N, extra=N,
-    /// status=N[:CODE], stuck=N, noise=N, hang=N, crlf, split, stall=N:SECONDS, wrap,
+    /// status=N or status=N:CODE, stuck=N, noise=N, hang=N, crlf, split,
+    /// stall=N:SECONDS, wrap,
     /// unplug=N:SECONDS (N = every N-th scan).
     #[arg(long, default_value = "")]
     pub faults: String,
