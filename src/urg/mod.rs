@@ -61,7 +61,8 @@ pub struct UrgParams {
     pub resync_interval: f64,
     /// Accept the known VV/II checksum quirks of some firmware (counted).
     pub lenient_info: bool,
-    /// Granularity of port reads (s): how often a blocked read checks for shutdown.
+    /// Longest single wait in a port read (s): how often a blocked read
+    /// checks for shutdown (reads otherwise sleep until their deadline).
     pub poll: f64,
     /// When the sensor answers neither QT nor RS, reboot it (RB twice).
     pub reboot_last_resort: bool,
@@ -86,7 +87,7 @@ impl Default for UrgParams {
             time_sync_samples: 10,
             resync_interval: 0.0,
             lenient_info: true,
-            poll: 0.01,
+            poll: 0.05,
             reboot_last_resort: true,
             reboot_wait: 2.0,
         }

@@ -146,6 +146,7 @@ pub struct UrgSession {
     tx: Vec<u8>,
     in_adjust: bool,
     closing: bool,
+    read_timeout_ms: u64,
     tm_tag: u32,
     last_sync: f64,
 }
@@ -203,6 +204,7 @@ impl UrgSession {
             tx: Vec::with_capacity(64),
             in_adjust: false,
             closing: false,
+            read_timeout_ms: 0,
             tm_tag: 0,
             last_sync: now,
         };
@@ -287,8 +289,21 @@ impl UrgSession {
             if !self.closing && self.stop.load(Ordering::Relaxed) {
                 return Err(UrgError::Stopped);
             }
-            if self.core.clock.now() >= deadline {
+            let now = self.core.clock.now();
+            if now >= deadline {
                 return Ok(false);
+            }
+            // Sleep in the read until the deadline, but wake at least every
+            // `poll` seconds to notice a shutdown request.
+            let rate = self.core.clock.rate().max(1e-9);
+            let wait =
+                ((deadline - now) / rate).clamp(0.001, self.core.params.poll.clamp(0.001, 1.0));
+            let wait_ms = (wait * 1e3).ceil() as u64;
+            if wait_ms != self.read_timeout_ms {
+                self.read_timeout_ms = wait_ms;
+                let _ = self
+                    .port
+                    .set_read_timeout(std::time::Duration::from_millis(wait_ms));
             }
             match self.port.read(&mut self.buf[..]) {
                 Ok(0) => {
