@@ -30,6 +30,9 @@ pub fn run(args: Args) -> CliResult {
     let params = UrgParams {
         port: args.port.display().to_string(),
         time_sync_samples: if args.no_time_sync { 0 } else { 10 },
+        // A diagnostic never reboots what it is pointed at (it may not
+        // even be a URG).
+        reboot_last_resort: false,
         ..UrgParams::default()
     };
     let (text, scan) = probe_scan(&args.port, &params, Arc::new(MonotonicClock::new()))?;
