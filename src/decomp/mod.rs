@@ -19,8 +19,16 @@
 //!    whose width and length stay within a tolerance for a number of updates
 //!    becomes `Final` and is frozen from then on.
 pub mod cell;
+mod decomposer;
+pub mod direction;
+pub mod frame;
+mod polygon;
+pub mod slices;
+pub mod svg;
+pub mod sweep;
 
 pub use cell::{Adjacency, Cell, CellId, CellStatus, Decomposition, Frontier};
+pub use decomposer::Decomposer;
 
 /// Cell decomposition settings.
 /// Loaded from the `[decomp]` table of the config file; every field is documented
@@ -36,6 +44,9 @@ pub struct DecompParams {
     pub sweep_angle: Option<f64>,
     /// Wall length (m) that must be seen before the sweep direction is fixed.
     pub min_wall_evidence: f64,
+    /// An estimated wall direction this close to the grid's axes (rad) is
+    /// snapped onto them (grids are axis-aligned, and so are most rooms).
+    pub axis_snap: f64,
     /// A wall step at least this long between two slices starts a new cell (m).
     pub step_split: f64,
     /// Width/length change below which a cell counts as unchanged (m); from
@@ -50,6 +61,11 @@ pub struct DecompParams {
     pub gap_fill: f64,
     /// Polygon simplification tolerance (m).
     pub simplify_tolerance: f64,
+    /// Cells thinner than this across the lanes merge into the neighbour
+    /// above or below (m).
+    pub min_cell_width: f64,
+    /// Isolated cells smaller than this are dropped as noise (m²).
+    pub min_cell_area: f64,
 }
 
 impl Default for DecompParams {
@@ -59,12 +75,15 @@ impl Default for DecompParams {
             inflation_margin: 0.0,
             sweep_angle: None,
             min_wall_evidence: 1.0,
+            axis_snap: 0.035,
             step_split: 0.25,
             size_tolerance: 0.10,
             stable_updates: 3,
             min_frontier: 0.15,
             gap_fill: 0.15,
             simplify_tolerance: 0.02,
+            min_cell_width: 0.15,
+            min_cell_area: 0.01,
         }
     }
 }
@@ -112,11 +131,14 @@ impl DecompParams {
         }
         for (key, v) in [
             ("min_wall_evidence", self.min_wall_evidence),
+            ("axis_snap", self.axis_snap),
             ("step_split", self.step_split),
             ("size_tolerance", self.size_tolerance),
             ("min_frontier", self.min_frontier),
             ("gap_fill", self.gap_fill),
             ("simplify_tolerance", self.simplify_tolerance),
+            ("min_cell_width", self.min_cell_width),
+            ("min_cell_area", self.min_cell_area),
         ] {
             check(
                 key,
@@ -130,60 +152,5 @@ impl DecompParams {
             "must be at least 1",
         )?;
         Ok(())
-    }
-}
-
-/// The online decomposer: keeps the previous decomposition so cells inherit
-/// their ids and finality builds up over updates.
-#[derive(Clone, Debug)]
-pub struct Decomposer {
-    params: DecompParams,
-    inflation: f64,
-    current: Decomposition,
-}
-
-impl Decomposer {
-    /// A decomposer for a robot of radius `robot_radius` (m); walls are
-    /// inflated by `robot_radius + params.inflation_margin`.
-    pub fn new(params: &DecompParams, robot_radius: f64) -> Result<Self, DecompError> {
-        params.validate()?;
-        check(
-            "robot_radius",
-            robot_radius.is_finite() && (0.0..=2.0).contains(&robot_radius),
-            format!("robot radius must be within 0..2 m, got {robot_radius}"),
-        )?;
-        let inflation = robot_radius + params.inflation_margin;
-        Ok(Self {
-            params: params.clone(),
-            inflation,
-            current: Decomposition {
-                inflation,
-                ..Decomposition::default()
-            },
-        })
-    }
-
-    /// The settings in use.
-    pub fn params(&self) -> &DecompParams {
-        &self.params
-    }
-
-    /// The latest decomposition (empty before the first update).
-    pub fn decomposition(&self) -> &Decomposition {
-        &self.current
-    }
-
-    /// Recomposes the open cells from the current map: `grid` is the
-    /// explored-area evidence grid, `segments` the walls seen as lines (may be
-    /// empty). Final cells keep their polygons; the others inherit ids by
-    /// overlap. Never fails: an unexplored grid gives an empty decomposition.
-    pub fn update(
-        &mut self,
-        grid: &crate::grid::Grid,
-        segments: &[crate::geom::Segment],
-    ) -> &Decomposition {
-        let _ = (grid, segments);
-        self.current.inflation = self.inflation;
-        &self.current
     }
 }

@@ -1,0 +1,516 @@
+//! Slices of the explored configuration space: the evidence grid resampled
+//! into the sweep frame, every seen wall point inflated into a disk, and, per
+//! slice (row), the intervals where the robot's centre may be ("pieces").
+//!
+//! Buffers are kept between updates and reused; only the window around the
+//! explored part of the grid is touched.
+
+use crate::geom::Segment;
+use crate::grid::{CellState, Grid};
+
+use super::frame::SweepFrame;
+
+/// Pixel class: never observed.
+pub const UNK: u8 = 0;
+/// Pixel class: observed free.
+pub const FREE: u8 = 1;
+/// Pixel class: observed occupied.
+pub const OCC: u8 = 2;
+/// Flag: the pixel centre lies within the inflation radius of a wall point.
+pub const BLOCKED: u8 = 4;
+/// Mask of the class bits.
+pub const CLASS: u8 = 3;
+
+/// What ends a piece on one side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum End {
+    /// An inflated wall (or the grid's occupied cells).
+    Wall,
+    /// Unexplored space (or the edge of the grid).
+    Frontier,
+    /// A frozen (final) cell, by its index in the frozen list.
+    Frozen(u32),
+}
+
+/// One free interval of one slice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Piece {
+    /// Row (slice) index.
+    pub row: u32,
+    /// Lower `u` end (m).
+    pub l: f64,
+    /// Upper `u` end (m).
+    pub r: f64,
+    /// What bounds it at `l`.
+    pub left: End,
+    /// What bounds it at `r`.
+    pub right: End,
+}
+
+/// An interval of a frozen cell in one row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrozenSpan {
+    /// Row.
+    pub row: u32,
+    /// Lower `u` (m).
+    pub l: f64,
+    /// Upper `u` (m).
+    pub r: f64,
+    /// Index of the frozen cell.
+    pub cell: u32,
+}
+
+/// The per-update slice buffers.
+#[derive(Clone, Debug, Default)]
+pub struct Slices {
+    /// Pixel classes and flags, `nu × nv`, row-major.
+    pub px: Vec<u8>,
+    /// Obstacle points `(u, v)` sorted by row of `v`.
+    pub points: Vec<(f64, f64)>,
+    /// `points[point_rows[k]..point_rows[k+1]]` lie in row `k`.
+    pub point_rows: Vec<u32>,
+    /// Merged blocked intervals, sorted by row then `l`.
+    pub blocked: Vec<(f64, f64)>,
+    /// Row offsets into `blocked`.
+    pub blocked_rows: Vec<u32>,
+    /// Pieces, sorted by row then `l`.
+    pub pieces: Vec<Piece>,
+    /// Row offsets into `pieces`.
+    pub piece_rows: Vec<u32>,
+    /// Processed window: columns `i0..i1`, rows `k0..k1`.
+    pub window: (usize, usize, usize, usize),
+    raw_points: Vec<(f64, f64)>,
+    raw_intervals: Vec<(u32, f64, f64)>,
+    sorted_intervals: Vec<(f64, f64)>,
+    counts: Vec<u32>,
+    seg_mask: Vec<bool>,
+    excl: Vec<(f64, f64, End)>,
+}
+
+/// Inputs of one slicing pass.
+pub struct SliceInput<'a> {
+    /// The evidence grid.
+    pub grid: &'a Grid,
+    /// Wall segments seen (may be empty).
+    pub segments: &'a [Segment],
+    /// Inflation radius (m).
+    pub radius: f64,
+    /// Unknown gaps up to this many pixels between free pixels are filled.
+    pub gap_pixels: usize,
+    /// Frozen cells' spans, sorted by row then `l`.
+    pub frozen: &'a [FrozenSpan],
+    /// Pieces shorter than this beside a frozen cell are left to that cell's
+    /// tool overlap and dropped (m).
+    pub min_beside_frozen: f64,
+}
+
+impl Slices {
+    /// Pixel at column `i`, row `k`.
+    pub fn at(&self, f: &SweepFrame, i: usize, k: usize) -> u8 {
+        self.px[k * f.nu + i]
+    }
+
+    /// Whether pixel `(i, k)` is unexplored and not within a wall's inflation
+    /// (outside the raster counts as unexplored).
+    pub fn is_frontier(&self, f: &SweepFrame, i: isize, k: isize) -> bool {
+        if i < 0 || k < 0 || i as usize >= f.nu || k as usize >= f.nv {
+            return true;
+        }
+        let p = self.at(f, i as usize, k as usize);
+        p & CLASS == UNK && p & BLOCKED == 0
+    }
+
+    /// The pieces of row `k`.
+    pub fn row_pieces(&self, k: usize) -> std::ops::Range<usize> {
+        self.piece_rows[k] as usize..self.piece_rows[k + 1] as usize
+    }
+
+    /// The obstacle points of row `k`.
+    pub fn row_points(&self, k: usize) -> &[(f64, f64)] {
+        &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize]
+    }
+
+    /// Runs the whole slicing pass for `input` in frame `f`. Returns false when
+    /// nothing of the grid is explored (no pieces).
+    pub fn compute(&mut self, f: &SweepFrame, input: &SliceInput<'_>) -> bool {
+        let n = f.nu * f.nv;
+        self.px.clear();
+        self.px.resize(n, UNK);
+        self.piece_rows.clear();
+        self.piece_rows.resize(f.nv + 1, 0);
+        self.pieces.clear();
+        self.point_rows.clear();
+        self.point_rows.resize(f.nv + 1, 0);
+        self.blocked_rows.clear();
+        self.blocked_rows.resize(f.nv + 1, 0);
+        self.points.clear();
+        self.blocked.clear();
+        let Some(window) = self.explored_window(f, input) else {
+            self.window = (0, 0, 0, 0);
+            return false;
+        };
+        self.window = window;
+        self.resample(f, input.grid);
+        self.fill_gaps(f, input.gap_pixels);
+        self.collect_points(f, input);
+        self.inflate(f, input.radius);
+        self.cut_pieces(f, input.frozen, input.min_beside_frozen);
+        !self.pieces.is_empty()
+    }
+
+    fn explored_window(
+        &self,
+        f: &SweepFrame,
+        input: &SliceInput<'_>,
+    ) -> Option<(usize, usize, usize, usize)> {
+        let g = input.grid;
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0usize, 0usize);
+        for y in 0..g.height() {
+            for x in 0..g.width() {
+                if g.evidence((x, y)) != 0 {
+                    x0 = x0.min(x);
+                    x1 = x1.max(x);
+                    y0 = y0.min(y);
+                    y1 = y1.max(y);
+                }
+            }
+        }
+        if x0 == usize::MAX {
+            return None;
+        }
+        let (o, r) = (g.origin(), g.resolution());
+        let margin = input.radius + 2.0 * f.h;
+        let (mut lo_u, mut lo_v, mut hi_u, mut hi_v) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for (x, y) in [(x0, y0), (x1 + 1, y0), (x0, y1 + 1), (x1 + 1, y1 + 1)] {
+            let p = nalgebra::Point2::new(o.x + x as f64 * r, o.y + y as f64 * r);
+            let (u, v) = f.to_uv(&p);
+            lo_u = lo_u.min(u);
+            lo_v = lo_v.min(v);
+            hi_u = hi_u.max(u);
+            hi_v = hi_v.max(v);
+        }
+        for s in input.segments {
+            for p in [s.a, s.b] {
+                let (u, v) = f.to_uv(&p);
+                if u.is_finite() && v.is_finite() {
+                    lo_u = lo_u.min(u);
+                    lo_v = lo_v.min(v);
+                    hi_u = hi_u.max(u);
+                    hi_v = hi_v.max(v);
+                }
+            }
+        }
+        let i0 = f.col_of(lo_u - margin);
+        let i1 = f.col_of(hi_u + margin) + 1;
+        let k0 = f.row_of(lo_v - margin);
+        let k1 = f.row_of(hi_v + margin) + 1;
+        Some((i0, i1, k0, k1))
+    }
+
+    fn resample(&mut self, f: &SweepFrame, g: &Grid) {
+        let (i0, i1, k0, k1) = self.window;
+        for k in k0..k1 {
+            let v = f.row_v(k);
+            for i in i0..i1 {
+                let p = f.to_world(f.col_u(i), v);
+                let class = match g.cell_of(&p).map(|c| g.state(c)) {
+                    Some(CellState::Free) => FREE,
+                    Some(CellState::Occupied) => OCC,
+                    _ => UNK,
+                };
+                self.px[k * f.nu + i] = class;
+            }
+        }
+    }
+
+    /// Unknown runs of at most `max` pixels with free pixels on both ends
+    /// become free, along rows and then along columns.
+    fn fill_gaps(&mut self, f: &SweepFrame, max: usize) {
+        if max == 0 {
+            return;
+        }
+        let (i0, i1, k0, k1) = self.window;
+        let nu = f.nu;
+        for k in k0..k1 {
+            fill_line(&mut self.px, k * nu + i0, 1, i1 - i0, max);
+        }
+        for i in i0..i1 {
+            fill_line(&mut self.px, k0 * nu + i, nu, k1 - k0, max);
+        }
+    }
+
+    fn collect_points(&mut self, f: &SweepFrame, input: &SliceInput<'_>) {
+        let g = input.grid;
+        let (gw, gh) = (g.width(), g.height());
+        self.seg_mask.clear();
+        self.seg_mask.resize(gw * gh, false);
+        self.raw_points.clear();
+        let step = (f.h * 0.5).min(g.resolution() * 0.5);
+        for s in input.segments {
+            let len = s.length();
+            if !len.is_finite() {
+                continue;
+            }
+            let n = ((len / step).ceil() as usize).clamp(1, 1_000_000);
+            for j in 0..=n {
+                let p = s.a + (s.b - s.a) * (j as f64 / n as f64);
+                self.raw_points.push(f.to_uv(&p));
+                if let Some((cx, cy)) = g.cell_of(&p) {
+                    for yy in cy.saturating_sub(1)..(cy + 2).min(gh) {
+                        for xx in cx.saturating_sub(1)..(cx + 2).min(gw) {
+                            self.seg_mask[yy * gw + xx] = true;
+                        }
+                    }
+                }
+            }
+        }
+        let occ = |x: usize, y: usize| g.state((x, y)) == CellState::Occupied;
+        for y in 0..gh {
+            for x in 0..gw {
+                if g.evidence((x, y)) == 0 || !occ(x, y) || self.seg_mask[y * gw + x] {
+                    continue;
+                }
+                let interior = x > 0
+                    && y > 0
+                    && x + 1 < gw
+                    && y + 1 < gh
+                    && occ(x - 1, y)
+                    && occ(x + 1, y)
+                    && occ(x, y - 1)
+                    && occ(x, y + 1);
+                if !interior {
+                    self.raw_points.push(f.to_uv(&g.centre_of((x, y))));
+                }
+            }
+        }
+        // Counting sort by row.
+        self.counts.clear();
+        self.counts.resize(f.nv + 1, 0);
+        for &(_, v) in &self.raw_points {
+            if v.is_finite() {
+                self.counts[f.row_of(v) + 1] += 1;
+            }
+        }
+        for k in 0..f.nv {
+            self.counts[k + 1] += self.counts[k];
+        }
+        self.point_rows.copy_from_slice(&self.counts);
+        self.points.clear();
+        self.points.resize(self.raw_points.len(), (0.0, 0.0));
+        let mut fill = self.counts.clone();
+        let mut used = 0;
+        for &(u, v) in &self.raw_points {
+            if !(u.is_finite() && v.is_finite()) {
+                continue;
+            }
+            let k = f.row_of(v);
+            self.points[fill[k] as usize] = (u, v);
+            fill[k] += 1;
+            used += 1;
+        }
+        self.points.truncate(used);
+    }
+
+    fn inflate(&mut self, f: &SweepFrame, radius: f64) {
+        let (i0, i1, k0, k1) = self.window;
+        self.raw_intervals.clear();
+        let reach = (radius / f.h).ceil() as usize + 1;
+        for k in 0..f.nv {
+            for &(u, v) in
+                &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize]
+            {
+                for kk in k.saturating_sub(reach)..(k + reach + 1).min(f.nv) {
+                    if kk < k0 || kk >= k1 {
+                        continue;
+                    }
+                    let dv = f.row_v(kk) - v;
+                    let d2 = radius * radius - dv * dv;
+                    if d2 < 0.0 {
+                        continue;
+                    }
+                    let d = d2.sqrt();
+                    self.raw_intervals.push((kk as u32, u - d, u + d));
+                }
+            }
+        }
+        // Counting sort by row, then sort each row by l and merge.
+        self.counts.clear();
+        self.counts.resize(f.nv + 1, 0);
+        for &(k, _, _) in &self.raw_intervals {
+            self.counts[k as usize + 1] += 1;
+        }
+        for k in 0..f.nv {
+            self.counts[k + 1] += self.counts[k];
+        }
+        self.sorted_intervals.clear();
+        self.sorted_intervals
+            .resize(self.raw_intervals.len(), (0.0, 0.0));
+        let mut fill = self.counts.clone();
+        for &(k, l, r) in &self.raw_intervals {
+            self.sorted_intervals[fill[k as usize] as usize] = (l, r);
+            fill[k as usize] += 1;
+        }
+        self.blocked.clear();
+        for k in 0..f.nv {
+            self.blocked_rows[k] = self.blocked.len() as u32;
+            let row =
+                &mut self.sorted_intervals[self.counts[k] as usize..self.counts[k + 1] as usize];
+            row.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            let start = self.blocked.len();
+            for &(l, r) in row.iter() {
+                let len = self.blocked.len();
+                if len > start && l <= self.blocked[len - 1].1 {
+                    self.blocked[len - 1].1 = self.blocked[len - 1].1.max(r);
+                } else {
+                    self.blocked.push((l, r));
+                }
+            }
+            // Flag blocked pixels.
+            if k >= k0 && k < k1 {
+                for &(l, r) in &self.blocked[start..] {
+                    let a = ((l - f.u0) / f.h - 0.5).ceil().max(i0 as f64) as usize;
+                    let b = ((r - f.u0) / f.h - 0.5).floor();
+                    if b < a as f64 {
+                        continue;
+                    }
+                    let b = (b as usize).min(i1 - 1);
+                    for i in a..=b {
+                        self.px[k * f.nu + i] |= BLOCKED;
+                    }
+                }
+            }
+        }
+        self.blocked_rows[f.nv] = self.blocked.len() as u32;
+    }
+
+    fn cut_pieces(&mut self, f: &SweepFrame, frozen: &[FrozenSpan], min_beside: f64) {
+        let (i0, i1, k0, k1) = self.window;
+        let min_len = f.h * 0.5;
+        let mut fz = 0usize;
+        for k in 0..f.nv {
+            self.piece_rows[k] = self.pieces.len() as u32;
+            while fz < frozen.len() && (frozen[fz].row as usize) < k {
+                fz += 1;
+            }
+            if k < k0 || k >= k1 {
+                continue;
+            }
+            self.excl.clear();
+            for &(l, r) in
+                &self.blocked[self.blocked_rows[k] as usize..self.blocked_rows[k + 1] as usize]
+            {
+                self.excl.push((l, r, End::Wall));
+            }
+            let mut j = fz;
+            while j < frozen.len() && frozen[j].row as usize == k {
+                let s = frozen[j];
+                self.excl.push((s.l, s.r, End::Frozen(s.cell)));
+                j += 1;
+            }
+            self.excl.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            let row = k * f.nu;
+            let mut i = i0;
+            while i < i1 {
+                if self.px[row + i] & CLASS != FREE {
+                    i += 1;
+                    continue;
+                }
+                let a = i;
+                while i < i1 && self.px[row + i] & CLASS == FREE {
+                    i += 1;
+                }
+                let b = i - 1;
+                let left = if self.is_frontier(f, a as isize - 1, k as isize) {
+                    End::Frontier
+                } else {
+                    End::Wall
+                };
+                let right = if self.is_frontier(f, b as isize + 1, k as isize) {
+                    End::Frontier
+                } else {
+                    End::Wall
+                };
+                let (lu, ru) = (f.u0 + a as f64 * f.h, f.u0 + (b + 1) as f64 * f.h);
+                let (mut cur, mut cur_end) = (lu, left);
+                for &(el, er, ek) in &self.excl {
+                    if er <= cur || el >= ru {
+                        continue;
+                    }
+                    if el > cur {
+                        let beside =
+                            matches!(ek, End::Frozen(_)) || matches!(cur_end, End::Frozen(_));
+                        let need = if beside {
+                            min_beside.max(min_len)
+                        } else {
+                            min_len
+                        };
+                        if el - cur >= need {
+                            self.pieces.push(Piece {
+                                row: k as u32,
+                                l: cur,
+                                r: el,
+                                left: cur_end,
+                                right: ek,
+                            });
+                        }
+                        cur = er;
+                        cur_end = ek;
+                    } else if er > cur {
+                        cur = er;
+                        cur_end = ek;
+                    }
+                    if cur >= ru {
+                        break;
+                    }
+                }
+                let need = if matches!(cur_end, End::Frozen(_)) {
+                    min_beside.max(min_len)
+                } else {
+                    min_len
+                };
+                if ru - cur >= need {
+                    self.pieces.push(Piece {
+                        row: k as u32,
+                        l: cur,
+                        r: ru,
+                        left: cur_end,
+                        right,
+                    });
+                }
+            }
+        }
+        self.piece_rows[f.nv] = self.pieces.len() as u32;
+    }
+}
+
+/// Fills unknown runs of at most `max` pixels bounded by free pixels along one
+/// line of `n` pixels starting at `start` with stride `stride`.
+fn fill_line(px: &mut [u8], start: usize, stride: usize, n: usize, max: usize) {
+    let mut last_free: Option<usize> = None;
+    let mut j = 0;
+    while j < n {
+        let c = px[start + j * stride] & CLASS;
+        if c == FREE {
+            if let Some(lf) = last_free {
+                let gap = j - lf - 1;
+                if gap > 0
+                    && gap <= max
+                    && (lf + 1..j).all(|t| px[start + t * stride] & CLASS == UNK)
+                {
+                    for t in lf + 1..j {
+                        px[start + t * stride] = FREE;
+                    }
+                }
+            }
+            last_free = Some(j);
+        } else if c == OCC {
+            last_free = None;
+        }
+        j += 1;
+    }
+}
