@@ -185,7 +185,7 @@ impl Decomposer {
                 radius: self.inflation,
                 gap_pixels,
                 frozen: &self.frozen_spans,
-                min_beside_frozen: self.params.min_cell_width,
+                min_beside_frozen: self.params.min_cell_width * 0.5,
             },
         );
         self.sweep.run(

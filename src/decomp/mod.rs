@@ -62,9 +62,11 @@ pub struct DecompParams {
     /// Polygon simplification tolerance (m).
     pub simplify_tolerance: f64,
     /// Cells thinner than this across the lanes merge into the neighbour
-    /// above or below (m).
+    /// above or below (m); strips and slivers under half of it beside a
+    /// final cell are left to that cell's outer lane.
     pub min_cell_width: f64,
-    /// Isolated cells smaller than this are dropped as noise (m²).
+    /// Cells smaller than this merge into the neighbour above or below;
+    /// isolated ones under a 25th of it are dropped as noise (m²).
     pub min_cell_area: f64,
 }
 
@@ -82,8 +84,8 @@ impl Default for DecompParams {
             min_frontier: 0.15,
             gap_fill: 0.15,
             simplify_tolerance: 0.02,
-            min_cell_width: 0.15,
-            min_cell_area: 0.01,
+            min_cell_width: 0.30,
+            min_cell_area: 0.25,
         }
     }
 }

@@ -78,7 +78,8 @@ pub struct SweepInput<'a> {
     pub frozen: &'a [FrozenSpan],
     /// Cells thinner than this across the lanes are merged into a neighbour (m).
     pub min_width: f64,
-    /// Isolated cells smaller than this are dropped (m²).
+    /// Cells smaller than this are merged into a neighbour; isolated ones
+    /// under a 25th of it are dropped as specks (m²).
     pub min_area: f64,
 }
 
@@ -201,9 +202,10 @@ impl Sweep {
         self.bounds_and_frontiers(f, s, input);
     }
 
-    /// Merges groups thinner than `min_width` into the neighbour above or
-    /// below with the longest shared boundary (rows stay one piece each), and
-    /// drops isolated groups smaller than `min_area`.
+    /// Merges groups thinner than `min_width` or smaller than `min_area` into
+    /// the neighbour above or below with the longest shared boundary (rows
+    /// stay one piece each, so lanes stay unbroken); drops isolated specks and
+    /// thin strips beside final cells.
     fn merge_thin(
         &mut self,
         f: &SweepFrame,
@@ -218,12 +220,19 @@ impl Sweep {
             }
         }
         let width = |g: &Vec<u32>| g.len() as f64 * f.h;
-        let mut order: Vec<usize> = (0..groups.len())
-            .filter(|&g| width(&groups[g]) < input.min_width)
+        let area = |g: &Vec<u32>| -> f64 {
+            g.iter()
+                .map(|&p| (s.pieces[p as usize].r - s.pieces[p as usize].l) * f.h)
+                .sum()
+        };
+        let small = |g: &Vec<u32>| width(g) < input.min_width || area(g) < input.min_area;
+        let mut order: Vec<(f64, usize)> = (0..groups.len())
+            .filter(|&g| small(&groups[g]))
+            .map(|g| (area(&groups[g]), g))
             .collect();
-        order.sort_by_key(|&g| (groups[g].len(), g));
-        for t in order {
-            if groups[t].is_empty() || width(&groups[t]) >= input.min_width {
+        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for (_, t) in order {
+            if groups[t].is_empty() || !small(&groups[t]) {
                 continue;
             }
             let (first, last) = (groups[t][0], *groups[t].last().unwrap_or(&groups[t][0]));
@@ -268,10 +277,6 @@ impl Sweep {
                     groups[n] = merged;
                 }
                 None => {
-                    let area: f64 = groups[t]
-                        .iter()
-                        .map(|&p| (s.pieces[p as usize].r - s.pieces[p as usize].l) * f.h)
-                        .sum();
                     let touches_frozen = groups[t].iter().any(|&p| {
                         let pc = &s.pieces[p as usize];
                         let k = pc.row as isize;
@@ -285,7 +290,8 @@ impl Sweep {
                     });
                     // A thin strip beside a final cell is covered by that
                     // cell's outer lane; an isolated speck is noise.
-                    if touches_frozen || area < input.min_area {
+                    let thin = width(&groups[t]) < input.min_width * 0.5;
+                    if (touches_frozen && thin) || area(&groups[t]) < input.min_area / 25.0 {
                         groups[t].clear();
                     }
                 }

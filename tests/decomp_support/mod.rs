@@ -94,3 +94,53 @@ pub fn paper_world() -> World {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/worlds/paper.world");
     World::load(std::path::Path::new(path)).expect("paper world loads")
 }
+
+/// Scan poses for exploring `world`: free points (0.3 m clearance) on a
+/// lattice of `step` metres, visited row by row in boustrophedon order,
+/// starting with the world's start pose.
+pub fn tour(world: &World, step: f64) -> Vec<Pose> {
+    let f = &world.free;
+    let (x0, y0) = (f.origin.x, f.origin.y);
+    let (x1, y1) = (
+        x0 + f.width as f64 * f.resolution,
+        y0 + f.height as f64 * f.resolution,
+    );
+    let mut out = vec![world.start];
+    let mut row = 0;
+    let mut y = y0 + step / 2.0;
+    while y < y1 {
+        let mut xs: Vec<f64> = Vec::new();
+        let mut x = x0 + step / 2.0;
+        while x < x1 {
+            xs.push(x);
+            x += step;
+        }
+        if row % 2 == 1 {
+            xs.reverse();
+        }
+        for x in xs {
+            let p = Point2::new(x, y);
+            if world.disk_is_free(&p, 0.3) {
+                let heading = if row % 2 == 0 {
+                    0.0
+                } else {
+                    std::f64::consts::PI
+                };
+                out.push(sweepline::geom::pose(x, y, heading));
+            }
+        }
+        y += step;
+        row += 1;
+    }
+    out
+}
+
+/// Percentile `q` (0..1) of `v` (sorted copy).
+pub fn percentile(v: &[f64], q: f64) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    if s.is_empty() {
+        return 0.0;
+    }
+    s[((s.len() - 1) as f64 * q).round() as usize]
+}
