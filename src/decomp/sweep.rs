@@ -7,6 +7,7 @@
 use std::collections::HashMap;
 
 use super::frame::SweepFrame;
+use super::polygon::simplify_chain;
 use super::slices::{End, FrozenSpan, Piece, Slices};
 
 /// A cell reference during one update: a cell built now, or a frozen one.
@@ -379,27 +380,29 @@ impl Sweep {
             let first = cell.pieces[0];
             let last = *cell.pieces.last().unwrap_or(&first);
             let (k0, k1) = (first.row as usize, last.row as usize);
-            // Side frontiers, joined over consecutive rows.
+            // Side frontiers: polylines over consecutive rows, simplified.
             for side in 0..2 {
-                let mut run: Option<(f64, f64, f64, f64)> = None;
-                for p in &cell.pieces {
+                let mut run: Vec<(f64, f64)> = Vec::new();
+                for (t, p) in cell.pieces.iter().enumerate() {
                     let (end, u) = if side == 0 {
                         (p.left, p.l)
                     } else {
                         (p.right, p.r)
                     };
-                    let (va, vb) = (f.row_edge(p.row as usize), f.row_edge(p.row as usize + 1));
                     if end == End::Frontier {
-                        run = Some(match run {
-                            Some((u1, v1, _, _)) => (u1, v1, u, vb),
-                            None => (u, va, u, vb),
-                        });
-                    } else if let Some(r) = run.take() {
-                        cell.frontier.push(r);
+                        if run.is_empty() {
+                            run.push((u, f.row_edge(p.row as usize)));
+                        }
+                        run.push((u, f.row_edge(p.row as usize + 1)));
                     }
-                }
-                if let Some(r) = run {
-                    cell.frontier.push(r);
+                    let last_row = t + 1 == cell.pieces.len();
+                    if (end != End::Frontier || last_row) && !run.is_empty() {
+                        let kept = simplify_chain(&run, h);
+                        for w in kept.windows(2) {
+                            cell.frontier.push((w[0].0, w[0].1, w[1].0, w[1].1));
+                        }
+                        run.clear();
+                    }
                 }
             }
             // Frontier pixels just below and above every piece.

@@ -1,0 +1,448 @@
+//! Decomposition behaviour: inheritance and finality while exploring,
+//! direction from segments and from the grid, adjacency geometry, and the
+//! defined outcomes for bad input (nothing explored, open room, robot inside
+//! an inflation zone, bad settings, a grid that changes shape).
+
+mod decomp_support;
+
+use std::collections::HashMap;
+
+use decomp_support::*;
+use nalgebra::Point2;
+use sweepline::decomp::{CellId, CellStatus, DecompError, DecompParams, Decomposer, Decomposition};
+use sweepline::geom::{pose, Segment};
+use sweepline::grid::{CellState, Grid};
+use sweepline::sim::world::World;
+
+fn decomposer() -> Decomposer {
+    Decomposer::new(&DecompParams::default(), 0.17).unwrap()
+}
+
+fn distance_to_polygon(poly: &[Point2<f64>], p: &Point2<f64>) -> f64 {
+    (0..poly.len())
+        .map(|i| Segment::new(poly[i], poly[(i + 1) % poly.len()]).distance_to(p))
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn assert_consistent(d: &Decomposition) {
+    let mut ids: Vec<CellId> = d.cells.iter().map(|c| c.id).collect();
+    ids.dedup();
+    assert_eq!(ids.len(), d.cells.len(), "ids are unique and sorted");
+    for c in &d.cells {
+        assert!(c.polygon.len() >= 3, "cell {:?} has a polygon", c.id);
+        assert!(c.area() > 0.0, "cell {:?} is counter-clockwise", c.id);
+        assert!(c.width > 0.0 && c.length > 0.0);
+    }
+    for a in &d.adjacency {
+        assert_ne!(a.a, a.b);
+        let (ca, cb) = (d.cell(a.a).unwrap(), d.cell(a.b).unwrap());
+        let mid = Point2::from((a.boundary.a.coords + a.boundary.b.coords) / 2.0);
+        // The shared boundary lies on both outlines (within a slice).
+        assert!(distance_to_polygon(&ca.polygon, &mid) < 0.06, "{a:?}");
+        assert!(distance_to_polygon(&cb.polygon, &mid) < 0.06, "{a:?}");
+    }
+    for f in &d.frontiers {
+        assert_eq!(
+            d.cell(f.cell).map(|c| c.status),
+            Some(CellStatus::Open),
+            "frontiers belong to open cells"
+        );
+    }
+}
+
+#[test]
+fn nothing_explored_gives_an_empty_decomposition() {
+    let grid = Grid::new(Point2::new(0.0, 0.0), 0.05, 100, 80);
+    let mut dec = decomposer();
+    for _ in 0..3 {
+        let d = dec.update(&grid, &[]);
+        assert!(d.cells.is_empty() && d.adjacency.is_empty() && d.frontiers.is_empty());
+    }
+    assert!(dec.locked_angle().is_none());
+    // Segments alone (no explored floor) give no cells either.
+    let segs = [Segment::new(Point2::new(1.0, 1.0), Point2::new(3.0, 1.0))];
+    assert!(dec.update(&grid, &segs).cells.is_empty());
+    // A degenerate grid.
+    let tiny = Grid::new(Point2::new(0.0, 0.0), 0.05, 1, 1);
+    assert!(dec.update(&tiny, &[]).cells.is_empty());
+}
+
+#[test]
+fn explored_free_space_without_walls_is_one_open_cell() {
+    let mut grid = Grid::new(Point2::new(0.0, 0.0), 0.05, 120, 120);
+    for y in 40..80 {
+        for x in 30..90 {
+            grid.set_state((x, y), CellState::Free);
+        }
+    }
+    let mut dec = decomposer();
+    let d = dec.update(&grid, &[]).clone();
+    assert_eq!(d.cells.len(), 1, "{:?}", d.cells);
+    assert_eq!(d.cells[0].status, CellStatus::Open);
+    assert!(!d.frontiers.is_empty());
+    assert_consistent(&d);
+    // It never becomes final, however often it is recomposed.
+    for _ in 0..10 {
+        dec.update(&grid, &[]);
+    }
+    assert_eq!(dec.decomposition().cells[0].status, CellStatus::Open);
+    assert_eq!(dec.decomposition().cells[0].id, d.cells[0].id);
+}
+
+#[test]
+fn ids_persist_and_finality_arrives_while_exploring() {
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    let mut dec = decomposer();
+    // Poses along the room, one scan each, one update per scan.
+    let poses: Vec<_> = [
+        (0.5, 0.5, 0.0),
+        (0.8, 1.2, 0.3),
+        (1.4, 1.2, 0.0),
+        (2.0, 1.2, 0.0),
+        (2.6, 1.0, 0.0),
+        (3.2, 1.0, 0.0),
+        (3.8, 1.0, 0.0),
+        (4.6, 1.0, 0.3),
+        (5.3, 1.6, 1.2),
+        (5.3, 2.3, 1.6),
+        (4.8, 3.1, 2.8),
+        (4.0, 3.3, 3.1),
+        (3.0, 3.4, 3.1),
+        (2.2, 2.7, 3.5),
+        (1.0, 2.5, 2.0),
+        (0.6, 3.5, 1.6),
+        (0.6, 2.0, -1.6),
+    ]
+    .iter()
+    .map(|&(x, y, t)| pose(x, y, t))
+    .collect();
+    let probe = Point2::new(0.6, 0.6);
+    let mut probe_id: Option<CellId> = None;
+    let mut final_polygons: HashMap<CellId, Vec<Point2<f64>>> = HashMap::new();
+    let mut max_final = 0;
+    for p in &poses {
+        // The map is updated a few times per pose (the robot turns, scans repeat).
+        scan(&world, &mut grid, p);
+        for _ in 0..2 {
+            let d = dec.update(&grid, &[]);
+            assert_consistent(d);
+            // The cell holding the start keeps its id.
+            let id = d.cell_at(&probe).expect("the start is in a cell");
+            assert_eq!(*probe_id.get_or_insert(id), id, "start cell id changed");
+            // A final cell stays, unchanged.
+            for (id, poly) in &final_polygons {
+                let c = d.cell(*id).expect("final cell kept");
+                assert_eq!(c.status, CellStatus::Final);
+                assert_eq!(&c.polygon, poly);
+            }
+            for c in d.cells.iter().filter(|c| c.status == CellStatus::Final) {
+                final_polygons.entry(c.id).or_insert(c.polygon.clone());
+            }
+            max_final = max_final.max(final_polygons.len());
+        }
+    }
+    for _ in 0..4 {
+        dec.update(&grid, &[]);
+    }
+    let d = dec.decomposition();
+    let finals = d
+        .cells
+        .iter()
+        .filter(|c| c.status == CellStatus::Final)
+        .count();
+    assert!(finals >= 6, "{finals} final cells: {:?}", d.cells);
+    // Nearly all of the room's clear floor lies in final cells.
+    let (mut clear, mut in_final) = (0, 0);
+    for cy in (0..world.free.height).step_by(3) {
+        for cx in (0..world.free.width).step_by(3) {
+            let p = world.free.centre_of(cx, cy);
+            if world.disk_is_free(&p, 0.25) {
+                clear += 1;
+                if d.cell_at(&p)
+                    .and_then(|id| d.cell(id))
+                    .is_some_and(|c| c.status == CellStatus::Final)
+                {
+                    in_final += 1;
+                }
+            }
+        }
+    }
+    let share = in_final as f64 / clear as f64;
+    assert!(
+        share > 0.9,
+        "final cells hold {share:.3} of the clear floor"
+    );
+    // Ids are never reused: the counter only grows.
+    assert!(d.cells.iter().all(|c| c.id.0 < 1000));
+}
+
+#[test]
+fn cells_do_not_reach_into_the_inflation_zone() {
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    let segs = seen_segments(
+        &world,
+        &[world.start, pose(4.8, 1.0, 1.0), pose(2.0, 3.4, 3.1)],
+    );
+    for p in [world.start, pose(4.8, 1.0, 1.0), pose(2.0, 3.4, 3.1)] {
+        scan(&world, &mut grid, &p);
+    }
+    let mut dec = decomposer();
+    let d = dec.update(&grid, &segs).clone();
+    assert_consistent(&d);
+    // Every polygon vertex keeps the robot radius from the true walls
+    // (segments given: the walls are exact; 1 cm for the slice geometry).
+    for c in &d.cells {
+        for v in &c.polygon {
+            let clearance = world
+                .walls
+                .iter()
+                .map(|w| w.seg.distance_to(v))
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                clearance > 0.17 - 0.03,
+                "cell {:?} vertex {v} at {clearance:.3} m from a wall",
+                c.id
+            );
+        }
+    }
+}
+
+#[test]
+fn direction_follows_segments_of_a_rotated_room() {
+    let t = 0.35f64; // 20°
+    let (c, s) = (t.cos(), t.sin());
+    let rot = |x: f64, y: f64| (3.0 + c * x - s * y, 1.0 + s * x + c * y);
+    let corners = [rot(0.0, 0.0), rot(5.0, 0.0), rot(5.0, 3.0), rot(0.0, 3.0)];
+    let text = format!(
+        "room {} {} {} {} {} {} {} {}\nstart {} {} {}\n",
+        corners[0].0,
+        corners[0].1,
+        corners[1].0,
+        corners[1].1,
+        corners[2].0,
+        corners[2].1,
+        corners[3].0,
+        corners[3].1,
+        rot(2.5, 1.5).0,
+        rot(2.5, 1.5).1,
+        t
+    );
+    let world = World::parse(&text).unwrap();
+    let mut grid = grid_for(&world, 0.05);
+    let poses = [world.start, pose(rot(2.5, 1.5).0, rot(2.5, 1.5).1, t + 3.1)];
+    for p in &poses {
+        scan(&world, &mut grid, p);
+    }
+    // With segments: exact.
+    let segs = seen_segments(&world, &poses);
+    let mut dec = decomposer();
+    let d = dec.update(&grid, &segs).clone();
+    let a = dec.locked_angle().expect("direction locked");
+    let err = ((a - t) * 2.0).sin().abs();
+    assert!(err < 1e-3, "angle {a} vs {t}");
+    assert_consistent(&d);
+    assert_eq!(d.cells.len(), 1, "a rectangle is one cell: {:?}", d.cells);
+    // The cell is a rectangle along the room.
+    let cell = &d.cells[0];
+    assert!((cell.length - (5.0 - 0.34)).abs() < 0.06, "{}", cell.length);
+    assert!((cell.width - (3.0 - 0.34)).abs() < 0.06, "{}", cell.width);
+    // Without segments: from the grid, within a degree and a half.
+    let mut dec = decomposer();
+    dec.update(&grid, &[]);
+    let a = dec.locked_angle().expect("direction locked");
+    assert!(((a - t) * 2.0).sin().abs() < 0.05, "grid angle {a} vs {t}");
+}
+
+#[test]
+fn open_room_gives_open_cells_with_frontiers() {
+    // A U of thin walls in a huge hall: the scanner cannot see the hall's far
+    // walls, so beyond the opening everything stays unexplored.
+    let text = "room 0 0 40 0 40 40 0 40\n\
+                wall 10 10 14 10\nwall 10 10 10 13\nwall 14 10 14 13\n\
+                start 12 11 1.5708\n";
+    let world = World::parse(text).unwrap();
+    let mut grid = grid_for(&world, 0.05);
+    scan(&world, &mut grid, &world.start);
+    scan(&world, &mut grid, &pose(12.0, 11.0, -1.5708));
+    let mut dec = decomposer();
+    for _ in 0..5 {
+        dec.update(&grid, &[]);
+    }
+    let d = dec.decomposition();
+    let out = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("decomp");
+    std::fs::create_dir_all(&out).unwrap();
+    let doc =
+        sweepline::decomp::svg::render(d, &grid, Some(Point2::new(12.0, 11.0)), &[], "open room");
+    sweepline::decomp::svg::save_to(&out.join("open_room.svg"), &doc).unwrap();
+    assert_consistent(d);
+    assert!(!d.cells.is_empty());
+    let robot = Point2::new(12.0, 11.0);
+    // Inside the U: closed by the walls and the virtual edge across the
+    // opening; beyond it, an open cell with the frontier.
+    let id = d.cell_at(&robot).expect("robot in a cell");
+    assert_ne!(d.cell(id).unwrap().status, CellStatus::Open);
+    let beyond = d.neighbours(id).collect::<Vec<_>>();
+    assert_eq!(beyond.len(), 1, "{:?}", d.adjacency);
+    assert_eq!(d.cell(beyond[0]).unwrap().status, CellStatus::Open);
+    assert!(d.frontiers.iter().any(|f| f.cell == beyond[0]));
+    let edge = d.adjacency[0].boundary;
+    assert!(
+        (edge.a.y - 13.0).abs() < 0.2 && (edge.b.y - 13.0).abs() < 0.2,
+        "{edge:?}"
+    );
+    // The U was seen all round: the frontier lies beyond its opening.
+    assert!(
+        d.frontiers
+            .iter()
+            .all(|f| f.boundary.a.y > 12.5 && f.boundary.b.y > 12.5),
+        "{:?}",
+        d.frontiers
+    );
+}
+
+#[test]
+fn robot_inside_an_inflation_zone_is_in_no_cell() {
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    // 8 cm from the left wall: inside the 0.17 m inflation.
+    let p = pose(0.08, 2.0, 0.0);
+    scan(&world, &mut grid, &p);
+    let mut dec = decomposer();
+    let d = dec.update(&grid, &[]);
+    assert_consistent(d);
+    assert!(
+        !d.cells.is_empty(),
+        "the free space in view is still decomposed"
+    );
+    assert!(d.cell_at(&Point2::new(0.08, 2.0)).is_none());
+    // A place 0.3 m further in is in a cell: the planner can escape there.
+    assert!(d.cell_at(&Point2::new(0.45, 2.0)).is_some());
+}
+
+#[test]
+fn bad_settings_are_refused_with_the_key() {
+    let cases: Vec<(DecompParams, &str)> = vec![
+        (
+            DecompParams {
+                resolution: 0.0,
+                ..DecompParams::default()
+            },
+            "resolution",
+        ),
+        (
+            DecompParams {
+                resolution: f64::NAN,
+                ..DecompParams::default()
+            },
+            "resolution",
+        ),
+        (
+            DecompParams {
+                step_split: -1.0,
+                ..DecompParams::default()
+            },
+            "step_split",
+        ),
+        (
+            DecompParams {
+                stable_updates: 0,
+                ..DecompParams::default()
+            },
+            "stable_updates",
+        ),
+        (
+            DecompParams {
+                sweep_angle: Some(f64::INFINITY),
+                ..DecompParams::default()
+            },
+            "sweep_angle",
+        ),
+        (
+            DecompParams {
+                inflation_margin: 5.0,
+                ..DecompParams::default()
+            },
+            "inflation_margin",
+        ),
+    ];
+    for (p, key) in cases {
+        let e = Decomposer::new(&p, 0.17).unwrap_err();
+        assert!(matches!(e, DecompError::BadParam { .. }));
+        assert!(e.to_string().contains(key), "{e}");
+    }
+    let e = Decomposer::new(&DecompParams::default(), -0.1).unwrap_err();
+    assert!(e.to_string().contains("robot_radius"), "{e}");
+    // The shipped table parses into the defaults.
+    let cfg = sweepline::config::Config::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/hw/robot.toml"
+    )))
+    .unwrap();
+    assert_eq!(cfg.decomp, DecompParams::default());
+}
+
+#[test]
+fn forced_sweep_angle_is_used() {
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    scan(&world, &mut grid, &world.start);
+    let mut dec = Decomposer::new(
+        &DecompParams {
+            sweep_angle: Some(std::f64::consts::FRAC_PI_2),
+            ..DecompParams::default()
+        },
+        0.17,
+    )
+    .unwrap();
+    let d = dec.update(&grid, &[]);
+    assert!((d.sweep_angle - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    assert!(d
+        .cells
+        .iter()
+        .all(|c| (c.sweep_angle - std::f64::consts::FRAC_PI_2).abs() < 1e-12));
+    assert_consistent(d);
+}
+
+#[test]
+fn a_grid_of_another_shape_starts_afresh() {
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    scan(&world, &mut grid, &world.start);
+    let mut dec = decomposer();
+    for _ in 0..5 {
+        dec.update(&grid, &[]);
+    }
+    let before = dec.decomposition().cells.len();
+    assert!(before > 0);
+    let max_id = dec
+        .decomposition()
+        .cells
+        .iter()
+        .map(|c| c.id.0)
+        .max()
+        .unwrap();
+    let mut other = grid_for(&world, 0.1);
+    scan(&world, &mut other, &world.start);
+    let d = dec.update(&other, &[]);
+    assert!(!d.cells.is_empty());
+    assert!(d.cells.iter().all(|c| c.status != CellStatus::Final));
+    assert!(d.cells.iter().map(|c| c.id.0).min().unwrap() <= max_id);
+}
+
+#[test]
+fn the_same_input_gives_the_same_output() {
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    for p in [world.start, pose(4.0, 1.0, 0.5)] {
+        scan(&world, &mut grid, &p);
+    }
+    let run = || {
+        let mut dec = decomposer();
+        (0..4)
+            .map(|_| dec.update(&grid, &[]).clone())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(run(), run());
+}
