@@ -13,7 +13,8 @@
 //!   cells farther than one robot radius from every reachable cell), e.g. a
 //!   pocket behind furniture; reported, never counted as missed.
 //! * **overlap**: area swept in more than one pass / area swept. A pass over a
-//!   cell starts when the tool disk enters it and ends when it leaves.
+//!   cell starts when the tool disk (exact distance to the cell centre) enters
+//!   it and ends when it has been out of it for more than a second.
 //! * **turns**: heading changes of the direction of travel above 30°, the
 //!   travel direction sampled every 5 cm of path (as the IPA evaluation does on
 //!   its pixel path); rotation is the total absolute heading change.
@@ -27,6 +28,11 @@ use crate::sim::world::{FreeRaster, World};
 
 /// Distance of travel between two samples of the travel direction (m).
 const TURN_SAMPLE: f64 = 0.05;
+/// A cell swept again within this time (s) of last being under the tool
+/// continues its pass: tracking jitter of a millimetre at the tool's edge is
+/// not a second pass, while coming back along the next lane (after two turns
+/// in place) always is.
+const SAME_PASS: f64 = 1.0;
 /// Heading change that counts as a turn (rad), 30° as in the IPA evaluation.
 const TURN_ANGLE: f64 = 0.52;
 
@@ -84,8 +90,8 @@ pub struct CoverageTracker {
     footprint: Vec<bool>,
     unreachable_cells: usize,
     passes: Vec<u16>,
-    last_seen: Vec<u32>,
-    step: u32,
+    last_seen: Vec<f64>,
+    tool_radius: f64,
     tool: Vec<(i64, i64)>,
     robot_radius: f64,
     last: Option<Pose>,
@@ -223,9 +229,16 @@ impl CoverageTracker {
             });
         };
         let reachable = connected_from(&centre_ok, w, h, start_cell);
-        let tool = disk_offsets(tool_width / 2.0, res);
+        // One cell more than the tool: membership is decided on exact distance.
+        let tool = disk_offsets(tool_width / 2.0 + res * 1.5, res);
         let body = disk_offsets(robot_radius, res);
-        let footprint = dilate(&reachable, w, h, &tool, &raster.free);
+        let footprint = dilate(
+            &reachable,
+            w,
+            h,
+            &disk_offsets(tool_width / 2.0, res),
+            &raster.free,
+        );
         let touchable = dilate(&reachable, w, h, &body, &raster.free);
         let unreachable_cells = raster
             .free
@@ -235,12 +248,12 @@ impl CoverageTracker {
             .count();
         Ok(Self {
             passes: vec![0; w * h],
-            last_seen: vec![u32::MAX; w * h],
+            last_seen: vec![f64::NEG_INFINITY; w * h],
             raster,
             reachable,
             footprint,
             unreachable_cells,
-            step: 0,
+            tool_radius: tool_width / 2.0,
             tool,
             robot_radius,
             last: None,
@@ -305,7 +318,6 @@ impl CoverageTracker {
                 }
             }
         }
-        self.step = self.step.wrapping_add(1);
         let (w, h, res) = (
             self.raster.width,
             self.raster.height,
@@ -317,6 +329,7 @@ impl CoverageTracker {
             return;
         }
         let (cx, cy) = (fx as i64, fy as i64);
+        let r2 = self.tool_radius * self.tool_radius;
         for &(dx, dy) in &self.tool {
             let (nx, ny) = (cx + dx, cy + dy);
             if nx < 0 || ny < 0 || nx as usize >= w || ny as usize >= h {
@@ -326,10 +339,15 @@ impl CoverageTracker {
             if !self.raster.free[j] {
                 continue;
             }
-            if self.last_seen[j] != self.step.wrapping_sub(1) {
+            let c = self.raster.centre_of(nx as usize, ny as usize);
+            if (c - p).norm_squared() > r2 {
+                continue;
+            }
+            // (A never-seen cell has last_seen = -inf: always a new pass.)
+            if time - self.last_seen[j] > SAME_PASS {
                 self.passes[j] = self.passes[j].saturating_add(1);
             }
-            self.last_seen[j] = self.step;
+            self.last_seen[j] = time;
         }
         let hit = !self.disk_free(&p);
         if hit && !self.colliding {

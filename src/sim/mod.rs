@@ -1,5 +1,7 @@
 //! Simulation: worlds, ray casting, robot kinematics, device emulators on
 //! ptys, and replay of recorded logs.
 pub mod coverage_metrics;
+pub mod coverage_svg;
 pub mod floorplan;
+pub mod lockstep;
 pub mod world;
