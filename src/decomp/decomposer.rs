@@ -269,6 +269,8 @@ impl Decomposer {
             for p in &cell.pieces {
                 let k = p.row as usize;
                 let (a, b) = pixel_span(f, p.l, p.r);
+                // Runs of equal old labels, one map entry per run.
+                let mut run: (u32, u32) = (NO_LABEL, 0);
                 for i in a..b {
                     let old = if same_frame {
                         self.prev_labels[k * f.nu + i]
@@ -283,9 +285,17 @@ impl Decomposer {
                             })
                             .unwrap_or(NO_LABEL)
                     };
-                    if old != NO_LABEL {
-                        *overlaps.entry((old, ci as u32)).or_insert(0) += 1;
+                    if old == run.0 {
+                        run.1 += 1;
+                        continue;
                     }
+                    if run.0 != NO_LABEL {
+                        *overlaps.entry((run.0, ci as u32)).or_insert(0) += run.1;
+                    }
+                    run = (old, 1);
+                }
+                if run.0 != NO_LABEL {
+                    *overlaps.entry((run.0, ci as u32)).or_insert(0) += run.1;
                 }
             }
         }

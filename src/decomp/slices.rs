@@ -85,6 +85,7 @@ pub struct Slices {
     counts: Vec<u32>,
     seg_mask: Vec<bool>,
     excl: Vec<(f64, f64, End)>,
+    grid_box: (usize, usize, usize, usize),
 }
 
 /// Inputs of one slicing pass.
@@ -159,7 +160,7 @@ impl Slices {
     }
 
     fn explored_window(
-        &self,
+        &mut self,
         f: &SweepFrame,
         input: &SliceInput<'_>,
     ) -> Option<(usize, usize, usize, usize)> {
@@ -178,6 +179,7 @@ impl Slices {
         if x0 == usize::MAX {
             return None;
         }
+        self.grid_box = (x0, y0, x1 + 1, y1 + 1);
         let (o, r) = (g.origin(), g.resolution());
         let margin = input.radius + 2.0 * f.h;
         let (mut lo_u, mut lo_v, mut hi_u, mut hi_v) = (
@@ -214,16 +216,32 @@ impl Slices {
 
     fn resample(&mut self, f: &SweepFrame, g: &Grid) {
         let (i0, i1, k0, k1) = self.window;
+        let class = |st: CellState| match st {
+            CellState::Free => FREE,
+            CellState::Occupied => OCC,
+            CellState::Unknown => UNK,
+        };
+        // Fast path: the pixel lattice is the grid lattice, maybe rotated by
+        // a multiple of 90° (axis-aligned rooms): integer index arithmetic.
+        if let Some(m) = lattice_map(f, g) {
+            let (gw, gh) = (g.width() as i64, g.height() as i64);
+            for k in k0..k1 {
+                for i in i0..i1 {
+                    let (x, y) = m.apply(i as i64, k as i64);
+                    self.px[k * f.nu + i] = if x >= 0 && y >= 0 && x < gw && y < gh {
+                        class(g.state((x as usize, y as usize)))
+                    } else {
+                        UNK
+                    };
+                }
+            }
+            return;
+        }
         for k in k0..k1 {
             let v = f.row_v(k);
             for i in i0..i1 {
                 let p = f.to_world(f.col_u(i), v);
-                let class = match g.cell_of(&p).map(|c| g.state(c)) {
-                    Some(CellState::Free) => FREE,
-                    Some(CellState::Occupied) => OCC,
-                    _ => UNK,
-                };
-                self.px[k * f.nu + i] = class;
+                self.px[k * f.nu + i] = g.cell_of(&p).map(|c| class(g.state(c))).unwrap_or(UNK);
             }
         }
     }
@@ -270,8 +288,9 @@ impl Slices {
             }
         }
         let occ = |x: usize, y: usize| g.state((x, y)) == CellState::Occupied;
-        for y in 0..gh {
-            for x in 0..gw {
+        let (bx0, by0, bx1, by1) = self.grid_box;
+        for y in by0..by1 {
+            for x in bx0..bx1 {
                 if g.evidence((x, y)) == 0 || !occ(x, y) || self.seg_mask[y * gw + x] {
                     continue;
                 }
@@ -486,6 +505,55 @@ impl Slices {
         }
         self.piece_rows[f.nv] = self.pieces.len() as u32;
     }
+}
+
+/// Integer map from pixel `(i, k)` to grid cell `(x, y)`:
+/// `x = x0 + xi·i + xk·k`, `y = y0 + yi·i + yk·k`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct LatticeMap {
+    x0: i64,
+    xi: i64,
+    xk: i64,
+    y0: i64,
+    yi: i64,
+    yk: i64,
+}
+
+impl LatticeMap {
+    fn apply(&self, i: i64, k: i64) -> (i64, i64) {
+        (
+            self.x0 + self.xi * i + self.xk * k,
+            self.y0 + self.yi * i + self.yk * k,
+        )
+    }
+}
+
+/// The integer map when pixel centres fall on grid cell centres (same cell
+/// size, frame rotated by a multiple of 90°, lattices aligned), else `None`.
+fn lattice_map(f: &SweepFrame, g: &Grid) -> Option<LatticeMap> {
+    let r = g.resolution();
+    if (f.h - r).abs() > 1e-9 * r {
+        return None;
+    }
+    let o = g.origin();
+    let at = |i: usize, k: usize| {
+        let p = f.to_world(f.col_u(i), f.row_v(k));
+        ((p.x - o.x) / r - 0.5, (p.y - o.y) / r - 0.5)
+    };
+    let (a, b, c) = (at(0, 0), at(1, 0), at(0, 1));
+    let near_int = |v: f64| (v - v.round()).abs() < 1e-6;
+    let all = [a.0, a.1, b.0 - a.0, b.1 - a.1, c.0 - a.0, c.1 - a.1];
+    if !all.iter().all(|&v| v.is_finite() && near_int(v)) {
+        return None;
+    }
+    Some(LatticeMap {
+        x0: a.0.round() as i64,
+        xi: (b.0 - a.0).round() as i64,
+        xk: (c.0 - a.0).round() as i64,
+        y0: a.1.round() as i64,
+        yi: (b.1 - a.1).round() as i64,
+        yk: (c.1 - a.1).round() as i64,
+    })
 }
 
 /// Fills unknown runs of at most `max` pixels bounded by free pixels along one
