@@ -222,14 +222,40 @@ pub fn lanes(input: &LaneInput) -> Vec<Lane> {
     out
 }
 
-/// Lanes in driving order, starting near `start_cost`'s minimum: tries the
-/// first and the last lane (across) as start, from either end, chains the
-/// rest greedily by the nearest lane end, and keeps the order whose
-/// `start_cost(entry) + connections` is smallest. Returns the ordered lanes
-/// and that cost.
-pub fn order(lanes: &[Lane], start_cost: impl Fn(&Point2<f64>) -> f64) -> (Vec<Lane>, f64) {
+/// One way to drive a region's lanes: the lanes in order and the length
+/// driven inside the region (lanes plus connections, straight-line).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variant {
+    /// Lanes in driving order.
+    pub lanes: Vec<Lane>,
+    /// Length of lanes and connections (m).
+    pub length: f64,
+}
+
+impl Variant {
+    /// Where the variant starts.
+    pub fn entry(&self) -> Point2<f64> {
+        self.lanes
+            .first()
+            .map(|l| l.a)
+            .unwrap_or_else(Point2::origin)
+    }
+
+    /// Where the variant ends.
+    pub fn exit(&self) -> Point2<f64> {
+        self.lanes
+            .last()
+            .map(|l| l.b)
+            .unwrap_or_else(Point2::origin)
+    }
+}
+
+/// The ways to drive `lanes`: starting with the first or the last lane
+/// (across), from either end, the rest chained greedily by the nearest lane
+/// end (a zig-zag in a simple cell). Up to four variants.
+pub fn variants(lanes: &[Lane]) -> Vec<Variant> {
     if lanes.is_empty() {
-        return (Vec::new(), 0.0);
+        return Vec::new();
     }
     let across = |l: &Lane| {
         let d = l.b - l.a;
@@ -248,18 +274,19 @@ pub fn order(lanes: &[Lane], start_cost: impl Fn(&Point2<f64>) -> f64) -> (Vec<L
             last = i;
         }
     }
-    let mut best: Option<(Vec<Lane>, f64)> = None;
-    for &s in &[first, last] {
+    let starts: &[usize] = if first == last {
+        &[first][..]
+    } else {
+        &[first, last][..]
+    };
+    let mut out = Vec::new();
+    for &s in starts {
         for rev in [false, true] {
             let l0 = if rev { lanes[s].reversed() } else { lanes[s] };
-            let entry_cost = start_cost(&l0.a);
-            if !entry_cost.is_finite() {
-                continue;
-            }
             let mut used = vec![false; lanes.len()];
             used[s] = true;
             let mut seq = vec![l0];
-            let mut cost = entry_cost + l0.length();
+            let mut length = l0.length();
             let mut at = l0.b;
             let mut at_across = across(&l0);
             for _ in 1..lanes.len() {
@@ -276,17 +303,28 @@ pub fn order(lanes: &[Lane], start_cost: impl Fn(&Point2<f64>) -> f64) -> (Vec<L
                         }
                     }
                 }
-                let Some((d, i, r)) = pick else { break };
+                let Some((_, i, r)) = pick else { break };
                 used[i] = true;
                 let l = if r { lanes[i].reversed() } else { lanes[i] };
-                cost += d + l.length();
+                length += (l.a - at).norm() + l.length();
                 at = l.b;
                 at_across = across(&l);
                 seq.push(l);
             }
-            if best.as_ref().is_none_or(|(_, c)| cost < *c) {
-                best = Some((seq, cost));
-            }
+            out.push(Variant { lanes: seq, length });
+        }
+    }
+    out
+}
+
+/// The variant (see [`variants`]) with the least `start_cost(entry) +
+/// length`, and that cost; empty when no entry has a finite cost.
+pub fn order(lanes: &[Lane], start_cost: impl Fn(&Point2<f64>) -> f64) -> (Vec<Lane>, f64) {
+    let mut best: Option<(Vec<Lane>, f64)> = None;
+    for v in variants(lanes) {
+        let c = start_cost(&v.entry()) + v.length;
+        if c.is_finite() && best.as_ref().is_none_or(|(_, b)| c < *b) {
+            best = Some((v.lanes, c));
         }
     }
     best.unwrap_or_default()

@@ -28,8 +28,9 @@ pub struct PlanParams {
     /// Part of the tool half-width not counted on when deciding what a lane
     /// reaches (m), against tracking error.
     pub reach_margin: f64,
-    /// Weight of the look-ahead term (distance from a cell's exit to the
-    /// nearest other cell) in the choice of the next cell.
+    /// Weight of the look-ahead term (straight-line length of a greedy tour
+    /// through the other candidate cells after this one) in the choice of
+    /// the next cell; 0 = nearest cell first.
     pub lookahead_weight: f64,
     /// Uncovered patches smaller than this are left alone (m²).
     pub min_patch_area: f64,
@@ -40,19 +41,23 @@ pub struct PlanParams {
     pub min_frontier_cells: usize,
     /// Turn in place once at the start to see all around.
     pub look_around: bool,
+    /// When no cell is final, cover closed cells whose size still settles
+    /// (what they gain later is covered then) before exploring.
+    pub cover_settling_cells: bool,
 }
 
 impl Default for PlanParams {
     fn default() -> Self {
         Self {
-            safety_margin: 0.04,
+            safety_margin: 0.01,
             lane_overlap: 0.01,
             reach_margin: 0.01,
-            lookahead_weight: 0.5,
+            lookahead_weight: 1.0,
             min_patch_area: 0.01,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
             look_around: true,
+            cover_settling_cells: true,
         }
     }
 }

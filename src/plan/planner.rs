@@ -29,7 +29,7 @@
 use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
-use super::lanes::{lanes, order, Axis, Lane, LaneInput};
+use super::lanes::{lanes, variants, Axis, Lane, LaneInput, Variant};
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
@@ -135,10 +135,26 @@ pub struct TaskRecord {
 
 struct Candidate {
     cell: Option<CellId>,
-    lanes: Vec<Lane>,
-    cost: f64,
+    variants: Vec<Variant>,
+    /// Travel distance from the robot to each variant's entry (m).
+    entry_cost: Vec<f64>,
     targets: Vec<usize>,
 }
+
+impl Candidate {
+    fn cost(&self) -> f64 {
+        self.entry_cost
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Interruptions after which a target or frontier is given up.
+const MAX_TRIES: u8 = 3;
+
+/// Candidates considered jointly when ordering (the nearest ones).
+const TOUR_CANDIDATES: usize = 9;
 
 /// The online coverage planner (see the module docs).
 pub struct CoveragePlanner {
@@ -169,6 +185,7 @@ pub struct CoveragePlanner {
     history: Vec<TaskRecord>,
     planned_lanes: usize,
     owner: Vec<u32>,
+    tries: Vec<u8>,
 }
 
 /// Updates between re-evaluations while exploring (a cell may have become final).
@@ -228,6 +245,7 @@ impl CoveragePlanner {
             history: Vec::new(),
             planned_lanes: 0,
             owner: Vec::new(),
+            tries: Vec::new(),
         })
     }
 
@@ -277,8 +295,9 @@ impl CoveragePlanner {
             self.scratch_a = vec![false; n];
             self.scratch_t = vec![false; n];
             self.owner = vec![u32::MAX; n];
+            self.tries = vec![0; n];
             let res = self.cspace.frame.res;
-            self.stamp = disk(self.stamp_radius, res);
+            self.stamp = disk(self.stamp_radius + res, res);
             self.reach_disk = disk(self.reach, res);
         }
     }
@@ -292,10 +311,15 @@ impl CoveragePlanner {
         let p: Point2<f64> = pose.translation.vector.into();
         let Some(i) = f.index_of(&p) else { return };
         let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+        let r2 = self.stamp_radius * self.stamp_radius;
         for &(dx, dy) in &self.stamp {
             let (nx, ny) = (x + dx, y + dy);
             if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
-                self.covered[ny as usize * f.w + nx as usize] = true;
+                let j = ny as usize * f.w + nx as usize;
+                // Exact distance from the pose, not from its cell's centre.
+                if (f.centre(j) - p).norm_squared() <= r2 {
+                    self.covered[j] = true;
+                }
             }
         }
     }
@@ -325,8 +349,8 @@ impl CoveragePlanner {
         let mut replan = progress.is_none() || self.task == Task::Idle;
         if progress.is_none() && self.task == Task::Explore {
             // Arrived: whatever frontier is still in view from here cannot be seen.
-            if let Some(g) = self.explore_goal {
-                self.give_up_frontier_near(&g);
+            if let Some(g) = self.explore_goal.take() {
+                self.give_up_frontier_near(&g, 0);
             }
         }
         if progress.is_none() && matches!(self.task, Task::Cover(_)) {
@@ -336,6 +360,7 @@ impl CoveragePlanner {
                     self.abandoned[i] = true;
                 }
             }
+            self.task_targets.clear();
         }
         if let Some(next) = progress {
             // Blocked by something seen since?
@@ -367,6 +392,22 @@ impl CoveragePlanner {
     }
 
     fn set_task(&mut self, task: Task, path: Vec<Point2<f64>>, final_heading: Option<f64>) {
+        // An interrupted task: what it was after counts one more try; after
+        // MAX_TRIES tries it is given up (no endless back and forth).
+        let old_targets = std::mem::take(&mut self.task_targets);
+        for i in old_targets {
+            if !self.covered[i] {
+                self.tries[i] = self.tries[i].saturating_add(1);
+                if self.tries[i] >= MAX_TRIES {
+                    self.abandoned[i] = true;
+                }
+            }
+        }
+        if self.task == Task::Explore {
+            if let Some(g) = self.explore_goal.take() {
+                self.give_up_frontier_near(&g, MAX_TRIES);
+            }
+        }
         self.task = task;
         self.path = path;
         self.final_heading = final_heading;
@@ -397,7 +438,6 @@ impl CoveragePlanner {
         };
         if !self.started {
             self.started = true;
-            self.task_targets.clear();
             self.set_task(
                 Task::LookAround,
                 Vec::new(),
@@ -407,7 +447,6 @@ impl CoveragePlanner {
         }
         if !self.cspace.traversable[robot] {
             if let Some(goal) = self.escape_target(robot) {
-                self.task_targets.clear();
                 self.set_task(Task::Escape, vec![goal], None);
                 return working(Task::Escape);
             }
@@ -415,7 +454,10 @@ impl CoveragePlanner {
         }
         self.cspace.distances_from(robot);
         self.compute_targets();
-        let mut cands = self.cell_candidates(decomp);
+        let mut cands = self.cell_candidates(decomp, CellStatus::Final);
+        if cands.is_empty() && self.params.cover_settling_cells && !keep_exploring {
+            cands = self.cell_candidates(decomp, CellStatus::Settling);
+        }
         if cands.is_empty() {
             if keep_exploring {
                 self.task = Task::Explore;
@@ -434,10 +476,9 @@ impl CoveragePlanner {
                     let d = face - g;
                     (d.norm() > 1e-6).then(|| d.y.atan2(d.x))
                 };
-                self.explore_goal = Some(g);
-                self.task_targets.clear();
                 self.stats.explores += 1;
                 self.set_task(Task::Explore, path, final_heading);
+                self.explore_goal = Some(g);
                 return working(Task::Explore);
             }
             cands = self.patch_candidates(decomp);
@@ -448,43 +489,23 @@ impl CoveragePlanner {
             self.set_task(Task::Done, Vec::new(), None);
             return Ok(PlanStatus::Done(report));
         }
-        // Look-ahead: distance from each candidate's exit to the nearest other entry.
-        let w = self.params.lookahead_weight;
-        let mut best: Option<(f64, usize)> = None;
-        for (k, c) in cands.iter().enumerate() {
-            let exit = c.lanes.last().map(|l| l.b).unwrap_or(p);
-            let ahead = cands
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != k)
-                .map(|(_, o)| {
-                    o.lanes
-                        .iter()
-                        .flat_map(|l| [l.a, l.b])
-                        .map(|q| (q - exit).norm())
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .fold(f64::INFINITY, f64::min);
-            let ahead = if ahead.is_finite() { ahead } else { 0.0 };
-            let total = c.cost + w * ahead;
-            if best.is_none_or(|(b, _)| total < b) {
-                best = Some((total, k));
-            }
-        }
-        let Some((_, k)) = best else {
-            return Err(PlanError::Trapped { x: p.x, y: p.y });
-        };
+        // Look-ahead: the order of the nearest candidates (and the corner
+        // each is entered at) that minimises the whole tour, exhaustively.
+        cands.sort_by(|a, b| a.cost().total_cmp(&b.cost()));
+        cands.truncate(TOUR_CANDIDATES);
+        let (k, v) = best_tour_start(&cands, self.params.lookahead_weight);
         let chosen = cands.swap_remove(k);
-        let path = self.cover_path(&chosen.lanes);
+        let lanes = chosen.variants[v].lanes.clone();
+        let path = self.cover_path(&lanes);
         match chosen.cell {
             Some(_) => self.stats.cells += 1,
             None => self.stats.patches += 1,
         }
-        self.stats.lanes += chosen.lanes.len();
-        self.planned_lanes = chosen.lanes.len();
-        self.task_targets = chosen.targets;
+        self.stats.lanes += lanes.len();
+        self.planned_lanes = lanes.len();
         let task = Task::Cover(chosen.cell);
         self.set_task(task, path, None);
+        self.task_targets = chosen.targets;
         working(task)
     }
 
@@ -649,16 +670,19 @@ impl CoveragePlanner {
         };
         let ls = lanes(&input);
         let dist = &self.cspace.dist;
-        let (ordered, cost) = order(&ls, |q| {
-            f.index_of(q).map(|i| dist[i]).unwrap_or(f64::INFINITY)
-        });
-        // Choice cost: the transit to the entry (the lanes are the same whatever the order).
-        let cost = ordered
-            .first()
-            .and_then(|l| f.index_of(&l.a))
-            .map(|i| dist[i])
-            .unwrap_or(cost);
-        if ordered.is_empty() || !cost.is_finite() {
+        let mut vars = Vec::new();
+        let mut entry_cost = Vec::new();
+        for var in variants(&ls) {
+            let c = f
+                .index_of(&var.entry())
+                .map(|i| dist[i])
+                .unwrap_or(f64::INFINITY);
+            if c.is_finite() {
+                vars.push(var);
+                entry_cost.push(c);
+            }
+        }
+        if vars.is_empty() {
             // Nothing the lanes can reach from here: give these up.
             for &i in &targets {
                 self.abandoned[i] = true;
@@ -667,20 +691,16 @@ impl CoveragePlanner {
         }
         Some(Candidate {
             cell,
-            lanes: ordered,
-            cost,
+            variants: vars,
+            entry_cost,
             targets,
         })
     }
 
-    fn cell_candidates(&mut self, decomp: &Decomposition) -> Vec<Candidate> {
+    fn cell_candidates(&mut self, decomp: &Decomposition, status: CellStatus) -> Vec<Candidate> {
         let f = self.cspace.frame;
         let mut out = Vec::new();
-        for cell in decomp
-            .cells
-            .iter()
-            .filter(|c| c.status == CellStatus::Final)
-        {
+        for cell in decomp.cells.iter().filter(|c| c.status == status) {
             if cell.polygon.len() < 3 {
                 continue;
             }
@@ -859,14 +879,19 @@ impl CoveragePlanner {
         any
     }
 
-    fn give_up_frontier_near(&mut self, g: &Point2<f64>) {
+    /// Frontier cells in view of `g` get one more try; at `limit` tries (0:
+    /// at once) they are given up.
+    fn give_up_frontier_near(&mut self, g: &Point2<f64>, limit: u8) {
         let mut list = std::mem::take(&mut self.frontier);
         self.cspace.frontier(&mut list);
         let f = self.cspace.frame;
         let view = self.params.explore_view_distance;
         for &i in &list {
             if (f.centre(i) - g).norm() <= view + f.res {
-                self.given_up[i] = true;
+                self.tries[i] = self.tries[i].saturating_add(1);
+                if self.tries[i] >= limit {
+                    self.given_up[i] = true;
+                }
             }
         }
         self.frontier = list;
@@ -928,6 +953,56 @@ impl CoveragePlanner {
         }
         r
     }
+}
+
+/// The candidate and variant to start with: exhaustive search (dynamic
+/// programming over subsets) of the order of all candidates and the variant
+/// of each, minimising the travel to the first entry plus `weight` times the
+/// rest (straight-line transits between exits and entries, and the lanes).
+fn best_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
+    let n = cands.len();
+    // Flattened (candidate, variant) nodes.
+    let nodes: Vec<(usize, usize)> = (0..n)
+        .flat_map(|i| (0..cands[i].variants.len()).map(move |v| (i, v)))
+        .collect();
+    let m = nodes.len();
+    let full = (1usize << n) - 1;
+    // cost[mask][node], first[mask][node]
+    let mut cost = vec![f64::INFINITY; (full + 1) * m];
+    let mut first = vec![usize::MAX; (full + 1) * m];
+    for (k, &(i, v)) in nodes.iter().enumerate() {
+        let c = cands[i].entry_cost[v] + cands[i].variants[v].length;
+        cost[(1 << i) * m + k] = c;
+        first[(1 << i) * m + k] = k;
+    }
+    for mask in 1..=full {
+        for (k, &(i, v)) in nodes.iter().enumerate() {
+            let c = cost[mask * m + k];
+            if !c.is_finite() || mask & (1 << i) == 0 {
+                continue;
+            }
+            let exit = cands[i].variants[v].exit();
+            for (k2, &(j, w)) in nodes.iter().enumerate() {
+                if mask & (1 << j) != 0 {
+                    continue;
+                }
+                let var = &cands[j].variants[w];
+                let nc = c + weight * ((var.entry() - exit).norm() + var.length);
+                let slot = (mask | (1 << j)) * m + k2;
+                if nc < cost[slot] {
+                    cost[slot] = nc;
+                    first[slot] = first[mask * m + k];
+                }
+            }
+        }
+    }
+    let mut best = (f64::INFINITY, 0usize);
+    for k in 0..m {
+        if cost[full * m + k] < best.0 {
+            best = (cost[full * m + k], first[full * m + k]);
+        }
+    }
+    nodes.get(best.1).copied().unwrap_or((0, 0))
 }
 
 /// Frontier cells in 8-connected clusters of at least `min` cells.
