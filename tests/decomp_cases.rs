@@ -446,3 +446,107 @@ fn the_same_input_gives_the_same_output() {
     };
     assert_eq!(run(), run());
 }
+
+/// A fully known grid: `room` (x0, y0, x1, y1 in m) with one-cell walls
+/// around, free inside except the filled `boxes`.
+fn known_grid(room: (f64, f64, f64, f64), boxes: &[(f64, f64, f64, f64)]) -> Grid {
+    let res = 0.05;
+    let mut g = Grid::new(Point2::new(-1.0, -1.0), res, 200, 160);
+    for y in 0..g.height() {
+        for x in 0..g.width() {
+            let p = g.centre_of((x, y));
+            let inside =
+                |b: &(f64, f64, f64, f64)| p.x > b.0 && p.x < b.2 && p.y > b.1 && p.y < b.3;
+            let grown = (room.0 - res, room.1 - res, room.2 + res, room.3 + res);
+            let s = if inside(&room) && !boxes.iter().any(inside) {
+                CellState::Free
+            } else if inside(&grown) || boxes.iter().any(inside) {
+                CellState::Occupied
+            } else {
+                CellState::Unknown
+            };
+            g.set_state((x, y), s);
+        }
+    }
+    g
+}
+
+#[test]
+fn one_obstacle_gives_the_four_boustrophedon_cells() {
+    let grid = known_grid((0.0, 0.0, 6.0, 4.0), &[(2.0, 1.5, 3.0, 2.5)]);
+    let mut dec = decomposer();
+    let d = dec.update(&grid, &[]).clone();
+    assert_consistent(&d);
+    assert!(d.sweep_angle.abs() < 1e-12, "lanes along the long side");
+    assert_eq!(d.cells.len(), 4, "{:#?}", d.cells);
+    let r = 0.17;
+    let at = |x: f64, y: f64| d.cell_at(&Point2::new(x, y)).unwrap();
+    let (below, left, right, above) = (at(3.0, 0.5), at(1.0, 2.0), at(5.0, 2.0), at(3.0, 3.5));
+    let mut ids = vec![below, left, right, above];
+    ids.sort();
+    ids.dedup();
+    assert_eq!(ids.len(), 4);
+    // Adjacency: below–left, below–right, left–above, right–above.
+    let adj = |a: CellId, b: CellId| {
+        d.adjacency
+            .iter()
+            .any(|x| (x.a == a && x.b == b) || (x.a == b && x.b == a))
+    };
+    assert!(adj(below, left) && adj(below, right) && adj(left, above) && adj(right, above));
+    assert!(!adj(left, right) && !adj(below, above));
+    assert_eq!(d.adjacency.len(), 4);
+    // Sizes: the bottom cell spans the room and reaches the inflated box.
+    let b = d.cell(below).unwrap();
+    assert!((b.length - (6.0 - 2.0 * r)).abs() < 0.06, "{}", b.length);
+    assert!((b.width - (1.5 - r - r)).abs() < 0.06, "{}", b.width);
+    // The left cell: between the wall and the inflated box, a little longer
+    // where its first and last slices pass under the box's rounded corners.
+    let l = d.cell(left).unwrap();
+    assert!(
+        l.length > 2.0 - 2.0 * r - 0.03 && l.length < 2.0,
+        "{}",
+        l.length
+    );
+    // Everything is closed: after the configured number of unchanged
+    // updates every cell is final.
+    for _ in 0..DecompParams::default().stable_updates {
+        assert!(dec
+            .decomposition()
+            .cells
+            .iter()
+            .all(|c| c.status != CellStatus::Open));
+        dec.update(&grid, &[]);
+    }
+    assert!(dec
+        .decomposition()
+        .cells
+        .iter()
+        .all(|c| c.status == CellStatus::Final));
+}
+
+#[test]
+fn a_reflex_corner_splits_an_l_shaped_room_into_rectangles() {
+    // L: 6 × 4 m minus the top-right 3 × 2 m.
+    let grid = known_grid((0.0, 0.0, 6.0, 4.0), &[(3.0, 2.0, 6.5, 4.5)]);
+    let mut dec = decomposer();
+    let d = dec.update(&grid, &[]).clone();
+    assert_consistent(&d);
+    assert_eq!(d.cells.len(), 2, "{:#?}", d.cells);
+    for c in &d.cells {
+        // Rectangles (but for the inflated corner's rounding).
+        assert!(c.polygon.len() <= 8, "{:?}", c.polygon);
+        assert!(c.area() > 0.97 * c.width * c.length, "{c:?}");
+    }
+    // The C-space keeps exactly the robot radius from the walls.
+    let lower = d.cell_at(&Point2::new(1.0, 1.0)).unwrap();
+    let lower = d.cell(lower).unwrap();
+    assert!(
+        (lower.length - (6.0 - 0.34)).abs() < 0.01,
+        "{}",
+        lower.length
+    );
+    assert_eq!(d.adjacency.len(), 1);
+    // The virtual edge extends the corner's wall along the lanes to the far wall.
+    let e = d.adjacency[0].boundary;
+    assert!((e.a.x - e.b.x).abs() > 2.5, "{e:?}");
+}

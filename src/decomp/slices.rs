@@ -47,6 +47,38 @@ pub struct Piece {
     pub right: End,
 }
 
+/// A seen wall point with the disk (around a point of a segment) or rounded
+/// square (around an occupied grid cell) it blocks for the robot's centre.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WallPoint {
+    /// Lane coordinate along the lanes (m).
+    pub u: f64,
+    /// Lane coordinate across the lanes (m).
+    pub v: f64,
+    /// Half side of the square it stands for (0 for a point) (m).
+    pub e: f64,
+    /// Inflation radius around it (m).
+    pub r: f64,
+}
+
+impl WallPoint {
+    /// Half length of the blocked interval on the slice at `v`, if any.
+    pub fn half_width_at(&self, v: f64) -> Option<f64> {
+        let dv = ((v - self.v).abs() - self.e).max(0.0);
+        let d2 = self.r * self.r - dv * dv;
+        (d2 > 0.0).then(|| self.e + d2.sqrt())
+    }
+
+    /// How far across the lanes (from `v`) it blocks a slice interval
+    /// `[l, r]`: the blocked region's extent toward the interval, if it
+    /// reaches the interval's `u` range at all.
+    pub fn reach_across(&self, l: f64, r: f64) -> Option<f64> {
+        let du = ((l - self.u).max(self.u - r).max(0.0) - self.e).max(0.0);
+        let d2 = self.r * self.r - du * du;
+        (d2 > 0.0).then(|| self.e + d2.sqrt())
+    }
+}
+
 /// An interval of a frozen cell in one row.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrozenSpan {
@@ -65,8 +97,10 @@ pub struct FrozenSpan {
 pub struct Slices {
     /// Pixel classes and flags, `nu × nv`, row-major.
     pub px: Vec<u8>,
-    /// Obstacle points `(u, v)` sorted by row of `v`.
-    pub points: Vec<(f64, f64)>,
+    /// Wall points sorted by row of `v`.
+    pub points: Vec<WallPoint>,
+    /// Largest `e + r` of any wall point: how far a point blocks (m).
+    pub max_extent: f64,
     /// `points[point_rows[k]..point_rows[k+1]]` lie in row `k`.
     pub point_rows: Vec<u32>,
     /// Merged blocked intervals, sorted by row then `l`.
@@ -79,7 +113,7 @@ pub struct Slices {
     pub piece_rows: Vec<u32>,
     /// Processed window: columns `i0..i1`, rows `k0..k1`.
     pub window: (usize, usize, usize, usize),
-    raw_points: Vec<(f64, f64)>,
+    raw_points: Vec<WallPoint>,
     raw_intervals: Vec<(u32, f64, f64)>,
     sorted_intervals: Vec<(f64, f64)>,
     counts: Vec<u32>,
@@ -127,7 +161,7 @@ impl Slices {
     }
 
     /// The obstacle points of row `k`.
-    pub fn row_points(&self, k: usize) -> &[(f64, f64)] {
+    pub fn row_points(&self, k: usize) -> &[WallPoint] {
         &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize]
     }
 
@@ -154,7 +188,7 @@ impl Slices {
         self.resample(f, input.grid);
         self.fill_gaps(f, input.gap_pixels);
         self.collect_points(f, input);
-        self.inflate(f, input.radius);
+        self.inflate(f);
         self.cut_pieces(f, input.frozen, input.min_beside_frozen);
         !self.pieces.is_empty()
     }
@@ -277,7 +311,13 @@ impl Slices {
             let n = ((len / step).ceil() as usize).clamp(1, 1_000_000);
             for j in 0..=n {
                 let p = s.a + (s.b - s.a) * (j as f64 / n as f64);
-                self.raw_points.push(f.to_uv(&p));
+                let (u, v) = f.to_uv(&p);
+                self.raw_points.push(WallPoint {
+                    u,
+                    v,
+                    e: 0.0,
+                    r: input.radius,
+                });
                 if let Some((cx, cy)) = g.cell_of(&p) {
                     for yy in cy.saturating_sub(1)..(cy + 2).min(gh) {
                         for xx in cx.saturating_sub(1)..(cx + 2).min(gw) {
@@ -289,6 +329,17 @@ impl Slices {
         }
         let occ = |x: usize, y: usize| g.state((x, y)) == CellState::Occupied;
         let (bx0, by0, bx1, by1) = self.grid_box;
+        // An occupied cell blocks its whole square: exactly (a rounded square)
+        // when the frame is aligned with the grid, else by the disk around
+        // the square.
+        let (e, r) = if lattice_map(f, g).is_some() {
+            (g.resolution() * 0.5, input.radius)
+        } else {
+            (
+                0.0,
+                input.radius + g.resolution() * std::f64::consts::FRAC_1_SQRT_2,
+            )
+        };
         for y in by0..by1 {
             for x in bx0..bx1 {
                 if g.evidence((x, y)) == 0 || !occ(x, y) || self.seg_mask[y * gw + x] {
@@ -303,16 +354,17 @@ impl Slices {
                     && occ(x, y - 1)
                     && occ(x, y + 1);
                 if !interior {
-                    self.raw_points.push(f.to_uv(&g.centre_of((x, y))));
+                    let (u, v) = f.to_uv(&g.centre_of((x, y)));
+                    self.raw_points.push(WallPoint { u, v, e, r });
                 }
             }
         }
         // Counting sort by row.
         self.counts.clear();
         self.counts.resize(f.nv + 1, 0);
-        for &(_, v) in &self.raw_points {
-            if v.is_finite() {
-                self.counts[f.row_of(v) + 1] += 1;
+        for p in &self.raw_points {
+            if p.v.is_finite() {
+                self.counts[f.row_of(p.v) + 1] += 1;
             }
         }
         for k in 0..f.nv {
@@ -320,40 +372,36 @@ impl Slices {
         }
         self.point_rows.copy_from_slice(&self.counts);
         self.points.clear();
-        self.points.resize(self.raw_points.len(), (0.0, 0.0));
+        self.points
+            .resize(self.raw_points.len(), WallPoint::default());
         let mut fill = self.counts.clone();
         let mut used = 0;
-        for &(u, v) in &self.raw_points {
-            if !(u.is_finite() && v.is_finite()) {
+        for &p in &self.raw_points {
+            if !(p.u.is_finite() && p.v.is_finite()) {
                 continue;
             }
-            let k = f.row_of(v);
-            self.points[fill[k] as usize] = (u, v);
+            let k = f.row_of(p.v);
+            self.points[fill[k] as usize] = p;
             fill[k] += 1;
             used += 1;
         }
         self.points.truncate(used);
+        self.max_extent = self.points.iter().map(|p| p.e + p.r).fold(0.0, f64::max);
     }
 
-    fn inflate(&mut self, f: &SweepFrame, radius: f64) {
+    fn inflate(&mut self, f: &SweepFrame) {
         let (i0, i1, k0, k1) = self.window;
         self.raw_intervals.clear();
-        let reach = (radius / f.h).ceil() as usize + 1;
         for k in 0..f.nv {
-            for &(u, v) in
-                &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize]
-            {
+            for p in &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize] {
+                let reach = ((p.r + p.e) / f.h).ceil() as usize + 1;
                 for kk in k.saturating_sub(reach)..(k + reach + 1).min(f.nv) {
                     if kk < k0 || kk >= k1 {
                         continue;
                     }
-                    let dv = f.row_v(kk) - v;
-                    let d2 = radius * radius - dv * dv;
-                    if d2 < 0.0 {
-                        continue;
+                    if let Some(d) = p.half_width_at(f.row_v(kk)) {
+                        self.raw_intervals.push((kk as u32, p.u - d, p.u + d));
                     }
-                    let d = d2.sqrt();
-                    self.raw_intervals.push((kk as u32, u - d, u + d));
                 }
             }
         }

@@ -373,8 +373,7 @@ impl Sweep {
 
     fn bounds_and_frontiers(&mut self, f: &SweepFrame, s: &Slices, input: &SweepInput<'_>) {
         let h = f.h;
-        let radius = input.radius;
-        let reach = (radius / h).ceil() as isize + 1;
+        let reach = (s.max_extent.max(input.radius) / h).ceil() as isize + 1;
         let mut cells = std::mem::take(&mut self.cells);
         for cell in &mut cells {
             let first = cell.pieces[0];
@@ -456,13 +455,12 @@ impl Sweep {
                 let vc = f.row_v(k0);
                 let mut best = f64::NEG_INFINITY;
                 for kk in (k0 as isize - reach).max(0)..=k0 as isize {
-                    for &(u, v) in s.row_points(kk as usize) {
-                        if v >= vc {
+                    for p in s.row_points(kk as usize) {
+                        if p.v >= vc {
                             continue;
                         }
-                        let du = (first.l - u).max(u - first.r).max(0.0);
-                        if du < radius {
-                            best = best.max(v + (radius * radius - du * du).sqrt());
+                        if let Some(d) = p.reach_across(first.l, first.r) {
+                            best = best.max(p.v + d);
                         }
                     }
                 }
@@ -482,13 +480,12 @@ impl Sweep {
                 let vc = f.row_v(k1);
                 let mut best = f64::INFINITY;
                 for kk in k1 as isize..=(k1 as isize + reach).min(f.nv as isize - 1) {
-                    for &(u, v) in s.row_points(kk as usize) {
-                        if v <= vc {
+                    for p in s.row_points(kk as usize) {
+                        if p.v <= vc {
                             continue;
                         }
-                        let du = (last.l - u).max(u - last.r).max(0.0);
-                        if du < radius {
-                            best = best.min(v - (radius * radius - du * du).sqrt());
+                        if let Some(d) = p.reach_across(last.l, last.r) {
+                            best = best.min(p.v - d);
                         }
                     }
                 }
