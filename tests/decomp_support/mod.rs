@@ -61,7 +61,7 @@ pub fn seen_segments(world: &World, poses: &[Pose]) -> Vec<Segment> {
                 let o = Point2::new(pose.translation.x, pose.translation.y);
                 let d = p - o;
                 let dist = d.norm();
-                if dist > RANGE || dist < 1e-6 {
+                if !(1e-6..=RANGE).contains(&dist) {
                     return false;
                 }
                 let a = d.y.atan2(d.x);
