@@ -265,7 +265,11 @@ fn open_room_gives_open_cells_with_frontiers() {
     let world = World::parse(text).unwrap();
     let mut grid = grid_for(&world, 0.05);
     scan(&world, &mut grid, &world.start);
-    scan(&world, &mut grid, &pose(12.0, 11.0, -std::f64::consts::FRAC_PI_2));
+    scan(
+        &world,
+        &mut grid,
+        &pose(12.0, 11.0, -std::f64::consts::FRAC_PI_2),
+    );
     let mut dec = decomposer();
     for _ in 0..5 {
         dec.update(&grid, &[]);

@@ -32,6 +32,7 @@ fn paper_workspace_evolution() {
         (0.6, 2.0, -1.6),
     ];
     let mut poses = Vec::new();
+    let mut frames = Vec::new();
     for (step, &(x, y, t)) in path.iter().enumerate() {
         let p = pose(x, y, t);
         poses.push(p);
@@ -40,6 +41,9 @@ fn paper_workspace_evolution() {
             dec.update(&grid, &[]);
         }
         let d = dec.decomposition();
+        if [0, 2, 4, 6, 8, 10].contains(&step) {
+            frames.push((d.clone(), grid.clone(), nalgebra::Point2::new(x, y), step));
+        }
         let doc = svg::render(
             d,
             &grid,
@@ -62,6 +66,23 @@ fn paper_workspace_evolution() {
                 .collect::<Vec<_>>()
         );
     }
+    // The paper's Fig. 9, our version: six moments of the exploration.
+    let view = svg::explored_bounds(&grid);
+    let docs = frames
+        .iter()
+        .map(|(d, g, p, step)| {
+            svg::render_view(
+                d,
+                g,
+                Some(*p),
+                &[],
+                &format!("scan {step}: {} cells", d.cells.len()),
+                view,
+            )
+        })
+        .collect();
+    let fig = svg::panels(docs, 3, svg::picture_size(view));
+    svg::save_to(&out_dir().join("paper_fig9.svg"), &fig).unwrap();
     assert!(dec
         .decomposition()
         .cells

@@ -12,7 +12,15 @@ use crate::grid::{CellState, Grid};
 use super::cell::{CellStatus, Decomposition};
 
 /// Pixels per metre in the pictures.
-const SCALE: f64 = 80.0;
+pub const SCALE: f64 = 80.0;
+
+/// Size in pixels of a picture of the world rectangle `view` (with its caption).
+pub fn picture_size(view: (Point2<f64>, Point2<f64>)) -> (f64, f64) {
+    (
+        (view.1.x - view.0.x) * SCALE,
+        (view.1.y - view.0.y) * SCALE + 30.0,
+    )
+}
 
 /// Fill colour of a cell by state.
 fn status_colour(s: CellStatus) -> &'static str {
@@ -23,15 +31,9 @@ fn status_colour(s: CellStatus) -> &'static str {
     }
 }
 
-/// Picture of `d` over `grid`, limited to the explored part of the grid; an
-/// optional robot position and a caption.
-pub fn render(
-    d: &Decomposition,
-    grid: &Grid,
-    robot: Option<Point2<f64>>,
-    segments: &[Segment],
-    caption: &str,
-) -> Document {
+/// The world rectangle `(lower-left, upper-right)` around the explored part
+/// of `grid`, with a half-metre margin (the whole grid when nothing is explored).
+pub fn explored_bounds(grid: &Grid) -> (Point2<f64>, Point2<f64>) {
     let (o, r) = (grid.origin(), grid.resolution());
     let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
     for y in 0..grid.height() {
@@ -47,11 +49,46 @@ pub fn render(
     if x0 == usize::MAX {
         (x0, y0, x1, y1) = (0, 0, grid.width().max(1) - 1, grid.height().max(1) - 1);
     }
-    let (wx0, wy0) = (o.x + x0 as f64 * r - 0.5, o.y + y0 as f64 * r - 0.5);
-    let (wx1, wy1) = (
-        o.x + (x1 + 1) as f64 * r + 0.5,
-        o.y + (y1 + 1) as f64 * r + 0.5,
-    );
+    (
+        Point2::new(o.x + x0 as f64 * r - 0.5, o.y + y0 as f64 * r - 0.5),
+        Point2::new(
+            o.x + (x1 + 1) as f64 * r + 0.5,
+            o.y + (y1 + 1) as f64 * r + 0.5,
+        ),
+    )
+}
+
+/// Picture of `d` over `grid`, limited to the explored part of the grid; an
+/// optional robot position, segments to draw and a caption.
+pub fn render(
+    d: &Decomposition,
+    grid: &Grid,
+    robot: Option<Point2<f64>>,
+    segments: &[Segment],
+    caption: &str,
+) -> Document {
+    render_view(d, grid, robot, segments, caption, explored_bounds(grid))
+}
+
+/// [`render`] over a given world rectangle `(lower-left, upper-right)`, so
+/// that pictures of successive updates line up.
+pub fn render_view(
+    d: &Decomposition,
+    grid: &Grid,
+    robot: Option<Point2<f64>>,
+    segments: &[Segment],
+    caption: &str,
+    view: (Point2<f64>, Point2<f64>),
+) -> Document {
+    let (o, r) = (grid.origin(), grid.resolution());
+    let (wx0, wy0, wx1, wy1) = (view.0.x, view.0.y, view.1.x, view.1.y);
+    let cell_range = |lo: f64, hi: f64, org: f64, n: usize| {
+        let a = (((lo - org) / r).floor().max(0.0) as usize).min(n.saturating_sub(1));
+        let b = (((hi - org) / r).ceil().max(0.0) as usize).min(n.saturating_sub(1));
+        (a, b)
+    };
+    let (x0, x1) = cell_range(wx0, wx1, o.x, grid.width());
+    let (y0, y1) = cell_range(wy0, wy1, o.y, grid.height());
     let sx = |x: f64| (x - wx0) * SCALE;
     let sy = |y: f64| (wy1 - y) * SCALE;
     let (w, h) = ((wx1 - wx0) * SCALE, (wy1 - wy0) * SCALE + 30.0);
@@ -168,6 +205,37 @@ fn line(
         Some(d) => l.set("stroke-dasharray", d),
         None => l,
     }
+}
+
+/// Panels side by side, `columns` per row, each labelled (a), (b), ... like
+/// the paper's Fig. 9; every panel keeps its own size.
+pub fn panels(docs: Vec<Document>, columns: usize, panel_size: (f64, f64)) -> Document {
+    let columns = columns.max(1);
+    let (pw, ph) = panel_size;
+    let rows = docs.len().div_ceil(columns);
+    let (w, h) = (pw * columns as f64, (ph + 24.0) * rows as f64);
+    let mut out = Document::new()
+        .set("viewBox", (0.0, 0.0, w, h))
+        .set("width", w)
+        .set("height", h);
+    for (i, d) in docs.into_iter().enumerate() {
+        let (cx, cy) = (
+            (i % columns) as f64 * pw,
+            (i / columns) as f64 * (ph + 24.0),
+        );
+        let label = format!("({})", (b'a' + (i % 26) as u8) as char);
+        out = out
+            .add(
+                Text::new(label)
+                    .set("x", cx + pw / 2.0)
+                    .set("y", cy + 18.0)
+                    .set("font-size", 18)
+                    .set("font-family", "sans-serif")
+                    .set("text-anchor", "middle"),
+            )
+            .add(d.set("x", cx).set("y", cy + 24.0));
+    }
+    out
 }
 
 /// Writes `doc` to `path`.
