@@ -554,3 +554,47 @@ fn a_reflex_corner_splits_an_l_shaped_room_into_rectangles() {
     let e = d.adjacency[0].boundary;
     assert!((e.a.x - e.b.x).abs() > 2.5, "{e:?}");
 }
+
+#[test]
+fn a_noisy_map_still_gives_a_sane_decomposition() {
+    use rand::{Rng, SeedableRng};
+    let world = paper_world();
+    let mut grid = grid_for(&world, 0.05);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut dec = decomposer();
+    let probe = Point2::new(0.6, 0.6);
+    let mut probe_id = None;
+    for p in tour(&world, 0.8) {
+        for _ in 0..3 {
+            let off = (
+                (rng.random::<f64>() - 0.5) * 0.04,
+                (rng.random::<f64>() - 0.5) * 0.04,
+                (rng.random::<f64>() - 0.5) * 0.01,
+            );
+            noisy_scan(&world, &mut grid, &p, 0.01, off, &mut rng);
+            let d = dec.update(&grid, &[]);
+            assert_consistent(d);
+            if let Some(id) = d.cell_at(&probe) {
+                assert_eq!(*probe_id.get_or_insert(id), id, "start cell id changed");
+            }
+        }
+    }
+    let d = dec.decomposition();
+    let out = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("decomp");
+    std::fs::create_dir_all(&out).unwrap();
+    let doc = sweepline::decomp::svg::render(d, &grid, None, &[], "noisy map");
+    sweepline::decomp::svg::save_to(&out.join("paper_noisy.svg"), &doc).unwrap();
+    assert!(d.cells.len() <= 25, "{} cells", d.cells.len());
+    let (mut clear, mut inside) = (0, 0);
+    for cy in (0..world.free.height).step_by(3) {
+        for cx in (0..world.free.width).step_by(3) {
+            let p = world.free.centre_of(cx, cy);
+            if world.disk_is_free(&p, 0.3) {
+                clear += 1;
+                inside += d.cell_at(&p).is_some() as usize;
+            }
+        }
+    }
+    let share = inside as f64 / clear as f64;
+    assert!(share > 0.95, "cells hold {share:.3} of the clear floor");
+}

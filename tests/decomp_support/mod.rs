@@ -144,3 +144,30 @@ pub fn percentile(v: &[f64], q: f64) -> f64 {
     }
     s[((s.len() - 1) as f64 * q).round() as usize]
 }
+
+/// Like [`scan`], with Gaussian-ish range noise (`range_sd`, m) and the scan
+/// registered at a pose off by (`dx`, `dy`, `dth`): what a real map with
+/// localisation error looks like.
+pub fn noisy_scan(
+    world: &World,
+    grid: &mut Grid,
+    pose: &Pose,
+    range_sd: f64,
+    off: (f64, f64, f64),
+    rng: &mut impl rand::Rng,
+) {
+    let o = Point2::new(pose.translation.x, pose.translation.y);
+    let th = pose.rotation.angle();
+    let reg = Point2::new(o.x + off.0, o.y + off.1);
+    for b in 0..BEAMS {
+        let a = th - FOV / 2.0 + FOV * b as f64 / (BEAMS - 1) as f64;
+        // Sum of uniforms: close enough to a normal for a test.
+        let n: f64 = (0..4).map(|_| rng.random::<f64>() - 0.5).sum::<f64>() * range_sd * 1.7;
+        let ra = a + off.2;
+        let dir = nalgebra::Vector2::new(ra.cos(), ra.sin());
+        match world.cast_ray(&o, a, RANGE) {
+            Some(hit) => grid.integrate_ray(&reg, &(reg + dir * (hit.range + n).max(0.0)), true),
+            None => grid.integrate_ray(&reg, &(reg + dir * RANGE), false),
+        }
+    }
+}
