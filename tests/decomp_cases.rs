@@ -191,8 +191,8 @@ fn cells_do_not_reach_into_the_inflation_zone() {
     let mut dec = decomposer();
     let d = dec.update(&grid, &segs).clone();
     assert_consistent(&d);
-    // Every polygon vertex keeps the robot radius from the true walls
-    // (segments given: the walls are exact; 1 cm for the slice geometry).
+    // Every polygon vertex keeps the robot radius from the true walls, less
+    // at most half a slice (vertices at slice boundaries).
     for c in &d.cells {
         for v in &c.polygon {
             let clearance = world
@@ -597,4 +597,73 @@ fn a_noisy_map_still_gives_a_sane_decomposition() {
     }
     let share = inside as f64 / clear as f64;
     assert!(share > 0.95, "cells hold {share:.3} of the clear floor");
+}
+
+#[test]
+fn slanted_and_round_walls_give_trapezoids_and_polylines() {
+    // A room whose right wall is slanted, with a round pillar (16-gon).
+    let mut text = String::from("room 0 0 6 0 5 4 0 4\n");
+    let pillar: Vec<String> = (0..16)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 16.0;
+            format!("{:.4} {:.4}", 2.5 + 0.4 * a.cos(), 2.0 + 0.4 * a.sin())
+        })
+        .collect();
+    text.push_str(&format!("polygon {}\nstart 1 1 0\n", pillar.join(" ")));
+    let world = World::parse(&text).unwrap();
+    let mut grid = grid_for(&world, 0.05);
+    let poses = [
+        pose(1.0, 1.0, 0.0),
+        pose(4.0, 3.0, 3.1),
+        pose(1.0, 3.0, -1.0),
+        pose(4.0, 0.8, 2.0),
+    ];
+    for p in &poses {
+        scan(&world, &mut grid, p);
+    }
+    let segs = seen_segments(&world, &poses);
+    let mut dec = Decomposer::new(
+        &DecompParams {
+            sweep_angle: Some(0.0),
+            ..DecompParams::default()
+        },
+        0.17,
+    )
+    .unwrap();
+    let d = dec.update(&grid, &segs).clone();
+    assert_consistent(&d);
+    let out = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("decomp");
+    std::fs::create_dir_all(&out).unwrap();
+    let doc = sweepline::decomp::svg::render(&d, &grid, None, &segs, "slanted wall, round pillar");
+    sweepline::decomp::svg::save_to(&out.join("slanted_round.svg"), &doc).unwrap();
+    // Left and right of the pillar: one side of each follows the pillar's
+    // curve (a polyline of several vertices).
+    let left = d.cell(d.cell_at(&Point2::new(1.0, 2.0)).unwrap()).unwrap();
+    let right = d.cell(d.cell_at(&Point2::new(4.0, 2.0)).unwrap()).unwrap();
+    assert_ne!(left.id, right.id);
+    assert!(left.polygon.len() >= 6, "{:?}", left.polygon);
+    // The right cell has the slanted wall as a side: an edge neither along
+    // nor across the lanes.
+    let slanted = (0..right.polygon.len()).any(|i| {
+        let (a, b) = (
+            right.polygon[i],
+            right.polygon[(i + 1) % right.polygon.len()],
+        );
+        let dx = (b.x - a.x).abs();
+        let dy = (b.y - a.y).abs();
+        dx > 0.1 && dy > 0.4
+    });
+    assert!(slanted, "{:?}", right.polygon);
+    // Clearance from every wall, curved ones included: every vertex lies
+    // within half a slice of a slice point with full clearance.
+    for c in &d.cells {
+        for v in &c.polygon {
+            let clearance = world
+                .walls
+                .iter()
+                .map(|w| w.seg.distance_to(v))
+                .fold(f64::INFINITY, f64::min);
+            assert!(clearance > 0.17 - 0.025 - 1e-3, "{v} at {clearance:.3} m");
+        }
+    }
 }

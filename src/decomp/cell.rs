@@ -67,6 +67,10 @@ pub struct Frontier {
 /// place the robot's *centre* can be without touching a seen wall (walls and
 /// obstacles are already inflated by the robot radius plus a margin). The
 /// planner lays lanes inside the polygons without offsetting them again.
+/// Cell sides are exact on every slice (slices `resolution` apart); between
+/// slices, where a side is curved or steps, a vertex may come up to half a
+/// slice closer to a wall than the inflation (raise `inflation_margin` by half
+/// the resolution for a strict guarantee).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Decomposition {
     /// The cells.

@@ -4,20 +4,43 @@
 //! [`Decomposer::update`] takes the explored-area evidence grid (and, when the
 //! map has them, wall segments) and returns a [`Decomposition`]:
 //!
-//! 1. the sweep direction is the dominant wall direction (segments if given,
-//!    else the occupied cells' gradients), fixed once enough wall is seen;
-//! 2. the explored free space is cut into slices parallel to the lanes; every
-//!    seen wall point blocks the disk of the robot radius (plus a margin)
-//!    around it, so slices hold the places the robot's *centre* may be
-//!    (configuration space: the planner does not inflate again);
-//! 3. where the connectivity of consecutive slices changes (a critical point,
-//!    e.g. an obstacle's edge) or a wall steps (a reflex corner of a
-//!    rectilinear room), a cell boundary starts: the critical edge extended
-//!    along the lanes until it meets walls or unexplored space (a virtual edge);
-//! 4. cells touching unexplored space are `Open`; each update the new cells
-//!    inherit the ids of the old ones they overlap most, and a closed cell
-//!    whose width and length stay within a tolerance for a number of updates
-//!    becomes `Final` and is frozen from then on.
+//! 1. **Direction.** The lanes follow the dominant wall direction (segments
+//!    if given, else the Sobel gradients of the occupied cells, averaged mod
+//!    90°), along whichever of the two axes the explored floor is longer. It
+//!    is fixed for the run once `min_wall_evidence` metres of wall are seen;
+//!    no cell becomes final before that.
+//! 2. **Slices of the configuration space.** The grid is resampled into the
+//!    lane frame (slices `resolution` apart). Every seen wall blocks the
+//!    places the robot's *centre* cannot be: an occupied grid cell blocks its
+//!    whole square grown by the robot radius plus `inflation_margin` (a
+//!    rounded square, the same rule as the planner's C-space), a point of a
+//!    segment blocks the disk around it. Blocked intervals are exact floats
+//!    along each slice, so cell sides are not pixel staircases. **Cells are
+//!    therefore in C-space: the planner must not inflate them again.**
+//! 3. **Events.** Free intervals of consecutive slices that overlap one to
+//!    one continue a cell. A change of connectivity (an interval appears,
+//!    ends, splits or merges: a critical point, e.g. an obstacle's edge) or
+//!    an isolated wall step of at least `step_split` (a reflex corner of a
+//!    rectilinear room) starts new cells; the slice boundary where that
+//!    happens is the critical edge extended along the lanes until it meets
+//!    walls or unexplored space: a *virtual edge* (the adjacency boundaries).
+//!    Every cell has exactly one interval per slice, so every lane inside a
+//!    cell is one unbroken segment. Cells thinner than `min_cell_width` or
+//!    smaller than `min_cell_area` are merged into the neighbour above or
+//!    below (which keeps that property).
+//! 4. **State and inheritance.** A cell with at least `min_frontier` of
+//!    boundary on unexplored space is `Open` (its [`Frontier`]s say where).
+//!    Each update the new cells inherit the ids of the old cells they overlap
+//!    most (greedy by overlap, each old id used once; ids are never reused).
+//!    A closed cell whose width and length change by at most
+//!    `size_tolerance` over `stable_updates` consecutive updates becomes
+//!    `Final`: its polygon is frozen, it is never recomposed, and the space
+//!    around it is decomposed without it.
+//!
+//! Cost per update is linear in the explored window of the grid (resampling,
+//! gap filling, wall points) plus the blocked intervals (wall points × slices
+//! within the inflation); no step looks at the history beyond the previous
+//! labels. Deterministic: the same inputs give the same output.
 pub mod cell;
 mod decomposer;
 pub mod direction;
