@@ -134,7 +134,9 @@ impl Decomposer {
         self.updates
     }
 
-    /// Forgets everything: ids restart, nothing is final, the direction is free.
+    /// Forgets every cell: nothing is final, the direction is free again. Ids
+    /// are never reused: new cells get ids above every id handed out before,
+    /// so a planner's bookkeeping by id cannot mix old and new cells.
     pub fn reset(&mut self) {
         let (p, r) = (self.params.clone(), self.inflation);
         self.shape = None;
@@ -147,7 +149,6 @@ impl Decomposer {
         self.frozen.clear();
         self.frozen_spans.clear();
         self.frozen_adjacency.clear();
-        self.next_id = 0;
         self.params = p;
         self.current = Decomposition {
             inflation: r,
@@ -159,6 +160,8 @@ impl Decomposer {
     /// explored-area evidence grid, `segments` the walls seen as lines (may be
     /// empty). Final cells keep their polygons; the others inherit ids by
     /// overlap. Never fails: an unexplored grid gives an empty decomposition.
+    /// A grid of another size, origin or resolution than the previous one
+    /// starts afresh (see [`Decomposer::reset`]).
     pub fn update(&mut self, grid: &Grid, segments: &[Segment]) -> &Decomposition {
         self.updates += 1;
         let shape = GridShape::of(grid);
