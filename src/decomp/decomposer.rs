@@ -215,7 +215,24 @@ impl Decomposer {
             self.locked_angle = Some(wrap_angle(a));
             return wrap_angle(a);
         }
-        let est = direction::from_segments(segments).or_else(|| direction::from_grid(grid));
+        // The explored part of the grid.
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for y in 0..grid.height() {
+            for x in 0..grid.width() {
+                if grid.evidence((x, y)) != 0 {
+                    x0 = x0.min(x);
+                    y0 = y0.min(y);
+                    x1 = x1.max(x);
+                    y1 = y1.max(y);
+                }
+            }
+        }
+        if x0 == usize::MAX {
+            return 0.0;
+        }
+        let window = (x0.saturating_sub(1), y0.saturating_sub(1), x1 + 2, y1 + 2);
+        let est = direction::from_segments(segments)
+            .or_else(|| direction::from_grid_window(grid, window));
         let Some(mut est) = est else {
             return 0.0;
         };
@@ -230,9 +247,9 @@ impl Decomposer {
             f64::INFINITY,
             f64::NEG_INFINITY,
         );
-        for y in 0..grid.height() {
-            for x in 0..grid.width() {
-                if grid.evidence((x, y)) != 0 && grid.state((x, y)) == CellState::Free {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                if grid.state((x, y)) == CellState::Free {
                     let p = grid.centre_of((x, y));
                     let (u, v) = (c * p.x + s * p.y, -s * p.x + c * p.y);
                     lo_u = lo_u.min(u);
