@@ -170,7 +170,11 @@ impl Decomposer {
             self.shape = Some(shape);
         }
         let angle = self.sweep_angle(grid, segments);
-        let frame = SweepFrame::over_grid(grid, angle, self.params.resolution);
+        let Some(frame) = SweepFrame::over_grid(grid, angle, self.params.resolution) else {
+            // A grid with non-finite or absurd geometry: nothing usable.
+            self.reset();
+            return &self.current;
+        };
         if self.frame != Some(frame) {
             // Only before the direction is locked: nothing is frozen yet.
             self.frozen.clear();
@@ -180,7 +184,7 @@ impl Decomposer {
         self.prev_frame = self.frame;
         self.frame = Some(frame);
         let gap_pixels = (self.params.gap_fill / frame.h).floor() as usize;
-        let explored = self.slices.compute(
+        self.slices.compute(
             &frame,
             &SliceInput {
                 grid,
@@ -202,7 +206,6 @@ impl Decomposer {
                 min_area: self.params.min_cell_area,
             },
         );
-        let _ = explored;
         self.inherit_and_publish(&frame);
         &self.current
     }
