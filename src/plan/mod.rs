@@ -51,7 +51,7 @@ impl Default for PlanParams {
         Self {
             safety_margin: 0.01,
             lane_overlap: 0.01,
-            reach_margin: 0.01,
+            reach_margin: 0.005,
             lookahead_weight: 1.0,
             min_patch_area: 0.01,
             explore_view_distance: 1.0,
