@@ -138,7 +138,6 @@ impl Decomposer {
     /// are never reused: new cells get ids above every id handed out before,
     /// so a planner's bookkeeping by id cannot mix old and new cells.
     pub fn reset(&mut self) {
-        let (p, r) = (self.params.clone(), self.inflation);
         self.shape = None;
         self.locked_angle = None;
         self.frame = None;
@@ -149,9 +148,8 @@ impl Decomposer {
         self.frozen.clear();
         self.frozen_spans.clear();
         self.frozen_adjacency.clear();
-        self.params = p;
         self.current = Decomposition {
-            inflation: r,
+            inflation: self.inflation,
             ..Decomposition::default()
         };
     }
