@@ -151,7 +151,7 @@ impl Candidate {
 }
 
 /// Interruptions after which a target or frontier is given up.
-const MAX_TRIES: u8 = 3;
+const MAX_TRIES: u8 = 2;
 
 /// Candidates considered jointly when ordering (the nearest ones).
 const TOUR_CANDIDATES: usize = 9;
@@ -354,10 +354,14 @@ impl CoveragePlanner {
             }
         }
         if progress.is_none() && matches!(self.task, Task::Cover(_)) {
-            // Targets the finished lanes did not reach are given up.
+            // Targets the finished lanes did not reach get one more try; after
+            // MAX_TRIES they are given up.
             for &i in &self.task_targets {
                 if !self.covered[i] {
-                    self.abandoned[i] = true;
+                    self.tries[i] = self.tries[i].saturating_add(1);
+                    if self.tries[i] >= MAX_TRIES {
+                        self.abandoned[i] = true;
+                    }
                 }
             }
             self.task_targets.clear();
