@@ -20,13 +20,11 @@ fn drive(world: &World, grid: &Grid, p: &mut CoveragePlanner) -> (Vec<Pose>, usi
     let empty = Decomposition::default();
     let mut at = world.start;
     let mut poses = vec![at];
-    let mut tasks = 0;
-    for _ in 0..500 {
+    for tasks in 0..500 {
         match p.update(grid, &empty, &at, None).unwrap() {
             PlanStatus::Done(_) => return (poses, tasks),
             PlanStatus::Working { .. } => {}
         }
-        tasks += 1;
         let (path, _) = p.path();
         let path: Vec<Point2<f64>> = path.to_vec();
         for q in path {
