@@ -143,26 +143,24 @@ mod tests {
     use crate::map::lines::LineExtractor;
 
     /// Lines of an L-shaped corner (walls y = 0 for x in 0..2 and x = 2 for y in
-    /// 0..1.5) seen from `origin` through `motion` (the scan's pose error).
+    /// 0..1.5 of a 2 × 1.5 m room) scanned from (1, 0.8) at uniform beam
+    /// steps, seen through `motion` (the scan's pose error).
     fn corner_lines(motion: &Isometry2<f64>) -> Vec<ScanLine> {
-        let mut pts: Vec<IPoint> = (0..100)
-            .map(|i| IPoint::new(i as f64 * 0.02, 0.0, 0.5))
+        let world = crate::sim::world::World::parse("room 0 0 2 0 2 1.5 0 1.5\n").unwrap();
+        let origin = Point2::new(1.0, 0.8);
+        let pts: Vec<IPoint> = (0..470)
+            .filter_map(|k| {
+                let a = (-139.0 + k as f64 * 0.36f64).to_radians();
+                let h = world.cast_ray(&origin, a, 10.0)?;
+                let p = origin + nalgebra::Vector2::new(a.cos(), a.sin()) * h.range;
+                Some(IPoint::new(p.x, p.y, 0.5))
+            })
             .collect();
-        pts.extend((1..75).map(|i| IPoint::new(2.0, i as f64 * 0.02, 0.5)));
         let moved: Vec<IPoint> = pts.iter().map(|p| p.transformed(motion)).collect();
         let mut ex = LineExtractor::new();
         let (mut lines, mut curves) = (Vec::new(), Vec::new());
-        let params = MapParams {
-            breakpoint_angle: 1.5,
-            ..Default::default()
-        };
-        ex.extract(
-            &moved,
-            &Point2::new(1.0, 0.8),
-            &params,
-            &mut lines,
-            &mut curves,
-        );
+        let params = MapParams::default();
+        ex.extract(&moved, &(motion * origin), &params, &mut lines, &mut curves);
         assert_eq!(lines.len(), 2, "{lines:?}");
         lines
     }

@@ -11,6 +11,11 @@ use super::params::MapParams;
 use crate::capacity::MAX_BEAMS;
 use crate::geom::{IPoint, Segment};
 
+/// Pieces with fewer points than this are "tiny": noise-spike leftovers.
+const TINY_PIECE: usize = 4;
+/// Least length of each piece of a curve (m): shorter ones are noise, not shape.
+const MIN_CURVE_PIECE: f64 = 0.05;
+
 /// Most vertices a curve keeps (2 values each: the paper's 100 values).
 pub const MAX_CURVE_VERTICES: usize = 50;
 
@@ -84,6 +89,40 @@ impl Curve {
     }
 }
 
+/// Points trimmed at each end of a piece for its first fit.
+const END_TRIM: usize = 2;
+
+/// Fits piece `[a, b]` on its interior (ends trimmed), then gives back the end
+/// points that lie on that line: from each end, points are dropped until one
+/// and its inward neighbour are within max(3σ, 3·rms) of the line. This keeps
+/// the points of the next wall around a corner (where split points are
+/// uncertain) out of the fit. Returns the new range, its moments and fit.
+fn refine_ends(
+    pts: &[IPoint],
+    a: usize,
+    b: usize,
+    params: &MapParams,
+) -> Option<(usize, usize, Moments, LineFit)> {
+    let t = if b + 1 - a >= params.min_line_points + 2 * END_TRIM {
+        END_TRIM
+    } else {
+        0
+    };
+    let inner = Moments::of(pts[a + t..=b - t].iter().map(xy)).fit(params.range_sigma)?;
+    let gate = (3.0 * params.range_sigma).max(3.0 * inner.rms);
+    let on = |i: usize| inner.offset(&xy(&pts[i])).abs() <= gate;
+    let (mut a2, mut b2) = (a, b);
+    while a2 + 1 < b2 && !(on(a2) && on(a2 + 1)) {
+        a2 += 1;
+    }
+    while b2 > a2 + 1 && !(on(b2) && on(b2 - 1)) {
+        b2 -= 1;
+    }
+    let m = Moments::of(pts[a2..=b2].iter().map(xy));
+    let fit = m.fit(params.range_sigma)?;
+    Some((a2, b2, m, fit))
+}
+
 /// Splits ordered scan points into line features and curves, reusing its buffers.
 #[derive(Debug)]
 pub struct LineExtractor {
@@ -92,6 +131,7 @@ pub struct LineExtractor {
     pieces: Vec<(usize, usize)>,
     merged: Vec<(usize, usize)>,
     curve_flags: Vec<bool>,
+    bounds: Vec<(usize, usize)>,
 }
 
 impl Default for LineExtractor {
@@ -124,6 +164,7 @@ impl LineExtractor {
             pieces: Vec::with_capacity(MAX_BEAMS),
             merged: Vec::with_capacity(MAX_BEAMS),
             curve_flags: Vec::with_capacity(MAX_BEAMS),
+            bounds: Vec::with_capacity(MAX_BEAMS),
         }
     }
 
@@ -148,20 +189,23 @@ impl LineExtractor {
         self.pieces.clear();
         for ci in 0..self.clusters.len() {
             let (a, b) = self.clusters[ci];
-            self.split(pts, a, b, params.split_distance);
+            self.split(pts, a, b, params);
         }
         self.merge_collinear(pts, params);
         self.mark_curves(pts, params, curves);
-        for (k, &(a, b)) in self.merged.iter().enumerate() {
+        self.settle_corners(pts, params);
+        for (k, &(a, b)) in self.bounds.iter().enumerate() {
             if self.curve_flags[k] || b + 1 - a < params.min_line_points {
                 continue;
             }
-            let m = Moments::of(pts[a..=b].iter().map(xy));
-            let Some(fit) = m.fit(params.range_sigma) else {
+            let Some((a, b, m, fit)) = refine_ends(pts, a, b, params) else {
                 continue;
             };
             let (s0, s1) = (fit.along(&xy(&pts[a])), fit.along(&xy(&pts[b])));
-            if (s1 - s0).abs() < params.min_line_length || fit.rms > params.split_distance {
+            if b + 1 - a < params.min_line_points
+                || (s1 - s0).abs() < params.min_line_length
+                || fit.rms > params.split_distance
+            {
                 continue;
             }
             lines.push(ScanLine {
@@ -174,21 +218,71 @@ impl LineExtractor {
         }
     }
 
+    /// At each joint between two line pieces (a corner), hands the points near
+    /// the joint to whichever piece's line is nearer, so neither fit is tilted
+    /// by points of the other wall. Fills `bounds` from `merged`.
+    fn settle_corners(&mut self, pts: &[IPoint], params: &MapParams) {
+        const WINDOW: usize = 8;
+        self.bounds.clear();
+        self.bounds.extend_from_slice(&self.merged);
+        let interior_fit = |(a, b): (usize, usize)| {
+            if b + 1 < a + params.min_line_points {
+                return None;
+            }
+            let t = if b + 1 - a >= params.min_line_points + 2 * END_TRIM {
+                END_TRIM
+            } else {
+                0
+            };
+            Moments::of(pts[a + t..=b - t].iter().map(xy)).fit(params.range_sigma)
+        };
+        for j in 1..self.merged.len() {
+            let (p, q) = (self.merged[j - 1], self.merged[j]);
+            if p.1 != q.0 || self.curve_flags[j - 1] || self.curve_flags[j] {
+                continue;
+            }
+            let (Some(fp), Some(fq)) = (interior_fit(p), interior_fit(q)) else {
+                continue;
+            };
+            let joint = q.0;
+            let lo = p.0.max(joint.saturating_sub(WINDOW)) + 1;
+            let hi = q.1.min(joint + WINDOW) - 1;
+            let nearer_p = |i: usize| {
+                let c = xy(&pts[i]);
+                fp.offset(&c).abs() <= fq.offset(&c).abs()
+            };
+            let end_p = (lo..=hi).rev().find(|&i| nearer_p(i)).unwrap_or(lo);
+            let start_q = (lo..=hi).find(|&i| !nearer_p(i)).unwrap_or(hi);
+            self.bounds[j - 1].1 = end_p.max(self.bounds[j - 1].0);
+            self.bounds[j].0 = start_q.min(self.bounds[j].1);
+        }
+    }
+
     /// Breakpoint detection: a new cluster starts where the gap between
-    /// consecutive points exceeds r·sin Δφ / sin(λ − Δφ) + 3σ.
+    /// consecutive points exceeds r·sin Δφ / sin(λ − Δφ) + 3σ (Borges &
+    /// Aldon), or where beams are missing between them (Δφ more than 2.5 times
+    /// the scan's smallest step): a dropout is a discontinuity, and the
+    /// formula would allow huge gaps across it.
     fn cluster(&mut self, pts: &[IPoint], origin: &Point2<f64>, params: &MapParams) {
         self.clusters.clear();
         if pts.is_empty() {
             return;
         }
+        let dphi_of = |i: usize| {
+            let (vp, vq) = (xy(&pts[i - 1]) - origin, xy(&pts[i]) - origin);
+            vp.perp(&vq).atan2(vp.dot(&vq)).abs()
+        };
+        let step = (1..pts.len())
+            .map(dphi_of)
+            .filter(|d| *d > 1e-6)
+            .fold(f64::INFINITY, f64::min);
+        let lambda = params.breakpoint_angle;
         let mut start = 0;
         for i in 1..pts.len() {
             let (p, q) = (xy(&pts[i - 1]), xy(&pts[i]));
-            let (vp, vq) = (p - origin, q - origin);
-            let r = vp.norm().min(vq.norm());
-            let dphi = vp.perp(&vq).atan2(vp.dot(&vq)).abs();
-            let lambda = params.breakpoint_angle;
-            let limit = if dphi < lambda {
+            let r = (p - origin).norm().min((q - origin).norm());
+            let dphi = dphi_of(i);
+            let limit = if dphi < lambda && dphi <= 2.5 * step {
                 r * dphi.sin() / (lambda - dphi).sin() + 3.0 * params.range_sigma
             } else {
                 0.0
@@ -201,9 +295,13 @@ impl LineExtractor {
         self.clusters.push((start, pts.len() - 1));
     }
 
-    /// Iterative split of cluster `[a, b]` at the point farthest from the chord;
-    /// pieces come out in order and share their split points.
-    fn split(&mut self, pts: &[IPoint], a: usize, b: usize, threshold: f64) {
+    /// Iterative split of cluster `[a, b]`: a piece whose points stray more
+    /// than `threshold` from their total-least-squares line is split at the
+    /// point farthest from its chord (the chord's ends are averages of the
+    /// first and last three points, so one noisy end point does not tilt it).
+    /// Pieces come out in order and share their split points.
+    fn split(&mut self, pts: &[IPoint], a: usize, b: usize, params: &MapParams) {
+        let threshold = params.split_distance;
         self.stack.clear();
         self.stack.push((a, b));
         while let Some((a, b)) = self.stack.pop() {
@@ -211,25 +309,45 @@ impl LineExtractor {
                 self.pieces.push((a, b));
                 continue;
             }
-            let (pa, pb) = (xy(&pts[a]), xy(&pts[b]));
-            let mut best = (a, 0.0);
-            for (k, p) in pts.iter().enumerate().take(b).skip(a + 1) {
+            let straight = Moments::of(pts[a..=b].iter().map(xy))
+                .fit(params.range_sigma)
+                .is_some_and(|f| {
+                    pts[a..=b]
+                        .iter()
+                        .all(|p| f.offset(&xy(p)).abs() <= threshold)
+                });
+            if straight {
+                self.pieces.push((a, b));
+                continue;
+            }
+            let k = 3.min((b - a) / 2).max(1);
+            let avg = |r: std::ops::Range<usize>| {
+                let n = r.len() as f64;
+                Point2::from(
+                    pts[r]
+                        .iter()
+                        .map(|p| xy(p).coords)
+                        .sum::<nalgebra::Vector2<f64>>()
+                        / n,
+                )
+            };
+            let (pa, pb) = (avg(a..a + k), avg(b + 1 - k..b + 1));
+            let mut best = (a + 1, -1.0);
+            for (i, p) in pts.iter().enumerate().take(b).skip(a + 1) {
                 let d = line_distance(&pa, &pb, &xy(p));
                 if d > best.1 {
-                    best = (k, d);
+                    best = (i, d);
                 }
             }
-            if best.1 > threshold {
-                self.stack.push((best.0, b));
-                self.stack.push((a, best.0));
-            } else {
-                self.pieces.push((a, b));
-            }
+            self.stack.push((best.0, b));
+            self.stack.push((a, best.0));
         }
     }
 
     /// Joins consecutive pieces (sharing an end point) whose fits agree in
-    /// direction and lie on each other's line.
+    /// direction and lie on each other's line. Tiny pieces (fewer than
+    /// [`TINY_PIECE`] points, left by noise spikes next to a split point) join
+    /// a neighbour when all their points lie within `split_distance` of its line.
     fn merge_collinear(&mut self, pts: &[IPoint], params: &MapParams) {
         self.merged.clear();
         let fit_of = |a: usize, b: usize| {
@@ -238,18 +356,36 @@ impl LineExtractor {
             }
             Moments::of(pts[a..=b].iter().map(xy)).fit(params.range_sigma)
         };
+        let near_line = |f: &LineFit, a: usize, b: usize| {
+            pts[a..=b]
+                .iter()
+                .all(|p| f.offset(&xy(p)).abs() <= params.split_distance)
+        };
         for &(a, b) in &self.pieces {
             if let Some(last) = self.merged.last_mut() {
                 if last.1 == a {
-                    if let (Some(f0), Some(f1)) = (fit_of(last.0, last.1), fit_of(a, b)) {
-                        let dang = super::fit::undirected_diff(f1.angle(), f0.angle()).abs();
-                        if dang < params.collinear_angle
-                            && f0.offset(&f1.centre).abs() < params.split_distance
-                            && f1.offset(&f0.centre).abs() < params.split_distance
-                        {
+                    let last_tiny = last.1 + 1 - last.0 < TINY_PIECE;
+                    let tiny = b + 1 - a < TINY_PIECE;
+                    match (fit_of(last.0, last.1), fit_of(a, b)) {
+                        (Some(f0), _) if tiny && !last_tiny && near_line(&f0, a, b) => {
                             last.1 = b;
                             continue;
                         }
+                        (_, Some(f1)) if last_tiny && !tiny && near_line(&f1, last.0, last.1) => {
+                            last.1 = b;
+                            continue;
+                        }
+                        (Some(f0), Some(f1)) => {
+                            let dang = super::fit::undirected_diff(f1.angle(), f0.angle()).abs();
+                            if dang < params.collinear_angle
+                                && f0.offset(&f1.centre).abs() < params.split_distance
+                                && f1.offset(&f0.centre).abs() < params.split_distance
+                            {
+                                last.1 = b;
+                                continue;
+                            }
+                        }
+                        _ => {}
                     }
                 }
             }
@@ -268,7 +404,12 @@ impl LineExtractor {
         // the turn is within the curve band.
         let curvy = |k: usize| -> Option<f64> {
             let (p, q) = (merged[k - 1], merged[k]);
-            if p.1 != q.0 {
+            if p.1 != q.0
+                || p.1 + 1 - p.0 < TINY_PIECE
+                || q.1 + 1 - q.0 < TINY_PIECE
+                || (xy(&pts[p.1]) - xy(&pts[p.0])).norm() < MIN_CURVE_PIECE
+                || (xy(&pts[q.1]) - xy(&pts[q.0])).norm() < MIN_CURVE_PIECE
+            {
                 return None;
             }
             let u = xy(&pts[p.1]) - xy(&pts[p.0]);

@@ -200,6 +200,11 @@ impl Map {
         &self.lines
     }
 
+    /// The points of the last merged scan (world frame, corrected), in beam order.
+    pub fn last_points(&self) -> &[IPoint] {
+        &self.world
+    }
+
     /// The shared cell readers load snapshots from (clone the `Arc` per thread).
     pub fn reader(&self) -> Arc<SnapshotCell> {
         Arc::clone(&self.cell)
@@ -367,8 +372,12 @@ impl Map {
         snap.scans_merged = self.scans_merged;
         snap.points.clear();
         snap.points.extend_from_slice(self.points.points());
-        self.segments
-            .snapped_into(self.params.segment_merge_gap, &mut snap.segments);
+        self.segments.snapped_into(
+            self.params.segment_merge_gap,
+            self.params.min_segment_observations,
+            self.params.max_segment_angle_sigma,
+            &mut snap.segments,
+        );
         snap.curves.clear();
         snap.curves.extend_from_slice(self.segments.curves());
         snap.grid.copy_from(&self.grid);

@@ -48,6 +48,12 @@ pub struct MapParams {
     pub segment_merge_distance: f64,
     /// ... and the gap between them along the line is at most this.
     pub segment_merge_gap: f64,
+    /// Snapshots show only segments seen in at least this many scans (filters
+    /// one-off lines from noise and grazing views).
+    pub min_segment_observations: u32,
+    /// Snapshots show only segments whose direction is known to this (1 σ, rad)
+    /// or better: short walls seen from afar wait for more observations.
+    pub max_segment_angle_sigma: f64,
     /// Apply segment correction (align new segments to map segments before merging).
     pub correction: bool,
     /// Segment correction pairs a scan segment with a map segment only when their
@@ -91,6 +97,8 @@ impl Default for MapParams {
             segment_merge_angle: 3f64.to_radians(),
             segment_merge_distance: 0.05,
             segment_merge_gap: 0.10,
+            min_segment_observations: 2,
+            max_segment_angle_sigma: 0.5f64.to_radians(),
             correction: true,
             correction_max_angle: 3f64.to_radians(),
             correction_max_distance: 0.10,
@@ -123,6 +131,7 @@ impl MapParams {
             ("map.segment_merge_angle", self.segment_merge_angle),
             ("map.segment_merge_distance", self.segment_merge_distance),
             ("map.segment_merge_gap", self.segment_merge_gap),
+            ("map.max_segment_angle_sigma", self.max_segment_angle_sigma),
             ("map.correction_max_angle", self.correction_max_angle),
             ("map.correction_max_distance", self.correction_max_distance),
             ("map.correction_min_length", self.correction_min_length),

@@ -47,18 +47,23 @@ impl MapSegment {
         self.seg.length()
     }
 
-    /// Whether `other` (a line with end points `a`, `b` and direction angle
-    /// `angle`) lies on this segment's line and touches or overlaps it.
+    /// Whether `other` (a line with end points `a`, `b`, direction angle
+    /// `angle` known to variance `var_angle`) lies on this segment's line and
+    /// touches or overlaps it. The angle tolerance widens to 3 σ of the two
+    /// direction estimates for short, noisy lines.
+    #[allow(clippy::too_many_arguments)]
     fn accepts(
         &self,
         a: &Point2<f64>,
         b: &Point2<f64>,
         angle: f64,
+        var_angle: f64,
         angle_tol: f64,
         dist_tol: f64,
         gap_tol: f64,
     ) -> bool {
-        if undirected_diff(angle, self.fit.angle()).abs() > angle_tol {
+        let tol = angle_tol.max(3.0 * (var_angle + self.fit.var_angle).sqrt());
+        if undirected_diff(angle, self.fit.angle()).abs() > tol {
             return false;
         }
         if self.fit.offset(a).abs() > dist_tol || self.fit.offset(b).abs() > dist_tol {
@@ -138,6 +143,7 @@ impl SegmentMap {
                 &l.seg.a,
                 &l.seg.b,
                 l.fit.angle(),
+                l.fit.var_angle,
                 angle_tol,
                 dist_tol,
                 gap_tol,
@@ -169,7 +175,15 @@ impl SegmentMap {
         while j < self.segments.len() {
             if j != i {
                 let (s, o) = (&self.segments[i], &self.segments[j]);
-                if s.accepts(&o.seg.a, &o.seg.b, o.fit.angle(), at, dt, gt) {
+                if s.accepts(
+                    &o.seg.a,
+                    &o.seg.b,
+                    o.fit.angle(),
+                    o.fit.var_angle,
+                    at,
+                    dt,
+                    gt,
+                ) {
                     let o = self.segments.remove(j);
                     if j < i {
                         i -= 1;
@@ -217,17 +231,35 @@ impl SegmentMap {
     /// The segments with end points snapped to corners: where an end lies within
     /// `tol` of the intersection with a clearly non-parallel segment (≥ 30°)
     /// whose own extent also reaches that point, the end moves to the
-    /// intersection. Writes into `out` (cleared first).
-    pub fn snapped_into(&self, tol: f64, out: &mut Vec<MapSegment>) {
+    /// intersection. Only settled segments are written, into `out` (cleared
+    /// first): seen in at least `min_observations` scans, direction known to
+    /// `max_angle_sigma` (1 σ, rad) or better.
+    pub fn snapped_into(
+        &self,
+        tol: f64,
+        min_observations: u32,
+        max_angle_sigma: f64,
+        out: &mut Vec<MapSegment>,
+    ) {
         out.clear();
-        out.extend_from_slice(&self.segments);
         let min_angle = 30f64.to_radians();
-        for (i, s) in self.segments.iter().enumerate() {
+        let settled = |s: &MapSegment| {
+            s.observations >= min_observations && s.fit.var_angle.sqrt() <= max_angle_sigma
+        };
+        for s in self.segments.iter() {
+            if !settled(s) {
+                continue;
+            }
+            out.push(*s);
+            let i = out.len() - 1;
             for end in 0..2 {
                 let e = if end == 0 { s.seg.a } else { s.seg.b };
                 let mut best: Option<(Point2<f64>, f64)> = None;
-                for (j, o) in self.segments.iter().enumerate() {
-                    if i == j || undirected_diff(o.fit.angle(), s.fit.angle()).abs() < min_angle {
+                for o in self.segments.iter() {
+                    if std::ptr::eq(o, s)
+                        || !settled(o)
+                        || undirected_diff(o.fit.angle(), s.fit.angle()).abs() < min_angle
+                    {
                         continue;
                     }
                     let Some(x) = intersect(&s.fit, &o.fit) else {
@@ -317,7 +349,7 @@ mod tests {
         let up: Vec<(f64, f64)> = (0..50).map(|i| (1.0, 0.03 + i as f64 * 0.02)).collect();
         m.merge_line(&line_from(&up), &p);
         let mut out = Vec::new();
-        m.snapped_into(0.08, &mut out);
+        m.snapped_into(0.08, 1, 1.0, &mut out);
         let corner = Point2::new(1.0, 0.0);
         let hits = out
             .iter()
