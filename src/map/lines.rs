@@ -123,6 +123,60 @@ fn refine_ends(
     Some((a2, b2, m, fit))
 }
 
+/// Largest radius a curve may have (m): flatter runs are walls seen noisily.
+const MAX_CURVE_RADIUS: f64 = 3.0;
+/// Least angle a curve must sweep around its centre (rad).
+const MIN_CURVE_SWEEP: f64 = 0.5;
+
+/// Whether `pts` lie on a circular arc: algebraic (Kåsa) circle fit with
+/// radius at most [`MAX_CURVE_RADIUS`], RMS residual at most half the split
+/// distance, sweeping at least [`MIN_CURVE_SWEEP`]. Rejects noisy straight
+/// walls and rounded-looking corners that a chain of small turns may suggest.
+fn is_arc(pts: &[IPoint], params: &MapParams) -> bool {
+    if pts.len() < 5 {
+        return false;
+    }
+    // Centre the data for conditioning.
+    let n = pts.len() as f64;
+    let c = pts
+        .iter()
+        .map(|p| xy(p).coords)
+        .sum::<nalgebra::Vector2<f64>>()
+        / n;
+    let mut a = nalgebra::Matrix3::<f64>::zeros();
+    let mut b = nalgebra::Vector3::<f64>::zeros();
+    for p in pts {
+        let (x, y) = (p.x - c.x, p.y - c.y);
+        let row = nalgebra::Vector3::new(x, y, 1.0);
+        a += row * row.transpose();
+        b -= row * (x * x + y * y);
+    }
+    let Some(sol) = a.lu().solve(&b) else {
+        return false;
+    };
+    let centre = nalgebra::Vector2::new(-sol.x / 2.0, -sol.y / 2.0);
+    let r2 = centre.norm_squared() - sol.z;
+    if !(r2.is_finite() && r2 > 0.0) {
+        return false;
+    }
+    let r = r2.sqrt();
+    if r > MAX_CURVE_RADIUS {
+        return false;
+    }
+    let mut sq = 0.0;
+    for p in pts {
+        let d = (nalgebra::Vector2::new(p.x - c.x, p.y - c.y) - centre).norm() - r;
+        sq += d * d;
+    }
+    let rms = (sq / n).sqrt();
+    let (u, v) = (
+        nalgebra::Vector2::new(pts[0].x - c.x, pts[0].y - c.y) - centre,
+        nalgebra::Vector2::new(pts[pts.len() - 1].x - c.x, pts[pts.len() - 1].y - c.y) - centre,
+    );
+    let sweep = u.perp(&v).atan2(u.dot(&v)).abs();
+    rms <= params.split_distance / 2.0 && sweep >= MIN_CURVE_SWEEP
+}
+
 /// Splits ordered scan points into line features and curves, reusing its buffers.
 #[derive(Debug)]
 pub struct LineExtractor {
@@ -432,7 +486,7 @@ impl LineExtractor {
                     _ => break,
                 }
             }
-            if e - j >= 3 {
+            if e - j >= 3 && is_arc(&pts[merged[j].0..=merged[e - 1].1], params) {
                 for f in &mut self.curve_flags[j..e] {
                     *f = true;
                 }
@@ -458,5 +512,102 @@ impl LineExtractor {
         }
         let _ = c.vertices.push(xy(&pts[b]));
         c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::world::World;
+    use rand::{Rng, SeedableRng};
+
+    /// A 682-beam URG-like scan of `world` from `origin` (heading 0), with
+    /// Gaussian range noise `sigma`, as world-frame points.
+    fn scan(world: &World, origin: Point2<f64>, sigma: f64, seed: u64) -> Vec<IPoint> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (44..=725)
+            .filter_map(|k| {
+                let a = (k - 384) as f64 * std::f64::consts::TAU / 1024.0;
+                let h = world.cast_ray(&origin, a, 5.6)?;
+                let u1: f64 = rng.random::<f64>().max(1e-300);
+                let u2: f64 = rng.random();
+                let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+                let r = h.range + sigma * n;
+                Some(IPoint::new(
+                    origin.x + r * a.cos(),
+                    origin.y + r * a.sin(),
+                    0.5,
+                ))
+            })
+            .collect()
+    }
+
+    fn run(pts: &[IPoint], origin: Point2<f64>) -> (Vec<ScanLine>, Vec<Curve>) {
+        let mut ex = LineExtractor::new();
+        let (mut l, mut c) = (Vec::new(), Vec::new());
+        ex.extract(pts, &origin, &MapParams::default(), &mut l, &mut c);
+        (l, c)
+    }
+
+    #[test]
+    fn noisy_room_gives_its_walls_and_no_curves() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\n").unwrap();
+        let o = Point2::new(1.5, 1.2);
+        for seed in 0..5 {
+            let (lines, curves) = run(&scan(&w, o, 0.01, seed), o);
+            assert!(curves.is_empty(), "seed {seed}: {curves:?}");
+            // Front (x = 4), top, bottom and the visible parts of the back wall.
+            assert!(
+                lines.len() >= 3 && lines.len() <= 5,
+                "seed {seed}: {lines:?}"
+            );
+            for l in &lines {
+                let a = l.fit.angle().to_degrees();
+                let err = a.abs().min((a.abs() - 90.0).abs());
+                assert!(err < 1.0, "seed {seed}: angle {a}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_pillar_is_a_curve() {
+        let mut poly = String::from("polygon");
+        for k in 0..48 {
+            let t = k as f64 * std::f64::consts::TAU / 48.0;
+            poly.push_str(&format!(
+                " {:.4} {:.4}",
+                2.5 + 0.5 * t.cos(),
+                1.5 + 0.5 * t.sin()
+            ));
+        }
+        let w = World::parse(&format!("room 0 0 5 0 5 3 0 3\n{poly}\n")).unwrap();
+        let o = Point2::new(0.8, 1.5);
+        let (lines, curves) = run(&scan(&w, o, 0.005, 3), o);
+        assert_eq!(curves.len(), 1, "{curves:?}");
+        let c = &curves[0];
+        assert!(c.vertices.len() >= 5 && c.vertices.len() <= MAX_CURVE_VERTICES);
+        for v in &c.vertices {
+            let r = (v - Point2::new(2.5, 1.5)).norm();
+            assert!((r - 0.5).abs() < 0.03, "vertex {v} at radius {r}");
+        }
+        for l in &lines {
+            assert!(
+                l.fit.centre.x < 1.9
+                    || l.fit.centre.x > 3.1
+                    || l.fit.centre.y < 0.9
+                    || l.fit.centre.y > 2.1,
+                "a line on the pillar: {l:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn empty_and_tiny_inputs_give_nothing() {
+        let o = Point2::new(0.0, 0.0);
+        assert_eq!(run(&[], o), (vec![], vec![]));
+        let one = [IPoint::new(1.0, 0.0, 0.1)];
+        assert_eq!(run(&one, o), (vec![], vec![]));
+        let two = [IPoint::new(1.0, 0.0, 0.1), IPoint::new(1.0, 0.01, 0.1)];
+        assert_eq!(run(&two, o), (vec![], vec![]));
     }
 }
