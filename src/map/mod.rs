@@ -55,6 +55,9 @@ use crate::geom::{IPoint, Pose};
 use crate::grid::Grid;
 use crate::scan::LaserScan;
 
+/// Segments the map reserves room for up front.
+const RESERVE_SEGMENTS: usize = 1024;
+
 /// The matcher's verdict on a scan's registration, as the map needs it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ScanQuality {
@@ -136,7 +139,7 @@ impl Map {
         let first = Arc::new(MapSnapshot::empty(grid.clone(), start));
         Ok(Map {
             points: PointMap::new(params.merge_distance, params.reserve_points),
-            segments: SegmentMap::default(),
+            segments: SegmentMap::with_capacity(RESERVE_SEGMENTS),
             grid,
             pose: start,
             trajectory: Vec::with_capacity(4096),
@@ -368,6 +371,16 @@ impl Map {
                 }
             }
         };
+        // Reserve what the map itself holds, so a reused snapshot grows only
+        // when the map's own buffers did.
+        snap.points.clear();
+        snap.points.reserve(self.points.capacity());
+        snap.segments.clear();
+        snap.segments.reserve(self.segments.capacity());
+        snap.curves.clear();
+        snap.curves.reserve(segments::MAX_CURVES);
+        snap.trajectory.clear();
+        snap.trajectory.reserve(self.trajectory.capacity());
         snap.version = self.version;
         snap.scans_merged = self.scans_merged;
         snap.points.clear();

@@ -85,6 +85,11 @@ impl PointMap {
         &self.points
     }
 
+    /// Points the store holds room for before it must grow.
+    pub fn capacity(&self) -> usize {
+        self.points.capacity()
+    }
+
     /// Number of stored points.
     pub fn len(&self) -> usize {
         self.points.len()

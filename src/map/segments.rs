@@ -124,6 +124,20 @@ pub struct SegmentMap {
 }
 
 impl SegmentMap {
+    /// An empty map with room for `segments` segments and [`MAX_CURVES`] curves.
+    pub fn with_capacity(segments: usize) -> Self {
+        Self {
+            segments: Vec::with_capacity(segments),
+            curves: Vec::with_capacity(MAX_CURVES),
+            next_curve: 0,
+        }
+    }
+
+    /// Capacity of the segment list (snapshots reserve as much).
+    pub fn capacity(&self) -> usize {
+        self.segments.capacity()
+    }
+
     /// The segments (raw extents, before corner snapping).
     pub fn segments(&self) -> &[MapSegment] {
         &self.segments
