@@ -1,6 +1,7 @@
 //! `sweepline eval`: scores a trajectory against Kümmerle et al. relations.
 
 use super::CliResult;
+use crate::icp::eval::{evaluate, parse_relations, parse_trajectory, read_text};
 
 /// Arguments of `sweepline eval`.
 #[derive(Debug, clap::Args)]
@@ -14,6 +15,11 @@ pub struct Args {
 
 /// Runs `sweepline eval`.
 pub fn run(args: Args) -> CliResult {
-    let _ = args;
-    super::not_yet("eval")
+    let rel_text = read_text(&args.relations)?;
+    let rels = parse_relations(&rel_text, &args.relations.display().to_string())?;
+    let traj_text = read_text(&args.trajectory)?;
+    let traj = parse_trajectory(&traj_text, &args.trajectory.display().to_string())?;
+    let report = evaluate(&rels, &traj)?;
+    print!("{report}");
+    Ok(())
 }

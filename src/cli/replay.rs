@@ -1,16 +1,313 @@
 //! `sweepline replay`: runs the scan matcher over a recorded CARMEN log and writes the trajectory and a picture.
+//!
+//! Outputs in `--out` (default `out/replay`): `trajectory.txt` (`timestamp x y
+//! theta` per scan, the input of `sweepline eval`), `replay.svg` (registered
+//! points, estimated trajectory, raw odometry) and `summary.txt` (outcomes and
+//! per-scan timing, also printed).
+
+use std::collections::HashSet;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use svg::node::element::{Group, Path as SvgPath, Rectangle};
+use svg::Document;
 
 use super::CliResult;
+use crate::config::Config;
+use crate::geom::{IPoint, Pose};
+use crate::icp::eval::{format_trajectory, Stamped};
+use crate::icp::{IcpParams, Outcome, Tracker};
+use crate::sim::carmen::{self, NO_RETURN_RANGE};
 
 /// Arguments of `sweepline replay`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The CARMEN log (FLASER / ROBOTLASER1 / ODOM lines); .gz accepted.
-    pub log: std::path::PathBuf,
+    pub log: PathBuf,
+    /// Output folder for trajectory.txt, replay.svg and summary.txt.
+    #[arg(long, default_value = "out/replay")]
+    pub out: PathBuf,
+    /// Config file whose `[icp]` table sets the matcher (default: built-in defaults).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// Everything a replay produced.
+#[derive(Debug, Default)]
+pub struct ReplayResult {
+    /// Estimated pose per laser scan.
+    pub trajectory: Vec<Stamped>,
+    /// Raw odometry pose per laser scan.
+    pub odometry: Vec<Stamped>,
+    /// Wall-clock time of each tracking step after the first (s).
+    pub step_times: Vec<f64>,
+    /// CPU time of this thread for each tracking step after the first (s):
+    /// unlike wall-clock time, not inflated when other processes share the cores.
+    pub step_cpu_times: Vec<f64>,
+    /// Accepted matches.
+    pub matched: usize,
+    /// Failed matches (prediction used).
+    pub failed: usize,
+    /// Rejected matches (prediction used).
+    pub rejected: usize,
+    /// Matches flagged degenerate (pose kept at the prior along the weak direction).
+    pub degenerate: usize,
+    /// Sum of iterations of accepted matches.
+    pub iterations: u64,
+    /// One line per scan: stamp, outcome and quality figures (`steps.txt`).
+    pub steps: Vec<String>,
+    /// Keyframe points, world frame, thinned to a 5 cm grid (for the picture).
+    pub points: Vec<IPoint>,
+}
+
+/// Runs the tracker over every laser record of a log.
+pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayResult, String> {
+    let start = log
+        .lasers()
+        .next()
+        .map(|l| l.laser_pose)
+        .ok_or("the log holds no laser scans")?;
+    let mut tracker = Tracker::new(params.clone(), start).map_err(|e| e.to_string())?;
+    let mut res = ReplayResult::default();
+    let mut pts: Vec<IPoint> = Vec::with_capacity(crate::capacity::MAX_BEAMS);
+    let mut seen: HashSet<(i64, i64)> = HashSet::new();
+    for (i, l) in log.lasers().enumerate() {
+        let scan = l.to_scan(i as u64, NO_RETURN_RANGE);
+        scan.points_into(&mut pts);
+        let c0 = thread_cpu_seconds();
+        let t0 = Instant::now();
+        let step = tracker.step(&pts, Some(&l.odom_pose));
+        let dt = t0.elapsed().as_secs_f64();
+        let dc = thread_cpu_seconds() - c0;
+        let line = match step.outcome {
+            Outcome::First => format!("{:.6} first", l.stamp),
+            Outcome::Matched(q) | Outcome::Rejected(_, q) => format!(
+                "{:.6} {} it={} pairs={} inl={:.2} rms={:.4} eig={:.4} deg={} dt={:.3} dr={:.4} kf={} ms={:.3} cpu_ms={:.3}",
+                l.stamp,
+                if matches!(step.outcome, Outcome::Matched(_)) { "ok" } else { "rejected" },
+                q.iterations,
+                q.pairs,
+                q.inlier_ratio,
+                q.residual_rms,
+                q.min_eigenvalue,
+                q.degenerate,
+                q.correction_translation,
+                q.correction_rotation,
+                step.keyframe,
+                dt * 1e3,
+                dc * 1e3
+            ),
+            Outcome::Failed(e) => format!("{:.6} failed {e}", l.stamp),
+        };
+        res.steps.push(line);
+        match step.outcome {
+            Outcome::First => {}
+            Outcome::Matched(q) => {
+                res.matched += 1;
+                res.iterations += q.iterations as u64;
+                if q.degenerate {
+                    res.degenerate += 1;
+                }
+            }
+            Outcome::Failed(_) => res.failed += 1,
+            Outcome::Rejected(..) => res.rejected += 1,
+        }
+        if i > 0 {
+            res.step_times.push(dt);
+            res.step_cpu_times.push(dc);
+        }
+        if step.keyframe {
+            for p in tracker.map().points() {
+                let key = ((p.x / 0.05).floor() as i64, (p.y / 0.05).floor() as i64);
+                if seen.insert(key) {
+                    res.points.push(*p);
+                }
+            }
+        }
+        res.trajectory.push(Stamped {
+            t: l.stamp,
+            pose: step.pose,
+        });
+        res.odometry.push(Stamped {
+            t: l.stamp,
+            pose: l.odom_pose,
+        });
+    }
+    Ok(res)
+}
+
+/// CPU time consumed by the calling thread (s), from `CLOCK_THREAD_CPUTIME_ID`.
+fn thread_cpu_seconds() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// Quantile `q` in [0, 1] of sorted values.
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// The text summary of a replay.
+pub fn summary(res: &ReplayResult) -> String {
+    let mut t = res.step_times.clone();
+    t.sort_by(f64::total_cmp);
+    let mut c = res.step_cpu_times.clone();
+    c.sort_by(f64::total_cmp);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "scans: {}  matched: {}  failed: {}  rejected: {}  degenerate: {}",
+        res.trajectory.len(),
+        res.matched,
+        res.failed,
+        res.rejected,
+        res.degenerate
+    );
+    if res.matched > 0 {
+        let _ = writeln!(
+            s,
+            "mean iterations per accepted match: {:.1}",
+            res.iterations as f64 / res.matched as f64
+        );
+    }
+    for (name, v) in [("wall-clock", &t), ("thread CPU", &c)] {
+        let _ = writeln!(
+            s,
+            "{name} time per scan (match incl. keyframe updates): median {:.3} ms  p99 {:.3} ms  max {:.3} ms  mean {:.3} ms",
+            quantile(v, 0.5) * 1e3,
+            quantile(v, 0.99) * 1e3,
+            v.last().copied().unwrap_or(f64::NAN) * 1e3,
+            v.iter().sum::<f64>() / v.len().max(1) as f64 * 1e3
+        );
+    }
+    s
+}
+
+fn path_of(poses: &[Stamped]) -> String {
+    let mut d = String::new();
+    for (i, p) in poses.iter().enumerate() {
+        let _ = write!(
+            d,
+            "{}{:.3} {:.3} ",
+            if i == 0 { "M" } else { "L" },
+            p.pose.translation.x,
+            -p.pose.translation.y
+        );
+    }
+    d
+}
+
+/// An SVG of the registered points (grey), the estimated trajectory (blue) and
+/// raw odometry (orange, dashed). World y points up.
+pub fn picture(res: &ReplayResult) -> Document {
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    let mut grow = |x: f64, y: f64| {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(-y);
+        y1 = y1.max(-y);
+    };
+    for p in &res.points {
+        grow(p.x, p.y);
+    }
+    for p in &res.trajectory {
+        grow(p.pose.translation.x, p.pose.translation.y);
+    }
+    if x0 > x1 {
+        (x0, y0, x1, y1) = (-1.0, -1.0, 1.0, 1.0);
+    }
+    let m = 1.0;
+    let (w, h) = (x1 - x0 + 2.0 * m, y1 - y0 + 2.0 * m);
+    let mut pts = String::with_capacity(res.points.len() * 24);
+    for p in &res.points {
+        let _ = write!(pts, "M{:.3} {:.3}h0.05", p.x, -p.y);
+    }
+    let pose_of = |p: &Pose| (p.translation.x, p.translation.y);
+    let _ = pose_of;
+    let scale = 1200.0 / w.max(h);
+    Document::new()
+        .set("viewBox", (x0 - m, y0 - m, w, h))
+        .set("width", w * scale)
+        .set("height", h * scale)
+        .add(
+            Rectangle::new()
+                .set("x", x0 - m)
+                .set("y", y0 - m)
+                .set("width", w)
+                .set("height", h)
+                .set("fill", "white"),
+        )
+        .add(
+            Group::new()
+                .add(
+                    SvgPath::new()
+                        .set("d", pts)
+                        .set("stroke", "#444")
+                        .set("stroke-width", 0.05),
+                )
+                .add(
+                    SvgPath::new()
+                        .set("d", path_of(&res.odometry))
+                        .set("fill", "none")
+                        .set("stroke", "#e08000")
+                        .set("stroke-width", 0.06)
+                        .set("stroke-dasharray", "0.3 0.2"),
+                )
+                .add(
+                    SvgPath::new()
+                        .set("d", path_of(&res.trajectory))
+                        .set("fill", "none")
+                        .set("stroke", "#0050d0")
+                        .set("stroke-width", 0.08),
+                ),
+        )
+}
+
+fn load_params(config: Option<&Path>) -> Result<IcpParams, String> {
+    match config {
+        None => Ok(IcpParams::default()),
+        Some(p) => Config::load(p).map(|c| c.icp).map_err(|e| e.to_string()),
+    }
 }
 
 /// Runs `sweepline replay`.
 pub fn run(args: Args) -> CliResult {
-    let _ = args;
-    super::not_yet("replay")
+    let params = load_params(args.config.as_deref())?;
+    let log = carmen::read_file(&args.log)?;
+    let res = replay_log(&log, &params)?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let traj = args.out.join("trajectory.txt");
+    std::fs::write(&traj, format_trajectory(&res.trajectory))
+        .map_err(|e| format!("cannot write {}: {e}", traj.display()))?;
+    let svg_path = args.out.join("replay.svg");
+    svg::save(&svg_path, &picture(&res))
+        .map_err(|e| format!("cannot write {}: {e}", svg_path.display()))?;
+    let steps = args.out.join("steps.txt");
+    std::fs::write(&steps, res.steps.join("\n") + "\n")
+        .map_err(|e| format!("cannot write {}: {e}", steps.display()))?;
+    let text = summary(&res);
+    let sum = args.out.join("summary.txt");
+    std::fs::write(&sum, &text).map_err(|e| format!("cannot write {}: {e}", sum.display()))?;
+    print!("{text}");
+    println!(
+        "wrote {}, {}, {}",
+        traj.display(),
+        svg_path.display(),
+        sum.display()
+    );
+    Ok(())
 }

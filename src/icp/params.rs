@@ -1,0 +1,191 @@
+//! The matcher's settings (`[icp]` table of the config file) and their checks.
+
+use crate::config::{invalid, positive, ConfigError};
+
+/// Which error the solver minimises.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Metric {
+    /// Squared point distance (the paper's metric; closed-form solution).
+    PointToPoint,
+    /// Squared distance to the line through the reference point along its
+    /// surface (Censi's PL-ICP metric; one linear 3×3 solve per iteration).
+    PointToLine,
+}
+
+/// Where the initial guess of a match comes from when tracking a sequence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Prior {
+    /// Wheel odometry increment since the previous scan (constant velocity when
+    /// no odometry is available).
+    Odometry,
+    /// Repeat the last estimated motion (constant velocity).
+    ConstantVelocity,
+}
+
+/// Scan matcher settings.
+/// Loaded from the `[icp]` table of the config file; every field is documented
+/// in `hw/robot.toml`. Defaults were tuned on the MIT CSAIL benchmark log.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IcpParams {
+    /// Intensity weight `w` of `E = Σ dx² + dy² + w·dl²` (m² per intensity unit²); 0 = plain ICP.
+    pub intensity_weight: f64,
+    /// Error metric: point-to-point or point-to-line.
+    pub metric: Metric,
+    /// Most iterations per match.
+    pub max_iterations: u32,
+    /// Stop when an iteration moves the pose by less than this (m).
+    pub epsilon_translation: f64,
+    /// Stop when an iteration turns the pose by less than this (rad).
+    pub epsilon_rotation: f64,
+    /// Correspondence gate at the first iteration (m, in (x, y, √w·l) space).
+    pub gate_initial: f64,
+    /// The gate never shrinks below this (m).
+    pub gate_min: f64,
+    /// Adaptive gate: after each iteration gate = clamp(gate_sigmas × robust σ of pair distances).
+    pub gate_sigmas: f64,
+    /// Fraction of the gated pairs kept (worst pairs trimmed), in (0, 1].
+    pub trim_fraction: f64,
+    /// Fewer pairs than this after gating and trimming: the match fails.
+    pub min_pairs: usize,
+    /// Smallest acceptable share of scan points that found a gated partner.
+    pub min_inlier_ratio: f64,
+    /// A match whose RMS residual (m) after convergence exceeds this is rejected.
+    pub max_residual: f64,
+    /// A direction whose normalised information (eigenvalue / pairs) is below this is degenerate.
+    pub degeneracy_threshold: f64,
+    /// Reference neighbours used to estimate a surface normal.
+    pub normal_neighbours: usize,
+    /// Neighbours farther than this (m) do not count for the normal.
+    pub normal_radius: f64,
+    /// Intensity step between surface neighbours that marks an intensity edge
+    /// (used when `intensity_weight` > 0): such pairs also constrain motion along the surface.
+    pub intensity_edge: f64,
+    /// Readings at or beyond this range (m) are dropped before matching.
+    pub max_range: f64,
+    /// Readings closer than this (m) are dropped (robot body, dust).
+    pub min_range: f64,
+    /// Successive scan points closer than this (m) are thinned out before matching.
+    pub min_point_spacing: f64,
+    /// Weight of the prior (odometry) translation in point-to-line matching, per pair; 0 = none.
+    pub prior_weight: f64,
+    /// Initial guess for tracking: odometry or constant velocity.
+    pub prior: Prior,
+    /// Add a keyframe to the local map after this much travel (m).
+    pub keyframe_distance: f64,
+    /// ... or after this much rotation (rad).
+    pub keyframe_angle: f64,
+    /// Keyframes kept in the local map (the reference of scan-to-map matching).
+    pub keyframe_window: usize,
+    /// A match that corrects the initial guess by more than this (m) is rejected.
+    pub max_correction_translation: f64,
+    /// A match that corrects the initial guess by more than this (rad) is rejected.
+    pub max_correction_rotation: f64,
+}
+
+impl Default for IcpParams {
+    fn default() -> Self {
+        Self {
+            intensity_weight: 0.0,
+            metric: Metric::PointToLine,
+            max_iterations: 30,
+            epsilon_translation: 1e-4,
+            epsilon_rotation: 1e-4,
+            gate_initial: 0.5,
+            gate_min: 0.05,
+            gate_sigmas: 3.0,
+            trim_fraction: 0.9,
+            min_pairs: 20,
+            min_inlier_ratio: 0.3,
+            max_residual: 0.05,
+            degeneracy_threshold: 0.02,
+            normal_neighbours: 5,
+            normal_radius: 0.3,
+            intensity_edge: 0.2,
+            max_range: 30.0,
+            min_range: 0.05,
+            min_point_spacing: 0.03,
+            prior_weight: 0.0,
+            prior: Prior::Odometry,
+            keyframe_distance: 0.3,
+            keyframe_angle: 0.2,
+            keyframe_window: 6,
+            max_correction_translation: 1.0,
+            max_correction_rotation: 0.7,
+        }
+    }
+}
+
+impl IcpParams {
+    /// Checks ranges the types cannot express; errors name the key (`icp.…`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(self.intensity_weight.is_finite() && self.intensity_weight >= 0.0) {
+            return Err(invalid(
+                "icp.intensity_weight",
+                "must be a finite number >= 0",
+            ));
+        }
+        if self.max_iterations == 0 {
+            return Err(invalid("icp.max_iterations", "must be at least 1"));
+        }
+        positive("icp.epsilon_translation", self.epsilon_translation)?;
+        positive("icp.epsilon_rotation", self.epsilon_rotation)?;
+        positive("icp.gate_initial", self.gate_initial)?;
+        positive("icp.gate_min", self.gate_min)?;
+        positive("icp.gate_sigmas", self.gate_sigmas)?;
+        if self.gate_min > self.gate_initial {
+            return Err(invalid("icp.gate_min", "must not exceed icp.gate_initial"));
+        }
+        if !(self.trim_fraction > 0.0 && self.trim_fraction <= 1.0) {
+            return Err(invalid("icp.trim_fraction", "must be in (0, 1]"));
+        }
+        if self.min_pairs < 3 {
+            return Err(invalid("icp.min_pairs", "must be at least 3"));
+        }
+        if !(0.0..=1.0).contains(&self.min_inlier_ratio) {
+            return Err(invalid("icp.min_inlier_ratio", "must be in [0, 1]"));
+        }
+        positive("icp.max_residual", self.max_residual)?;
+        if !(self.degeneracy_threshold.is_finite() && self.degeneracy_threshold >= 0.0) {
+            return Err(invalid(
+                "icp.degeneracy_threshold",
+                "must be a finite number >= 0",
+            ));
+        }
+        if !(2..=32).contains(&self.normal_neighbours) {
+            return Err(invalid("icp.normal_neighbours", "must be in 2..=32"));
+        }
+        positive("icp.normal_radius", self.normal_radius)?;
+        positive("icp.intensity_edge", self.intensity_edge)?;
+        positive("icp.max_range", self.max_range)?;
+        if !(self.min_range.is_finite() && self.min_range >= 0.0 && self.min_range < self.max_range)
+        {
+            return Err(invalid(
+                "icp.min_range",
+                "must be >= 0 and below icp.max_range",
+            ));
+        }
+        if !(self.min_point_spacing.is_finite() && self.min_point_spacing >= 0.0) {
+            return Err(invalid(
+                "icp.min_point_spacing",
+                "must be a finite number >= 0",
+            ));
+        }
+        if !(self.prior_weight.is_finite() && self.prior_weight >= 0.0) {
+            return Err(invalid("icp.prior_weight", "must be a finite number >= 0"));
+        }
+        positive("icp.keyframe_distance", self.keyframe_distance)?;
+        positive("icp.keyframe_angle", self.keyframe_angle)?;
+        if self.keyframe_window == 0 {
+            return Err(invalid("icp.keyframe_window", "must be at least 1"));
+        }
+        positive(
+            "icp.max_correction_translation",
+            self.max_correction_translation,
+        )?;
+        positive("icp.max_correction_rotation", self.max_correction_rotation)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,305 @@
+//! The reference point set a scan is matched against ("the map"): points with
+//! intensities, their surface normals, and a k-d tree over (x, y, √w·l).
+//!
+//! Building the tree allocates (kiddo's `ImmutableKdTree` owns its storage), so
+//! a reference is rebuilt only when the reference changes (a new keyframe, a
+//! new map snapshot); matching against it never allocates.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use nalgebra::{Matrix2, Vector2};
+
+use super::{IcpError, IcpParams};
+use crate::geom::IPoint;
+
+/// A reference point set prepared for matching.
+pub struct Reference {
+    points: Vec<IPoint>,
+    normals: Vec<Vector2<f64>>,
+    edges: Vec<bool>,
+    coords: Vec<[f64; 3]>,
+    tree: Option<ImmutableKdTree<f64, 3>>,
+    intensity_scale: f64,
+}
+
+impl Default for Reference {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl std::fmt::Debug for Reference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Reference")
+            .field("points", &self.points.len())
+            .field("intensity_scale", &self.intensity_scale)
+            .finish()
+    }
+}
+
+impl Reference {
+    /// An empty reference; fill it with one of the `rebuild*` methods.
+    pub fn new() -> Self {
+        Self {
+            points: Vec::new(),
+            normals: Vec::new(),
+            edges: Vec::new(),
+            coords: Vec::new(),
+            tree: None,
+            intensity_scale: 0.0,
+        }
+    }
+
+    /// Rebuilds from an unordered point set (e.g. a map snapshot). Normals come
+    /// from the `normal_neighbours` nearest points within `normal_radius`.
+    /// Non-finite points are dropped.
+    pub fn rebuild(&mut self, points: &[IPoint], params: &IcpParams) -> Result<(), IcpError> {
+        self.copy_finite(points);
+        self.check_size(params)?;
+        self.normals.clear();
+        let xy: Vec<[f64; 2]> = self.points.iter().map(|p| [p.x, p.y]).collect();
+        let tree2: ImmutableKdTree<f64, 2> =
+            ImmutableKdTree::new_from_slice(&xy).map_err(|_| IcpError::TooFewReferencePoints {
+                have: xy.len(),
+                need: params.min_pairs,
+            })?;
+        let k = std::num::NonZeroUsize::new(params.normal_neighbours.max(2))
+            .unwrap_or(std::num::NonZeroUsize::MIN);
+        let r2 = params.normal_radius * params.normal_radius;
+        let mut nb: Vec<Vector2<f64>> = Vec::with_capacity(k.get());
+        self.edges.clear();
+        let step = params.intensity_edge;
+        for p in &self.points {
+            nb.clear();
+            let mut edge = false;
+            for n in tree2
+                .query(&[p.x, p.y])
+                .nearest_n::<SquaredEuclidean<f64>>(k)
+                .execute()
+            {
+                if n.distance <= r2 {
+                    let q = &self.points[n.item as usize];
+                    nb.push(Vector2::new(q.x, q.y));
+                    edge |= (q.intensity - p.intensity).abs() >= step;
+                }
+            }
+            self.normals.push(normal_of(&nb));
+            self.edges.push(edge && params.intensity_weight > 0.0);
+        }
+        self.build_tree(params)
+    }
+
+    /// Rebuilds from points ordered along the surfaces (a scan in beam order,
+    /// or several scans one after the other): normals from sequence neighbours
+    /// within `normal_radius`. Cheaper than [`Reference::rebuild`].
+    pub fn rebuild_ordered(
+        &mut self,
+        points: &[IPoint],
+        params: &IcpParams,
+    ) -> Result<(), IcpError> {
+        self.copy_finite(points);
+        self.check_size(params)?;
+        self.normals.clear();
+        self.edges.clear();
+        let n = self.points.len();
+        for i in 0..n {
+            let (normal, edge) = ordered_surface(&self.points, i, params);
+            self.normals.push(normal);
+            self.edges.push(edge);
+        }
+        self.build_tree(params)
+    }
+
+    /// Rebuilds from points with their normals (zero vector = unknown) and
+    /// intensity-edge flags already known. Entries with a non-finite point or
+    /// normal are dropped; slices are read up to the shortest length.
+    pub fn rebuild_with_normals(
+        &mut self,
+        points: &[IPoint],
+        normals: &[Vector2<f64>],
+        edges: &[bool],
+        params: &IcpParams,
+    ) -> Result<(), IcpError> {
+        self.points.clear();
+        self.normals.clear();
+        self.edges.clear();
+        for ((p, n), e) in points.iter().zip(normals).zip(edges) {
+            if finite_point(p) && n.x.is_finite() && n.y.is_finite() {
+                self.points.push(*p);
+                self.normals.push(*n);
+                self.edges.push(*e && params.intensity_weight > 0.0);
+            }
+        }
+        self.check_size(params)?;
+        self.build_tree(params)
+    }
+
+    /// Number of usable points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when the reference holds no points (never built or emptied).
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty() || self.tree.is_none()
+    }
+
+    /// The usable points.
+    pub fn points(&self) -> &[IPoint] {
+        &self.points
+    }
+
+    /// Unit surface normals, one per point (zero vector where unknown).
+    pub fn normals(&self) -> &[Vector2<f64>] {
+        &self.normals
+    }
+
+    /// Per point: true where the intensity steps by at least `intensity_edge`
+    /// between surface neighbours (a marker's border) and `w` > 0. Such points
+    /// constrain the pose along the surface too.
+    pub fn intensity_edges(&self) -> &[bool] {
+        &self.edges
+    }
+
+    /// Scale of the intensity axis in the tree (√w).
+    pub fn intensity_scale(&self) -> f64 {
+        self.intensity_scale
+    }
+
+    /// Nearest reference point to `q` (x, y, √w·l) and its squared distance.
+    #[inline]
+    pub(crate) fn nearest(&self, q: &[f64; 3]) -> Option<(usize, f64)> {
+        let tree = self.tree.as_ref()?;
+        let r = tree
+            .query(q)
+            .nearest_one::<SquaredEuclidean<f64>>()
+            .execute();
+        Some((r.item as usize, r.distance))
+    }
+
+    fn copy_finite(&mut self, points: &[IPoint]) {
+        self.points.clear();
+        self.points
+            .extend(points.iter().filter(|p| finite_point(p)).copied());
+    }
+
+    fn check_size(&mut self, params: &IcpParams) -> Result<(), IcpError> {
+        if self.points.len() < params.min_pairs {
+            self.tree = None;
+            return Err(IcpError::TooFewReferencePoints {
+                have: self.points.len(),
+                need: params.min_pairs,
+            });
+        }
+        Ok(())
+    }
+
+    fn build_tree(&mut self, params: &IcpParams) -> Result<(), IcpError> {
+        self.intensity_scale = params.intensity_weight.max(0.0).sqrt();
+        let s = self.intensity_scale;
+        self.coords.clear();
+        self.coords
+            .extend(self.points.iter().map(|p| [p.x, p.y, s * p.intensity]));
+        match ImmutableKdTree::new_from_slice(&self.coords) {
+            Ok(t) => {
+                self.tree = Some(t);
+                Ok(())
+            }
+            Err(_) => {
+                self.tree = None;
+                Err(IcpError::TooFewReferencePoints {
+                    have: self.coords.len(),
+                    need: params.min_pairs,
+                })
+            }
+        }
+    }
+}
+
+fn finite_point(p: &IPoint) -> bool {
+    p.x.is_finite() && p.y.is_finite() && p.intensity.is_finite()
+}
+
+/// Normal and intensity-edge flag of point `i` of an ordered sequence, from
+/// its neighbours at most `normal_neighbours` steps away on each side and within `normal_radius`.
+pub(crate) fn ordered_surface(
+    points: &[IPoint],
+    i: usize,
+    params: &IcpParams,
+) -> (Vector2<f64>, bool) {
+    let half = params.normal_neighbours.max(1);
+    let p = &points[i];
+    let r2 = params.normal_radius * params.normal_radius;
+    let lo = i.saturating_sub(half);
+    let hi = (i + half).min(points.len() - 1);
+    let mut acc = Accum::default();
+    let mut edge = false;
+    for q in &points[lo..=hi] {
+        let (dx, dy) = (q.x - p.x, q.y - p.y);
+        if dx * dx + dy * dy <= r2 {
+            acc.add(q.x, q.y);
+            edge |= (q.intensity - p.intensity).abs() >= params.intensity_edge;
+        }
+    }
+    (acc.normal(), edge && params.intensity_weight > 0.0)
+}
+
+fn normal_of(nb: &[Vector2<f64>]) -> Vector2<f64> {
+    let mut acc = Accum::default();
+    for q in nb {
+        acc.add(q.x, q.y);
+    }
+    acc.normal()
+}
+
+/// Running sums for a 2-D principal-axis fit.
+#[derive(Default)]
+struct Accum {
+    n: f64,
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    sxy: f64,
+    syy: f64,
+}
+
+impl Accum {
+    fn add(&mut self, x: f64, y: f64) {
+        self.n += 1.0;
+        self.sx += x;
+        self.sy += y;
+        self.sxx += x * x;
+        self.sxy += x * y;
+        self.syy += y * y;
+    }
+
+    /// Unit normal of the best-fit line, or zero when the neighbourhood is too
+    /// small or not line-like (a corner, a cluster).
+    fn normal(&self) -> Vector2<f64> {
+        if self.n < 3.0 {
+            return Vector2::zeros();
+        }
+        let mx = self.sx / self.n;
+        let my = self.sy / self.n;
+        let cxx = self.sxx / self.n - mx * mx;
+        let cxy = self.sxy / self.n - mx * my;
+        let cyy = self.syy / self.n - my * my;
+        let c = Matrix2::new(cxx, cxy, cxy, cyy);
+        let e = c.symmetric_eigen();
+        let (small, large) = if e.eigenvalues[0] <= e.eigenvalues[1] {
+            (0, 1)
+        } else {
+            (1, 0)
+        };
+        let (ls, ll) = (e.eigenvalues[small].max(0.0), e.eigenvalues[large]);
+        if ll.is_nan() || ll <= 0.0 || ls > 0.1 * ll {
+            return Vector2::zeros();
+        }
+        let v = e.eigenvectors.column(small).into_owned();
+        let norm = v.norm();
+        if norm > 0.0 && norm.is_finite() {
+            v / norm
+        } else {
+            Vector2::zeros()
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Scan-to-map tracking over a sequence of scans: predict from odometry or a
+//! constant-velocity prior, match against the keyframe local map, accept or
+//! fall back to the prediction, add keyframes as the robot moves.
+
+use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Rejection};
+
+/// `p` with its rotation re-normalised: nalgebra does not renormalise unit
+/// complex numbers after products, and the rounding drift of thousands of
+/// chained poses would otherwise grow without bound under repeated prediction.
+fn unit(p: Pose) -> Pose {
+    crate::geom::pose(p.translation.x, p.translation.y, p.rotation.angle())
+}
+
+/// Of two failed attempts, the one to report: a rejected match (it ran) over a
+/// failure, else the first.
+fn better_failure(a: Outcome, b: Outcome) -> Outcome {
+    match (&a, &b) {
+        (Outcome::Failed(_), Outcome::Rejected(..)) => b,
+        _ => a,
+    }
+}
+use crate::config::ConfigError;
+use crate::geom::{IPoint, Pose};
+
+/// What happened to one scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Outcome {
+    /// The first scan: it became the map; the pose is the start pose.
+    First,
+    /// The match was accepted.
+    Matched(Quality),
+    /// The match failed; the pose is the prior's prediction.
+    Failed(IcpError),
+    /// The match ran but was judged unreliable; the pose is the prediction.
+    Rejected(Rejection, Quality),
+}
+
+/// The result of one tracking step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Step {
+    /// Estimated pose of the scanner in the world frame after this scan.
+    pub pose: Pose,
+    /// How it was obtained.
+    pub outcome: Outcome,
+    /// True when the scan was added to the local map as a keyframe.
+    pub keyframe: bool,
+}
+
+/// Tracks the scanner pose over a sequence of scans (scan-to-map odometry).
+#[derive(Debug)]
+pub struct Tracker {
+    matcher: Matcher,
+    map: KeyframeMap,
+    pose: Pose,
+    velocity: Pose,
+    /// The last distinct odometry reading, and our pose estimate at the scan
+    /// where it first appeared (odometry in logs may stall, then jump).
+    odom_anchor: Option<(Pose, Pose)>,
+    started: bool,
+}
+
+impl Tracker {
+    /// A tracker starting at `start` with `params` (checked).
+    pub fn new(params: IcpParams, start: Pose) -> Result<Self, ConfigError> {
+        let map = KeyframeMap::new(&params);
+        Ok(Self {
+            matcher: Matcher::new(params)?,
+            map,
+            pose: start,
+            velocity: Pose::identity(),
+            odom_anchor: None,
+            started: false,
+        })
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> Pose {
+        self.pose
+    }
+
+    /// The local map (keyframes and the reference built from them).
+    pub fn map(&self) -> &KeyframeMap {
+        &self.map
+    }
+
+    /// The matcher's parameters.
+    pub fn params(&self) -> &IcpParams {
+        self.matcher.params()
+    }
+
+    /// Processes one scan given as sensor-frame points in beam order, with the
+    /// wheel odometry pose at the same time when there is one.
+    pub fn step(&mut self, points: &[IPoint], odom: Option<&Pose>) -> Step {
+        // A fresh odometry reading predicts from the pose where the previous
+        // distinct reading first appeared; a stalled (repeated) reading says
+        // nothing, so the constant-velocity prior is used instead.
+        let fresh_odom = match (odom, self.odom_anchor) {
+            (Some(now), Some((before, at))) if *now != before => {
+                Some((*now, unit(at * (before.inverse() * now))))
+            }
+            (Some(now), None) => Some((*now, self.pose)),
+            _ => None,
+        };
+        let prepared = self.matcher.prepare_points(points);
+        if !self.started {
+            let step = match prepared {
+                Ok(_) => {
+                    let params = self.matcher.params().clone();
+                    let kf = self
+                        .map
+                        .insert(&self.pose, self.matcher.prepared_points(), &params);
+                    match kf {
+                        Ok(()) => {
+                            self.started = true;
+                            Step {
+                                pose: self.pose,
+                                outcome: Outcome::First,
+                                keyframe: true,
+                            }
+                        }
+                        Err(e) => self.fallback(Outcome::Failed(e)),
+                    }
+                }
+                Err(e) => self.fallback(Outcome::Failed(e)),
+            };
+            if let Some((now, _)) = fresh_odom {
+                self.odom_anchor = Some((now, self.pose));
+            }
+            return step;
+        }
+        let cv_guess = unit(self.pose * self.velocity);
+        let guess = match (self.matcher.params().prior, fresh_odom) {
+            (Prior::Odometry, Some((_, g))) => g,
+            _ => cv_guess,
+        };
+        let weight = match (self.matcher.params().prior, fresh_odom) {
+            (Prior::Odometry, Some(_)) => self.matcher.params().prior_weight,
+            _ => 0.0,
+        };
+        let step = self.register(prepared.map(|_| ()), guess, weight, cv_guess);
+        if let Some((now, _)) = fresh_odom {
+            self.odom_anchor = Some((now, step.pose));
+        }
+        step
+    }
+
+    /// Matches the prepared scan from `guess`; when that match is rejected or
+    /// fails, retries once from `alt` (if different) and keeps the better.
+    fn register(
+        &mut self,
+        prepared: Result<(), IcpError>,
+        guess: Pose,
+        weight: f64,
+        alt: Pose,
+    ) -> Step {
+        if let Err(e) = prepared {
+            return self.predict(guess, Outcome::Failed(e));
+        }
+        let first = self.try_match(&guess, weight);
+        let outcome = match first {
+            Ok(m) => Ok(m),
+            Err(bad) if alt != guess => match self.try_match(&alt, 0.0) {
+                Ok(m) => Ok(m),
+                Err(bad2) => Err(better_failure(bad, bad2)),
+            },
+            Err(bad) => Err(bad),
+        };
+        match outcome {
+            Ok(m) => {
+                self.velocity = unit(self.pose.inverse() * m.pose);
+                self.pose = unit(m.pose);
+                let keyframe = self.maybe_keyframe();
+                Step {
+                    pose: self.pose,
+                    outcome: Outcome::Matched(m.quality),
+                    keyframe,
+                }
+            }
+            Err(o) => self.predict(guess, o),
+        }
+    }
+
+    // Both variants are plain stack values used once; boxing would allocate per scan.
+    #[allow(clippy::result_large_err)]
+    fn try_match(&mut self, guess: &Pose, weight: f64) -> Result<super::Match, Outcome> {
+        let reference = self.map.reference();
+        match self
+            .matcher
+            .match_prepared_weighted(reference, guess, weight)
+        {
+            Ok(m) => match m.quality.check(self.matcher.params()) {
+                Ok(()) => Ok(m),
+                Err(r) => Err(Outcome::Rejected(r, m.quality)),
+            },
+            Err(e) => Err(Outcome::Failed(e)),
+        }
+    }
+
+    fn predict(&mut self, guess: Pose, outcome: Outcome) -> Step {
+        self.velocity = unit(self.pose.inverse() * guess);
+        self.pose = unit(guess);
+        Step {
+            pose: guess,
+            outcome,
+            keyframe: false,
+        }
+    }
+
+    fn fallback(&self, outcome: Outcome) -> Step {
+        Step {
+            pose: self.pose,
+            outcome,
+            keyframe: false,
+        }
+    }
+
+    fn maybe_keyframe(&mut self) -> bool {
+        let params = self.matcher.params();
+        let due = match self.map.last_pose() {
+            None => true,
+            Some(k) => {
+                let d = k.inverse() * self.pose;
+                d.translation.vector.norm() >= params.keyframe_distance
+                    || d.rotation.angle().abs() >= params.keyframe_angle
+            }
+        };
+        if !due {
+            return false;
+        }
+        let params = params.clone();
+        self.map
+            .insert(&self.pose, self.matcher.prepared_points(), &params)
+            .is_ok()
+    }
+}

@@ -1,0 +1,128 @@
+//! The matcher on synthetic scenes: convergence, exactness of w = 0 as plain
+//! point-to-point ICP, quality report.
+
+use sweepline::geom::{pose, IPoint, Pose};
+use sweepline::icp::synth::{cast, room, ScanSpec, Wall};
+use sweepline::icp::{IcpParams, Matcher, Metric, Reference};
+
+/// An L-shaped room with a pillar: no symmetry, every direction constrained.
+fn scene() -> Vec<Wall> {
+    let mut w = vec![
+        Wall::new(0.0, 0.0, 6.0, 0.0, 0.5),
+        Wall::new(6.0, 0.0, 6.0, 2.5, 0.5),
+        Wall::new(6.0, 2.5, 3.5, 2.5, 0.5),
+        Wall::new(3.5, 2.5, 3.5, 4.0, 0.5),
+        Wall::new(3.5, 4.0, 0.0, 4.0, 0.5),
+        Wall::new(0.0, 4.0, 0.0, 0.0, 0.5),
+    ];
+    w.extend(room(0.4, 0.4, 0.5).into_iter().map(|mut x| {
+        x.segment.a.x += 1.5;
+        x.segment.b.x += 1.5;
+        x.segment.a.y += 1.2;
+        x.segment.b.y += 1.2;
+        x
+    }));
+    w
+}
+
+fn err(a: &Pose, b: &Pose) -> (f64, f64) {
+    let d = a.inverse() * b;
+    (d.translation.vector.norm(), d.rotation.angle().abs())
+}
+
+fn world_points(walls: &[Wall], at: &Pose, seed: u64) -> Vec<IPoint> {
+    let spec = ScanSpec {
+        seed,
+        ..ScanSpec::default()
+    };
+    cast(walls, at, &spec)
+        .iter()
+        .map(|p| p.transformed(at))
+        .collect()
+}
+
+#[test]
+fn converges_to_the_true_pose_with_both_metrics() {
+    let walls = scene();
+    let truth = pose(2.0, 1.5, 0.3);
+    let refpts = world_points(&walls, &pose(2.2, 1.4, 0.2), 7);
+    let scan = cast(
+        &walls,
+        &truth,
+        &ScanSpec {
+            seed: 8,
+            ..ScanSpec::default()
+        },
+    );
+    for metric in [Metric::PointToLine, Metric::PointToPoint] {
+        // Point-to-point ICP converges linearly (slowly); give it room.
+        let params = IcpParams {
+            metric,
+            min_point_spacing: 0.0,
+            max_iterations: 200,
+            ..IcpParams::default()
+        };
+        let mut reference = Reference::new();
+        reference.rebuild(&refpts, &params).unwrap();
+        let mut m = Matcher::new(params).unwrap();
+        let guess = truth * pose(0.15, -0.1, 0.08);
+        let r = m.match_points(&reference, &scan, &guess).unwrap();
+        let (et, er) = err(&r.pose, &truth);
+        assert!(
+            et < 0.01 && er < 0.005,
+            "{metric:?}: error {et} m {er} rad, {:?}",
+            r.quality
+        );
+        assert!(r.quality.converged, "{metric:?}: {:?}", r.quality);
+        assert!(!r.quality.degenerate);
+        assert!(r.quality.inlier_ratio > 0.9);
+        assert!(r.quality.covariance.is_some());
+        if metric == Metric::PointToLine {
+            assert!(r.quality.iterations < 15, "{:?}", r.quality);
+        }
+    }
+}
+
+#[test]
+fn converges_far_from_the_origin() {
+    // World coordinates hundreds of metres away (as in the benchmark logs).
+    let walls: Vec<Wall> = scene()
+        .into_iter()
+        .map(|mut w| {
+            for p in [&mut w.segment.a, &mut w.segment.b] {
+                p.x += 580.0;
+                p.y -= 30.0;
+            }
+            w
+        })
+        .collect();
+    let truth = pose(582.0, -28.5, -1.2);
+    let params = IcpParams::default();
+    let mut reference = Reference::new();
+    reference
+        .rebuild_ordered(&world_points(&walls, &truth, 3), &params)
+        .unwrap();
+    let scan = cast(
+        &walls,
+        &truth,
+        &ScanSpec {
+            seed: 4,
+            ..ScanSpec::default()
+        },
+    );
+    let mut m = Matcher::new(params).unwrap();
+    let r = m
+        .match_points(&reference, &scan, &(truth * pose(0.05, 0.05, 0.02)))
+        .unwrap();
+    let (et, er) = err(&r.pose, &truth);
+    assert!(
+        et < 0.01 && er < 0.003,
+        "error {et} m {er} rad, {:?}",
+        r.quality
+    );
+    assert!(
+        r.quality.converged && r.quality.iterations < 15,
+        "{:?}",
+        r.quality
+    );
+}
