@@ -238,3 +238,94 @@ pub fn world_paths() -> Vec<Vec<(f64, f64)>> {
         ],
     ]
 }
+
+/// A line chart of `series` (name, colour, values; one value per x) over `xs`,
+/// each series scaled to its own maximum (labelled), as an SVG document.
+pub fn plot(
+    title: &str,
+    x_label: &str,
+    xs: &[f64],
+    series: &[(&str, &str, Vec<f64>)],
+) -> svg::Document {
+    use svg::node::element::{Line, Polyline, Text};
+    let (w, h, m) = (800.0, 420.0, 50.0);
+    let xmax = xs.iter().cloned().fold(1e-9, f64::max);
+    let mut doc = svg::Document::new()
+        .set("viewBox", (0, 0, w, h))
+        .set("width", w)
+        .set("height", h)
+        .add(
+            svg::node::element::Rectangle::new()
+                .set("width", w)
+                .set("height", h)
+                .set("fill", "white"),
+        )
+        .add(
+            Text::new(title)
+                .set("x", m)
+                .set("y", 24)
+                .set("font-family", "sans-serif")
+                .set("font-size", 15),
+        )
+        .add(
+            Text::new(x_label)
+                .set("x", w / 2.0)
+                .set("y", h - 10.0)
+                .set("font-family", "sans-serif")
+                .set("font-size", 12),
+        )
+        .add(
+            Line::new()
+                .set("x1", m)
+                .set("y1", h - m)
+                .set("x2", w - m)
+                .set("y2", h - m)
+                .set("stroke", "black"),
+        )
+        .add(
+            Line::new()
+                .set("x1", m)
+                .set("y1", m)
+                .set("x2", m)
+                .set("y2", h - m)
+                .set("stroke", "black"),
+        )
+        .add(
+            Text::new(format!("{xmax:.0}"))
+                .set("x", w - m - 20.0)
+                .set("y", h - m + 16.0)
+                .set("font-family", "sans-serif")
+                .set("font-size", 11),
+        );
+    for (k, (name, colour, ys)) in series.iter().enumerate() {
+        let ymax = ys.iter().cloned().fold(1e-9, f64::max);
+        let pts: String = xs
+            .iter()
+            .zip(ys)
+            .map(|(x, y)| {
+                format!(
+                    "{:.1},{:.1} ",
+                    m + x / xmax * (w - 2.0 * m),
+                    h - m - y / ymax * (h - 2.0 * m)
+                )
+            })
+            .collect();
+        doc = doc
+            .add(
+                Polyline::new()
+                    .set("points", pts)
+                    .set("fill", "none")
+                    .set("stroke", *colour)
+                    .set("stroke-width", 1.5),
+            )
+            .add(
+                Text::new(format!("{name} (top = {ymax:.0})"))
+                    .set("x", m + 10.0)
+                    .set("y", m + 16.0 * k as f64)
+                    .set("fill", *colour)
+                    .set("font-family", "sans-serif")
+                    .set("font-size", 12),
+            );
+    }
+    doc
+}
