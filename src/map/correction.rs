@@ -12,7 +12,7 @@
 
 use nalgebra::{Isometry2, Matrix2, Point2, Rotation2, Vector2};
 
-use super::fit::undirected_diff;
+use super::fit::undirected_turn;
 use super::lines::ScanLine;
 use super::params::MapParams;
 use super::segments::SegmentMap;
@@ -88,7 +88,7 @@ pub fn estimate(
         let s = &segs[i];
         let var = l.fit.var_angle + s.fit.var_angle;
         let w = 1.0 / var.max(1e-12);
-        rot += w * undirected_diff(s.fit.angle(), l.fit.angle());
+        rot += w * undirected_turn(&l.fit.dir, &s.fit.dir);
         wsum += w;
         length += l.seg.length();
         pairs += 1;

@@ -61,6 +61,23 @@ impl LineFit {
     }
 }
 
+/// |sin| of the angle between two undirected lines with unit directions `a`
+/// and `b`: 0 when parallel, 1 when perpendicular. No trigonometry.
+pub fn undirected_sin(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
+    a.perp(b).abs()
+}
+
+/// Signed angle (rad, in (−π/2, π/2]) that turns the undirected line with unit
+/// direction `a` onto the one with unit direction `b`.
+pub fn undirected_turn(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
+    let (c, s) = (a.dot(b), a.perp(b));
+    if c >= 0.0 {
+        s.atan2(c)
+    } else {
+        (-s).atan2(-c)
+    }
+}
+
 /// Folds an angle into (−π/2, π/2]: the direction of an undirected line.
 pub fn undirected(a: f64) -> f64 {
     let mut r = crate::geom::wrap_angle(a);
@@ -244,6 +261,21 @@ mod tests {
             .fit(0.01)
             .is_none());
         assert!(Moments::default().fit(0.01).is_none());
+    }
+
+    #[test]
+    fn undirected_turn_matches_angles() {
+        for (a, b) in [(0.1f64, 0.3f64), (1.5, -1.5), (3.0, 0.05), (-2.0, 1.0)] {
+            let (u, v) = (
+                Vector2::new(a.cos(), a.sin()),
+                Vector2::new(b.cos(), b.sin()),
+            );
+            assert!(
+                (undirected_turn(&u, &v) - undirected_diff(b, a)).abs() < 1e-12,
+                "{a} {b}"
+            );
+            assert!((undirected_sin(&u, &v) - undirected_diff(b, a).sin().abs()).abs() < 1e-12);
+        }
     }
 
     #[test]

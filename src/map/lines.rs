@@ -322,22 +322,31 @@ impl LineExtractor {
         if pts.is_empty() {
             return;
         }
-        let dphi_of = |i: usize| {
+        // sin and cos of the angle between consecutive beams, from cross and
+        // dot products (no trigonometry in this loop).
+        let sc_of = |i: usize| {
             let (vp, vq) = (xy(&pts[i - 1]) - origin, xy(&pts[i]) - origin);
-            vp.perp(&vq).atan2(vp.dot(&vq)).abs()
+            let n = vp.norm() * vq.norm();
+            if n <= 1e-12 {
+                (0.0, 1.0)
+            } else {
+                ((vp.perp(&vq) / n).abs(), vp.dot(&vq) / n)
+            }
         };
         let step = (1..pts.len())
-            .map(dphi_of)
-            .filter(|d| *d > 1e-6)
-            .fold(f64::INFINITY, f64::min);
-        let lambda = params.breakpoint_angle;
+            .map(sc_of)
+            .filter(|(s, c)| *s > 1e-6 && *c > 0.0)
+            .fold(f64::INFINITY, |m, (s, _)| m.min(s));
+        let (sin_l, cos_l) = params.breakpoint_angle.sin_cos();
         let mut start = 0;
         for i in 1..pts.len() {
             let (p, q) = (xy(&pts[i - 1]), xy(&pts[i]));
             let r = (p - origin).norm().min((q - origin).norm());
-            let dphi = dphi_of(i);
-            let limit = if dphi < lambda && dphi <= 2.5 * step {
-                r * dphi.sin() / (lambda - dphi).sin() + 3.0 * params.range_sigma
+            let (sd, cd) = sc_of(i);
+            // sin(λ − Δφ) = sin λ cos Δφ − cos λ sin Δφ; positive iff Δφ < λ.
+            let denom = sin_l * cd - cos_l * sd;
+            let limit = if cd > 0.0 && denom > 0.0 && sd <= 2.5 * step {
+                r * sd / denom + 3.0 * params.range_sigma
             } else {
                 0.0
             };
@@ -430,8 +439,8 @@ impl LineExtractor {
                             continue;
                         }
                         (Some(f0), Some(f1)) => {
-                            let dang = super::fit::undirected_diff(f1.angle(), f0.angle()).abs();
-                            if dang < params.collinear_angle
+                            let sin = super::fit::undirected_sin(&f0.dir, &f1.dir);
+                            if sin < params.collinear_angle.sin()
                                 && f0.offset(&f1.centre).abs() < params.split_distance
                                 && f1.offset(&f0.centre).abs() < params.split_distance
                             {

@@ -123,6 +123,7 @@ pub struct Map {
     curves: Vec<Curve>,
     cell: Arc<SnapshotCell>,
     spare: Option<Arc<MapSnapshot>>,
+    snap_index: segments::SnapIndex,
     version: u64,
 }
 
@@ -153,6 +154,7 @@ impl Map {
             curves: Vec::with_capacity(MAX_BEAMS / 4),
             cell: Arc::new(SnapshotCell::new(first)),
             spare: None,
+            snap_index: segments::SnapIndex::default(),
             version: 0,
             params,
         })
@@ -389,6 +391,7 @@ impl Map {
             self.params.segment_merge_gap,
             self.params.min_segment_observations,
             self.params.max_segment_angle_sigma,
+            &mut self.snap_index,
             &mut snap.segments,
         );
         snap.curves.clear();

@@ -133,12 +133,13 @@ impl PointMap {
         if !(c.x.is_finite() && c.y.is_finite() && r.is_finite()) {
             return;
         }
-        let reach = (r / self.cell).ceil().max(1.0) as i64;
-        let (kx, ky) = self.key(c.x, c.y);
+        // Only the cells the query disc overlaps: at most 2 × 2 when r ≤ cell.
+        let (kx0, ky0) = self.key(c.x - r, c.y - r);
+        let (kx1, ky1) = self.key(c.x + r, c.y + r);
         let r2 = r * r;
-        for dy in -reach..=reach {
-            for dx in -reach..=reach {
-                let Some(&head) = self.heads.get(&Self::pack((kx + dx, ky + dy))) else {
+        for ky in ky0..=ky1 {
+            for kx in kx0..=kx1 {
+                let Some(&head) = self.heads.get(&Self::pack((kx, ky))) else {
                     continue;
                 };
                 let mut i = head;

@@ -5,7 +5,9 @@
 
 use nalgebra::Point2;
 
-use super::fit::{undirected_diff, LineFit, Moments};
+use nalgebra::Vector2;
+
+use super::fit::{undirected_sin, LineFit, Moments};
 use super::lines::{Curve, ScanLine};
 use super::params::MapParams;
 use crate::geom::Segment;
@@ -47,31 +49,32 @@ impl MapSegment {
         self.seg.length()
     }
 
-    /// Whether `other` (a line with end points `a`, `b`, direction angle
-    /// `angle` known to variance `var_angle`) lies on this segment's line and
+    /// Whether `other` (a line with end points `a`, `b`, unit direction `dir`
+    /// known to angle variance `var_angle`) lies on this segment's line and
     /// touches or overlaps it. The angle tolerance widens to 3 σ of the two
-    /// direction estimates for short, noisy lines.
+    /// direction estimates for short, noisy lines. Cheap tests first, no
+    /// trigonometry: this runs for every (line, segment) pair.
     #[allow(clippy::too_many_arguments)]
     fn accepts(
         &self,
         a: &Point2<f64>,
         b: &Point2<f64>,
-        angle: f64,
+        dir: &Vector2<f64>,
         var_angle: f64,
         angle_tol: f64,
         dist_tol: f64,
         gap_tol: f64,
     ) -> bool {
-        let tol = angle_tol.max(3.0 * (var_angle + self.fit.var_angle).sqrt());
-        if undirected_diff(angle, self.fit.angle()).abs() > tol {
-            return false;
-        }
         if self.fit.offset(a).abs() > dist_tol || self.fit.offset(b).abs() > dist_tol {
             return false;
         }
         let (s0, s1) = ordered(self.fit.along(&self.seg.a), self.fit.along(&self.seg.b));
         let (t0, t1) = ordered(self.fit.along(a), self.fit.along(b));
-        t0 <= s1 + gap_tol && t1 >= s0 - gap_tol
+        if t0 > s1 + gap_tol || t1 < s0 - gap_tol {
+            return false;
+        }
+        let tol = angle_tol.max(3.0 * (var_angle + self.fit.var_angle).sqrt());
+        tol >= std::f64::consts::FRAC_PI_2 || undirected_sin(dir, &self.fit.dir) <= tol.sin()
     }
 
     /// Absorbs the moments and extent of another observation of the same wall.
@@ -156,7 +159,7 @@ impl SegmentMap {
             if s.accepts(
                 &l.seg.a,
                 &l.seg.b,
-                l.fit.angle(),
+                &l.fit.dir,
                 l.fit.var_angle,
                 angle_tol,
                 dist_tol,
@@ -189,15 +192,7 @@ impl SegmentMap {
         while j < self.segments.len() {
             if j != i {
                 let (s, o) = (&self.segments[i], &self.segments[j]);
-                if s.accepts(
-                    &o.seg.a,
-                    &o.seg.b,
-                    o.fit.angle(),
-                    o.fit.var_angle,
-                    at,
-                    dt,
-                    gt,
-                ) {
+                if s.accepts(&o.seg.a, &o.seg.b, &o.fit.dir, o.fit.var_angle, at, dt, gt) {
                     let o = self.segments.remove(j);
                     if j < i {
                         i -= 1;
@@ -247,20 +242,24 @@ impl SegmentMap {
     /// whose own extent also reaches that point, the end moves to the
     /// intersection. Only settled segments are written, into `out` (cleared
     /// first): seen in at least `min_observations` scans, direction known to
-    /// `max_angle_sigma` (1 σ, rad) or better.
+    /// `max_angle_sigma` (1 σ, rad) or better. Candidates come from `index`
+    /// (rebuilt here, buffers reused), so the cost is about linear in the
+    /// number of segments.
     pub fn snapped_into(
         &self,
         tol: f64,
         min_observations: u32,
         max_angle_sigma: f64,
+        index: &mut SnapIndex,
         out: &mut Vec<MapSegment>,
     ) {
         out.clear();
-        let min_angle = 30f64.to_radians();
+        let min_sin = 0.5; // sin 30°
         let settled = |s: &MapSegment| {
             s.observations >= min_observations && s.fit.var_angle.sqrt() <= max_angle_sigma
         };
-        for s in self.segments.iter() {
+        index.build(self.segments.iter().map(|s| (s, settled(s))), tol);
+        for (si, s) in self.segments.iter().enumerate() {
             if !settled(s) {
                 continue;
             }
@@ -269,30 +268,86 @@ impl SegmentMap {
             for end in 0..2 {
                 let e = if end == 0 { s.seg.a } else { s.seg.b };
                 let mut best: Option<(Point2<f64>, f64)> = None;
-                for o in self.segments.iter() {
-                    if std::ptr::eq(o, s)
-                        || !settled(o)
-                        || undirected_diff(o.fit.angle(), s.fit.angle()).abs() < min_angle
-                    {
-                        continue;
+                index.for_each_near(&e, |oi| {
+                    let o = &self.segments[oi];
+                    if oi == si || undirected_sin(&o.fit.dir, &s.fit.dir) < min_sin {
+                        return;
                     }
                     let Some(x) = intersect(&s.fit, &o.fit) else {
-                        continue;
+                        return;
                     };
                     let d = (x - e).norm();
                     if d > tol || o.seg.distance_to(&x) > tol {
-                        continue;
+                        return;
                     }
                     if best.is_none_or(|(_, bd)| d < bd) {
                         best = Some((x, d));
                     }
-                }
+                });
                 if let Some((x, _)) = best {
                     if end == 0 {
                         out[i].seg.a = x;
                     } else {
                         out[i].seg.b = x;
                     }
+                }
+            }
+        }
+    }
+}
+
+/// A reusable grid index over segments for corner snapping: sorted (cell,
+/// segment) pairs, cells of side at least 4 × the snapping reach, each segment
+/// entered at samples every half cell along it.
+#[derive(Clone, Debug, Default)]
+pub struct SnapIndex {
+    entries: Vec<(u64, u32)>,
+    cell: f64,
+}
+
+impl SnapIndex {
+    fn key(&self, p: &Point2<f64>) -> (i64, i64) {
+        (
+            (p.x / self.cell).floor() as i64,
+            (p.y / self.cell).floor() as i64,
+        )
+    }
+
+    fn pack(k: (i64, i64)) -> u64 {
+        ((k.0 as i32 as u32 as u64) << 32) | (k.1 as i32 as u32 as u64)
+    }
+
+    fn build<'a>(&mut self, segs: impl Iterator<Item = (&'a MapSegment, bool)>, tol: f64) {
+        self.cell = (4.0 * tol).max(0.5);
+        self.entries.clear();
+        for (i, (s, keep)) in segs.enumerate() {
+            if !keep || !(s.seg.a.coords.iter().chain(s.seg.b.coords.iter())).all(|v| v.is_finite())
+            {
+                continue;
+            }
+            let n = ((s.length() / (self.cell * 0.5)).ceil() as usize).max(1);
+            for k in 0..=n {
+                let p = s.seg.a + (s.seg.b - s.seg.a) * (k as f64 / n as f64);
+                self.entries.push((Self::pack(self.key(&p)), i as u32));
+            }
+        }
+        self.entries.sort_unstable();
+        self.entries.dedup();
+    }
+
+    /// Calls `f(segment index)` for segments passing within about one cell of
+    /// `p` (a segment may be reported more than once).
+    fn for_each_near(&self, p: &Point2<f64>, mut f: impl FnMut(usize)) {
+        if !(p.x.is_finite() && p.y.is_finite()) || self.cell <= 0.0 {
+            return;
+        }
+        let (kx, ky) = self.key(p);
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let key = Self::pack((kx + dx, ky + dy));
+                let from = self.entries.partition_point(|e| e.0 < key);
+                for e in self.entries[from..].iter().take_while(|e| e.0 == key) {
+                    f(e.1 as usize);
                 }
             }
         }
@@ -363,7 +418,7 @@ mod tests {
         let up: Vec<(f64, f64)> = (0..50).map(|i| (1.0, 0.03 + i as f64 * 0.02)).collect();
         m.merge_line(&line_from(&up), &p);
         let mut out = Vec::new();
-        m.snapped_into(0.08, 1, 1.0, &mut out);
+        m.snapped_into(0.08, 1, 1.0, &mut SnapIndex::default(), &mut out);
         let corner = Point2::new(1.0, 0.0);
         let hits = out
             .iter()
