@@ -11,3 +11,11 @@ pub const SCIP_MAX_LINE: usize = 160;
 
 /// Largest SCIP scan payload in characters (1440 beams × 6 chars for distance+intensity).
 pub const SCIP_MAX_SCAN_CHARS: usize = MAX_BEAMS * 6;
+
+/// Most data lines one SCIP reply may carry: a full-width scan with
+/// intensities (8640 characters in 64-character lines) plus its timestamp line.
+pub const SCIP_MAX_REPLY_LINES: usize = SCIP_MAX_SCAN_CHARS / 64 + 8;
+
+/// Bytes of payload (checksums removed) one SCIP reply may carry: the largest
+/// scan plus its 4-character timestamp, with one spare line.
+pub const SCIP_MAX_REPLY_BODY: usize = SCIP_MAX_SCAN_CHARS + 4 + 64;

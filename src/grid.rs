@@ -219,6 +219,35 @@ impl Grid {
         self.cells.extend_from_slice(&other.cells);
     }
 
+    /// Raw evidence of every cell, row-major from row 0 (for checkpoints).
+    pub fn raw_evidence(&self) -> &[u8] {
+        &self.cells
+    }
+
+    /// Rebuilds a grid from raw evidence (checkpoint restore). `None` when
+    /// `cells` does not hold `width` × `height` values or the geometry is not
+    /// finite with a positive resolution.
+    pub fn from_raw_evidence(
+        origin: Point2<f64>,
+        resolution: f64,
+        width: usize,
+        height: usize,
+        cells: Vec<u8>,
+    ) -> Option<Self> {
+        let ok = origin.x.is_finite()
+            && origin.y.is_finite()
+            && resolution.is_finite()
+            && resolution > 0.0
+            && width.checked_mul(height) == Some(cells.len());
+        ok.then_some(Self {
+            origin,
+            resolution,
+            width,
+            height,
+            cells,
+        })
+    }
+
     /// Number of cells in each state: (unknown, free, occupied).
     pub fn counts(&self) -> (usize, usize, usize) {
         let mut c = (0, 0, 0);

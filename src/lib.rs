@@ -14,6 +14,7 @@
 
 pub mod capacity;
 pub mod cli;
+pub mod clock;
 pub mod config;
 pub mod control;
 pub mod decomp;

@@ -1,16 +1,120 @@
 //! `sweepline emulate`: runs an emulated device (URG scanner, RoboClaw or Create 2 base) on a pseudo-terminal.
 
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
 use super::CliResult;
+use crate::serial::PtyHost;
+use crate::sim::urg_emu::{
+    self, EmuLog, EmulatorConfig, Faults, Model, RectRoom, ReplayScan, Scene,
+};
+use crate::urg::{Clock, MonotonicClock, ScaledClock};
 
 /// Arguments of `sweepline emulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Which device to emulate: urg, roboclaw or create2.
+    /// Which device to emulate: urg (roboclaw and create2 come with the motor link).
     pub device: String,
+    /// Also make this symlink to the pty (kept pointing at it over unplug/replug).
+    #[arg(long)]
+    pub link: Option<PathBuf>,
+    /// Sensor model: urg-04lx or utm-30lx.
+    #[arg(long, default_value = "urg-04lx")]
+    pub model: String,
+    /// Boot in SCIP 1.1, as many URG-04LX units do (clients must send SCIP2.0).
+    #[arg(long)]
+    pub scip1: bool,
+    /// Fault switches, comma separated: checksum=N, drop=N, extra=N,
+    /// status=N[:CODE], stuck=N, noise=N, crlf, split, stall=N:SECONDS, wrap,
+    /// unplug=N:SECONDS (N = every N-th scan).
+    #[arg(long, default_value = "")]
+    pub faults: String,
+    /// Replay the first scan of a byte capture (hokuyoaist .logr format)
+    /// instead of the built-in 4 x 3 m room.
+    #[arg(long)]
+    pub replay: Option<PathBuf>,
+    /// Seed of the range noise and fault placement.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Run the sensor this many times faster than real time.
+    #[arg(long, default_value_t = 1.0)]
+    pub rate: f64,
+    /// Sensor clock rate error in parts per million (crystal drift).
+    #[arg(long, default_value_t = 0.0)]
+    pub drift_ppm: f64,
 }
 
 /// Runs `sweepline emulate`.
 pub fn run(args: Args) -> CliResult {
-    let _ = args;
-    super::not_yet("emulate")
+    match args.device.as_str() {
+        "urg" => run_urg(args),
+        "roboclaw" | "create2" => super::not_yet(&format!("emulate {}", args.device)),
+        other => Err(format!("unknown device `{other}`: expected urg, roboclaw or create2").into()),
+    }
+}
+
+fn run_urg(args: Args) -> CliResult {
+    let model: Model = args.model.parse()?;
+    let faults: Faults = args.faults.parse()?;
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        return Err(format!("--rate must be a positive number, got {}", args.rate).into());
+    }
+    let scene: Box<dyn Scene> = match &args.replay {
+        Some(p) => Box::new(ReplayScan::from_capture_file(p)?),
+        None => Box::new(RectRoom::bench(args.seed)),
+    };
+    let clock: Arc<dyn Clock> = if args.rate == 1.0 {
+        Arc::new(MonotonicClock::new())
+    } else {
+        Arc::new(ScaledClock::new(args.rate))
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, stop.clone())?;
+    }
+    let host = PtyHost::new(args.link.clone())?;
+    let cfg = EmulatorConfig {
+        model,
+        scip1_boot: args.scip1,
+        faults,
+        link: args.link.clone(),
+        seed: args.seed,
+        drift_ppm: args.drift_ppm,
+    };
+    let log = Arc::new(Mutex::new(EmuLog::default()));
+    let spec = urg_emu::ModelSpec::of(model);
+    let link_note = match &args.link {
+        Some(l) => format!(" (symlink {})", l.display()),
+        None => String::new(),
+    };
+    let mut on_plug = |p: Option<PathBuf>| match p {
+        Some(p) => println!(
+            "{} emulated ({} ms scans) at {}{link_note}",
+            spec.vv[1].1,
+            (spec.period() * 1e3).round(),
+            p.display()
+        ),
+        None => println!("unplugged"),
+    };
+    let keep_going = |_: &Option<PathBuf>| !stop.load(Ordering::Relaxed);
+    urg_emu::run(
+        cfg,
+        scene,
+        clock,
+        host,
+        log.clone(),
+        &mut on_plug,
+        &keep_going,
+    )?;
+    if let Ok(l) = log.lock() {
+        println!(
+            "stopped: {} scans sent ({} corrupted on purpose), {} commands, {} boots",
+            l.sent.len(),
+            l.corrupted(),
+            l.commands.len(),
+            l.boots
+        );
+    }
+    Ok(())
 }

@@ -5,12 +5,13 @@ use super::CliResult;
 /// Arguments of `sweepline report`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Folder of a run (its metrics file).
+    /// Folder of a run (holding its `metrics.toml`); the report is written there.
     pub run_dir: std::path::PathBuf,
 }
 
 /// Runs `sweepline report`.
 pub fn run(args: Args) -> CliResult {
-    let _ = args;
-    super::not_yet("report")
+    let path = crate::report::report_run_dir(&args.run_dir)?;
+    println!("{}", path.display());
+    Ok(())
 }

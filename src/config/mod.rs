@@ -94,22 +94,89 @@ pub enum ConfigError {
     },
 }
 
+/// Largest configuration file accepted (bytes); the shipped one is ~5 KB.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// Longest excerpt of the offending line or parser message put in an error.
+const MAX_EXCERPT: usize = 120;
+
+/// `s` cut to at most `max` bytes on a character boundary, with `…` if cut.
+fn excerpt(s: &str, max: usize) -> String {
+    if s.len() <= max {
+        return s.to_string();
+    }
+    let mut end = max;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}…", &s[..end])
+}
+
+/// A one-line parse error: line, column, the parser's message and an excerpt
+/// of the offending line (which shows the key), whatever the input's size.
+fn parse_error(text: &str, origin: &str, e: &toml::de::Error) -> ConfigError {
+    let msg = excerpt(
+        e.message().trim().replace('\n', " ").as_str(),
+        3 * MAX_EXCERPT,
+    );
+    let message = match e.span() {
+        Some(span) => {
+            let mut start = span.start.min(text.len());
+            while !text.is_char_boundary(start) {
+                start -= 1;
+            }
+            let before = &text[..start];
+            let line = before.matches('\n').count() + 1;
+            let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+            let column = text[line_start..start].chars().count() + 1;
+            let line_text = text[line_start..].lines().next().unwrap_or("").trim();
+            format!(
+                "line {line}, column {column}: {msg} (at `{}`)",
+                excerpt(line_text, MAX_EXCERPT)
+            )
+        }
+        None => msg,
+    };
+    ConfigError::Parse {
+        path: origin.to_string(),
+        message,
+    }
+}
+
 impl Config {
     /// Parses a configuration from TOML text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ConfigError> {
-        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
-            path: origin.to_string(),
-            message: e.to_string().trim_end().replace('\n', " "),
-        })?;
+        let cfg: Config = toml::from_str(text).map_err(|e| parse_error(text, origin, &e))?;
         cfg.validate()?;
         Ok(cfg)
     }
 
-    /// Reads and parses a configuration file.
+    /// Reads and parses a configuration file (at most [`MAX_CONFIG_BYTES`],
+    /// UTF-8).
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        use std::io::Read;
+        let io = |source| ConfigError::Io {
             path: path.display().to_string(),
             source,
+        };
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .map_err(io)?
+            .take(MAX_CONFIG_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() as u64 > MAX_CONFIG_BYTES {
+            return Err(ConfigError::Parse {
+                path: path.display().to_string(),
+                message: format!("larger than {MAX_CONFIG_BYTES} bytes: not a config file"),
+            });
+        }
+        let text = String::from_utf8(bytes).map_err(|e| ConfigError::Parse {
+            path: path.display().to_string(),
+            message: format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
         })?;
         Self::from_toml(&text, &path.display().to_string())
     }
@@ -126,6 +193,8 @@ impl Config {
         if !r.scanner_offset_x.is_finite() {
             return Err(invalid("robot.scanner_offset_x", "must be a finite number"));
         }
+        self.pipeline.validate()?;
+        self.motor.validate()?;
         Ok(())
     }
 }
@@ -145,7 +214,7 @@ pub fn positive(key: &str, v: f64) -> Result<(), ConfigError> {
     } else {
         Err(invalid(
             key,
-            &format!("must be a finite number > 0, got {v}"),
+            &format!("must be a finite number > 0, got {v:?}"),
         ))
     }
 }

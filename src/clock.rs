@@ -1,0 +1,117 @@
+//! Injected time. Every part that reads time or sleeps takes a [`Clock`], so
+//! the same code runs in real time on the robot, time-scaled in the simulator
+//! (`sweepline sim --speed N`) and stepped in deterministic tests.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// A monotonic clock in seconds, with a matching sleep.
+pub trait Clock: Send + Sync {
+    /// Seconds since this clock's epoch (monotonic, never goes back).
+    fn now(&self) -> f64;
+    /// Blocks the calling thread for `secs` seconds of this clock's time.
+    fn sleep(&self, secs: f64);
+    /// How many clock seconds pass per wall-clock second (1 in real time).
+    fn speed(&self) -> f64 {
+        1.0
+    }
+    /// Converts a duration of clock time into wall time, for OS timeouts.
+    fn to_wall(&self, secs: f64) -> Duration {
+        Duration::from_secs_f64((secs / self.speed()).clamp(0.0, 1.0e6))
+    }
+}
+
+/// A shared clock handle.
+pub type SharedClock = Arc<dyn Clock>;
+
+/// The host's monotonic clock (`Instant`), epoch at construction.
+#[derive(Debug, Clone, Copy)]
+pub struct MonotonicClock {
+    epoch: Instant,
+}
+
+impl MonotonicClock {
+    /// A clock whose epoch is now.
+    pub fn new() -> Self {
+        Self {
+            epoch: Instant::now(),
+        }
+    }
+}
+
+impl Default for MonotonicClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for MonotonicClock {
+    fn now(&self) -> f64 {
+        self.epoch.elapsed().as_secs_f64()
+    }
+    fn sleep(&self, secs: f64) {
+        if secs > 0.0 {
+            std::thread::sleep(Duration::from_secs_f64(secs.min(1.0e6)));
+        }
+    }
+}
+
+/// Monotonic time running `speed` times faster than the wall clock: the
+/// simulator's clock. Both the emulated devices and the daemon read the same
+/// instance, so nothing in the daemon knows it is simulated.
+#[derive(Debug, Clone, Copy)]
+pub struct ScaledClock {
+    epoch: Instant,
+    speed: f64,
+}
+
+impl ScaledClock {
+    /// A clock starting now at 0 and running `speed` times real time
+    /// (clamped to 0.01..=1000).
+    pub fn new(speed: f64) -> Self {
+        let speed = if speed.is_finite() {
+            speed.clamp(0.01, 1000.0)
+        } else {
+            1.0
+        };
+        Self {
+            epoch: Instant::now(),
+            speed,
+        }
+    }
+}
+
+impl Clock for ScaledClock {
+    fn now(&self) -> f64 {
+        self.epoch.elapsed().as_secs_f64() * self.speed
+    }
+    fn sleep(&self, secs: f64) {
+        if secs > 0.0 {
+            std::thread::sleep(self.to_wall(secs));
+        }
+    }
+    fn speed(&self) -> f64 {
+        self.speed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scaled_clock_runs_faster() {
+        let c = ScaledClock::new(20.0);
+        let t0 = c.now();
+        c.sleep(0.2);
+        let dt = c.now() - t0;
+        assert!(dt >= 0.2, "slept {dt}");
+        assert_eq!(c.to_wall(2.0), Duration::from_millis(100));
+    }
+
+    #[test]
+    fn silly_speeds_are_clamped() {
+        assert_eq!(ScaledClock::new(f64::NAN).speed(), 1.0);
+        assert_eq!(ScaledClock::new(1e9).speed(), 1000.0);
+    }
+}

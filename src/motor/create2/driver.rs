@@ -1,0 +1,374 @@
+//! The Create 2 driver: owns the port, starts the OI in Safe (or Full) mode,
+//! asks for a sensor stream of bumps/wheel drops (7), OI mode (35) and both
+//! encoders (43, 44), turns it into odometry and safety events, and drives with
+//! Drive Direct.
+//!
+//! The Create 2 has no command timeout: it keeps driving on the last command
+//! if the host dies. The host-side dead-man is therefore the only guard, and a
+//! stream that stops arriving is treated as a lost link: a zero Drive Direct
+//! is sent at once and the OI is re-initialised until frames come back.
+
+use std::time::Duration;
+
+use crate::clock::SharedClock;
+use crate::config::RobotParams;
+use crate::motor::create2::codec::{encode, pkt, OiCommand, OiMode, SensorFrame, StreamParser};
+use crate::motor::link::{Link, LinkOpener, ReadOutcome};
+use crate::motor::odometry::{CounterWidth, Odometer};
+use crate::motor::params::MotorParams;
+use crate::motor::safety::{DeadMan, SafetyGate};
+use crate::motor::{
+    BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
+};
+
+/// The packets the driver streams.
+pub const STREAM_IDS: [u8; 4] = [
+    pkt::BUMPS_WHEEL_DROPS,
+    pkt::OI_MODE,
+    pkt::LEFT_ENCODER,
+    pkt::RIGHT_ENCODER,
+];
+
+/// A Create 2 (or Roomba 600-series) over its Open Interface.
+pub struct Create2Driver {
+    link: Link,
+    clock: SharedClock,
+    mode: OiMode,
+    max_wheel_speed: f64,
+    link_timeout: f64,
+    probe_interval: f64,
+    parser: StreamParser,
+    odo: Odometer,
+    deadman: DeadMan,
+    deadman_time: f64,
+    gate: SafetyGate,
+    health: LinkHealth,
+    requested: WheelSpeeds,
+    up: bool,
+    ever_up: bool,
+    last_frame: f64,
+    next_probe: f64,
+    mode_warned: bool,
+    pending: heapless::Vec<SafetyEvent, 8>,
+    acc: Option<Odometry>,
+}
+
+impl Create2Driver {
+    /// A driver for the base described by `p` and `robot`, opening its port
+    /// through `opener`, timed by `clock`. Nothing is opened until the first
+    /// [`DiffDriveBase::poll`].
+    pub fn new(
+        p: &MotorParams,
+        robot: &RobotParams,
+        opener: Box<dyn LinkOpener>,
+        clock: SharedClock,
+    ) -> Self {
+        let read_timeout = clock.to_wall(0.01).max(Duration::from_millis(5));
+        let counts_per_metre =
+            p.create2.counts_per_rev / (2.0 * std::f64::consts::PI * robot.wheel_radius);
+        let payload = StreamParser::payload_len(&STREAM_IDS).unwrap_or(0);
+        Self {
+            link: Link::new(opener, read_timeout, p.reconnect_interval),
+            clock,
+            mode: if p.create2.full_mode {
+                OiMode::Full
+            } else {
+                OiMode::Safe
+            },
+            max_wheel_speed: p.max_wheel_speed.min(0.5),
+            link_timeout: p.link_timeout,
+            probe_interval: p.reconnect_interval,
+            parser: StreamParser::with_payload_len(payload),
+            odo: Odometer::new(
+                CounterWidth::Bits16,
+                counts_per_metre,
+                robot.wheel_base,
+                p.max_wheel_speed,
+            ),
+            deadman: DeadMan::new(p.deadman),
+            deadman_time: p.deadman,
+            gate: SafetyGate::new(),
+            health: LinkHealth::default(),
+            requested: WheelSpeeds::STOP,
+            up: false,
+            ever_up: false,
+            last_frame: 0.0,
+            next_probe: f64::NEG_INFINITY,
+            mode_warned: false,
+            pending: heapless::Vec::new(),
+            acc: None,
+        }
+    }
+
+    /// Whether sensor frames currently arrive.
+    pub fn link_up(&self) -> bool {
+        self.up
+    }
+
+    fn send(&mut self, c: &OiCommand) -> bool {
+        let ok = self.link.write_all(&encode(c)).is_ok();
+        if ok {
+            self.health.sent += 1;
+        }
+        ok
+    }
+
+    fn mode_command(&self) -> OiCommand {
+        if self.mode == OiMode::Full {
+            OiCommand::Full
+        } else {
+            OiCommand::Safe
+        }
+    }
+
+    /// Start, Safe/Full, and the sensor stream.
+    fn initialise(&mut self) {
+        let mut ids = heapless::Vec::new();
+        let _ = ids.extend_from_slice(&STREAM_IDS);
+        let mode = self.mode_command();
+        let _ = self.send(&OiCommand::Start)
+            && self.send(&mode)
+            && self.send(&OiCommand::drive_direct(0.0, 0.0))
+            && self.send(&OiCommand::Stream(ids))
+            && self.send(&OiCommand::StreamEnable(true));
+        self.parser.reset();
+        self.odo.rebase();
+    }
+
+    /// Pauses the sensor stream (opcode 150, 0).
+    pub fn pause_stream(&mut self) -> bool {
+        self.send(&OiCommand::StreamEnable(false))
+    }
+
+    /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts.
+    pub fn resume_stream(&mut self) -> bool {
+        self.last_frame = self.clock.now();
+        self.parser.reset();
+        self.odo.rebase();
+        self.send(&OiCommand::StreamEnable(true))
+    }
+
+    fn effective(&self) -> WheelSpeeds {
+        if self.deadman.tripped() {
+            WheelSpeeds::STOP
+        } else {
+            self.gate.filter(self.requested)
+        }
+    }
+
+    fn send_wheels(&mut self) {
+        let w = self.effective();
+        self.send(&OiCommand::drive_direct(w.left, w.right));
+    }
+
+    fn push(&mut self, e: SafetyEvent) {
+        let _ = self.pending.push(e);
+    }
+
+    fn on_frame(&mut self, f: SensorFrame, now: f64) {
+        self.health.received += 1;
+        self.last_frame = now;
+        if !self.up {
+            self.up = true;
+            if self.ever_up {
+                log::info!(
+                    "wheel base {}: sensor stream back; link restored",
+                    self.link.describe()
+                );
+                self.push(SafetyEvent::LinkRestored);
+            } else {
+                log::info!(
+                    "wheel base {}: Create 2 streaming sensors",
+                    self.link.describe()
+                );
+            }
+            self.ever_up = true;
+        }
+        let mut stop_now = false;
+        if let Some(s) = f.wheel_drops() {
+            if let Some(e) = self.gate.set_wheel_drop(s) {
+                if matches!(e, SafetyEvent::WheelDrop(_)) {
+                    log::warn!("wheel base: wheel drop ({s:?}); wheels stopped");
+                    self.health.safety_stops += 1;
+                    stop_now = true;
+                }
+                self.push(e);
+            }
+        }
+        if let Some(s) = f.bumps() {
+            if let Some(e) = self.gate.set_bumper(s) {
+                if matches!(e, SafetyEvent::Bumper(_)) {
+                    log::warn!("wheel base: bumper closed ({s:?}); wheels stopped");
+                    self.health.safety_stops += 1;
+                    stop_now = true;
+                }
+                self.push(e);
+            }
+        }
+        if stop_now {
+            self.send_wheels();
+        }
+        if let Some(m) = f.oi_mode.and_then(OiMode::from_byte) {
+            // Safe mode falls back to Passive on a wheel drop or cliff: ask for
+            // the wanted mode again once the wheels are down.
+            if m != self.mode && !self.gate.active() {
+                if !self.mode_warned {
+                    log::warn!(
+                        "wheel base: OI is in {m:?} mode, want {:?}; re-entering",
+                        self.mode
+                    );
+                    self.mode_warned = true;
+                }
+                let c = self.mode_command();
+                self.send(&c);
+            } else if m == self.mode {
+                self.mode_warned = false;
+            }
+        }
+        if let (Some(l), Some(r)) = (f.left_encoder, f.right_encoder) {
+            match self.odo.update(l as u32, r as u32, now) {
+                Ok(Some(d)) => {
+                    self.acc = Some(match self.acc {
+                        None => d,
+                        Some(a) => Odometry {
+                            t0: a.t0,
+                            t1: d.t1,
+                            delta: a.delta * d.delta,
+                            left: a.left + d.left,
+                            right: a.right + d.right,
+                        },
+                    });
+                }
+                Ok(None) => {}
+                Err(g) => {
+                    self.health.odometry_glitches += 1;
+                    log::warn!("wheel base: {g}");
+                }
+            }
+        }
+    }
+}
+
+impl DiffDriveBase for Create2Driver {
+    fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError> {
+        if !cmd.is_finite() {
+            return Err(MotorError::BadCommand {
+                left: cmd.left,
+                right: cmd.right,
+            });
+        }
+        let m = self.max_wheel_speed;
+        self.requested = WheelSpeeds {
+            left: cmd.left.clamp(-m, m),
+            right: cmd.right.clamp(-m, m),
+        };
+        self.deadman.feed(self.clock.now());
+        if self.up {
+            self.send_wheels();
+        }
+        Ok(())
+    }
+
+    fn poll(&mut self) -> Result<BaseFeedback, MotorError> {
+        let now = self.clock.now();
+        if self.deadman.check(now) {
+            self.health.deadman_stops += 1;
+            log::warn!(
+                "wheel base: no wheel command for more than the dead-man time; wheels stopped"
+            );
+            self.push(SafetyEvent::DeadMan);
+            self.send_wheels();
+        }
+        if !self.link.is_open() && self.link.ensure_open(now) {
+            self.health.reconnects += 1;
+            self.initialise();
+            self.last_frame = now;
+            self.next_probe = now + self.probe_interval;
+        }
+        let mut buf = [0u8; 256];
+        for _ in 0..8 {
+            match self.link.read(&mut buf) {
+                ReadOutcome::Data(n) => {
+                    let mut frames: heapless::Vec<SensorFrame, 32> = heapless::Vec::new();
+                    let health = &mut self.health;
+                    self.parser.feed(&buf[..n], &mut |r| match r {
+                        Ok(f) => {
+                            let _ = frames.push(f);
+                        }
+                        Err(_) => health.checksum_errors += 1,
+                    });
+                    let t = self.clock.now();
+                    for f in frames {
+                        self.on_frame(f, t);
+                    }
+                    // A short read drained the port: stop here rather than wait
+                    // for a read timeout (frames come every 15 ms anyway).
+                    if n < buf.len() {
+                        break;
+                    }
+                }
+                ReadOutcome::Timeout | ReadOutcome::Gone => break,
+            }
+        }
+        self.health.discarded_bytes = self.parser.discarded;
+        let now = self.clock.now();
+        if self.up && (now - self.last_frame > self.link_timeout || !self.link.is_open()) {
+            self.up = false;
+            self.health.link_losses += 1;
+            log::warn!(
+                "wheel base {}: no valid sensor frame for {:.2} s; link lost, stop sent",
+                self.link.describe(),
+                now - self.last_frame
+            );
+            self.send(&OiCommand::drive_direct(0.0, 0.0));
+            self.push(SafetyEvent::LinkLost);
+            self.odo.rebase();
+            self.next_probe = now;
+        }
+        if !self.up && self.link.is_open() && now >= self.next_probe {
+            self.next_probe = now + self.probe_interval;
+            self.initialise();
+        }
+        if self.up {
+            self.send_wheels();
+        }
+        let mut fb = BaseFeedback {
+            odometry: self.acc.take(),
+            events: heapless::Vec::new(),
+            link_up: self.up,
+        };
+        for e in self.pending.iter() {
+            fb.push_event(*e);
+        }
+        self.pending.clear();
+        Ok(fb)
+    }
+
+    fn stop(&mut self) -> Result<(), MotorError> {
+        self.requested = WheelSpeeds::STOP;
+        self.deadman = DeadMan::new(self.deadman_time);
+        if !self.link.is_open() {
+            return Err(MotorError::NotConnected {
+                device: self.link.describe(),
+            });
+        }
+        let ok = self.send(&OiCommand::drive_direct(0.0, 0.0))
+            && self.send(&OiCommand::StreamEnable(false))
+            && self.send(&OiCommand::Stop);
+        if ok {
+            Ok(())
+        } else {
+            Err(MotorError::Io {
+                device: self.link.describe(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::BrokenPipe,
+                    "stop could not be sent",
+                ),
+            })
+        }
+    }
+
+    fn health(&self) -> LinkHealth {
+        self.health
+    }
+}

@@ -1,0 +1,187 @@
+//! The plain data a wheel base exchanges with the rest of the daemon:
+//! wheel set-points, odometry increments, safety events, link health, and
+//! the [`DiffDriveBase`] trait every base driver implements.
+
+use crate::geom::Pose;
+
+/// Left and right wheel surface velocities (m/s, forward positive).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WheelSpeeds {
+    /// Left wheel (m/s).
+    pub left: f64,
+    /// Right wheel (m/s).
+    pub right: f64,
+}
+
+impl WheelSpeeds {
+    /// Both wheels at rest.
+    pub const STOP: WheelSpeeds = WheelSpeeds {
+        left: 0.0,
+        right: 0.0,
+    };
+
+    /// Wheel speeds from body velocities: forward `v` (m/s) and turn rate `w`
+    /// (rad/s, counter-clockwise) for wheels `wheel_base` metres apart.
+    pub fn from_body(v: f64, w: f64, wheel_base: f64) -> Self {
+        Self {
+            left: v - w * wheel_base / 2.0,
+            right: v + w * wheel_base / 2.0,
+        }
+    }
+
+    /// Whether both speeds are finite numbers.
+    pub fn is_finite(&self) -> bool {
+        self.left.is_finite() && self.right.is_finite()
+    }
+
+    /// Whether both wheels are commanded to stand still.
+    pub fn is_stop(&self) -> bool {
+        self.left == 0.0 && self.right == 0.0
+    }
+}
+
+/// One odometry increment from the wheel encoders: how the base moved between
+/// two encoder readings, in the base frame of the earlier reading. This is the
+/// ICP prior.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Odometry {
+    /// Time of the earlier reading (s, daemon monotonic clock).
+    pub t0: f64,
+    /// Time of the later reading (s).
+    pub t1: f64,
+    /// Motion from the earlier to the later reading, in the earlier base frame.
+    pub delta: Pose,
+    /// Left wheel travel (m).
+    pub left: f64,
+    /// Right wheel travel (m).
+    pub right: f64,
+}
+
+/// Which side of the robot a contact or drop is on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sides {
+    /// Left side.
+    pub left: bool,
+    /// Right side.
+    pub right: bool,
+}
+
+impl Sides {
+    /// Whether either side is active.
+    pub fn any(&self) -> bool {
+        self.left || self.right
+    }
+}
+
+/// Something the base or the link did that the planner must know about.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SafetyEvent {
+    /// A bumper closed: the wheels were stopped at once; only reversing is
+    /// accepted while it stays closed.
+    Bumper(Sides),
+    /// A bumper opened again.
+    BumperReleased,
+    /// A wheel dropped (robot lifted or over an edge): wheels stopped, no motion
+    /// accepted until it is back on the floor.
+    WheelDrop(Sides),
+    /// The wheels are back on the floor.
+    WheelDropCleared,
+    /// No fresh wheel command arrived within the dead-man time: wheels stopped.
+    DeadMan,
+    /// The link went silent, garbled or away; the base was stopped where possible.
+    LinkLost,
+    /// The link answers again and the base was re-initialised.
+    LinkRestored,
+}
+
+/// Counters of the wheel-base link, for the health report.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkHealth {
+    /// Packets or frames sent.
+    pub sent: u64,
+    /// Valid replies or frames received.
+    pub received: u64,
+    /// Replies or frames rejected for a bad CRC or checksum.
+    pub checksum_errors: u64,
+    /// Bytes thrown away while looking for the next frame or reply.
+    pub discarded_bytes: u64,
+    /// Requests that got no (complete) reply in time.
+    pub timeouts: u64,
+    /// Write commands the controller did not acknowledge.
+    pub nacks: u64,
+    /// Times the link was declared lost.
+    pub link_losses: u64,
+    /// Times the port was (re)opened successfully.
+    pub reconnects: u64,
+    /// Times the dead-man timer stopped the wheels.
+    pub deadman_stops: u64,
+    /// Bumper or wheel-drop stops.
+    pub safety_stops: u64,
+    /// Encoder readings rejected as physically implausible jumps.
+    pub odometry_glitches: u64,
+}
+
+/// Why a wheel-base operation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum MotorError {
+    /// A wheel command was NaN or infinite.
+    #[error("wheel command is not a finite number (left {left}, right {right} m/s)")]
+    BadCommand {
+        /// Left speed given.
+        left: f64,
+        /// Right speed given.
+        right: f64,
+    },
+    /// The port is not open (device missing, or being re-opened).
+    #[error("wheel base {device} is not connected")]
+    NotConnected {
+        /// The device name.
+        device: String,
+    },
+    /// The port failed.
+    #[error("wheel base {device}: {source}")]
+    Io {
+        /// The device name.
+        device: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+}
+
+/// What one [`DiffDriveBase::poll`] produced.
+#[derive(Clone, Debug, Default)]
+pub struct BaseFeedback {
+    /// Encoder odometry since the previous poll, if the encoders were read.
+    pub odometry: Option<Odometry>,
+    /// Safety events raised during this poll, oldest first.
+    pub events: heapless::Vec<SafetyEvent, 8>,
+    /// Whether the link currently answers.
+    pub link_up: bool,
+}
+
+impl BaseFeedback {
+    /// Records an event (the rare ninth event in one poll is dropped).
+    pub fn push_event(&mut self, e: SafetyEvent) {
+        let _ = self.events.push(e);
+    }
+}
+
+/// A differential-drive base: wheel velocity set-points in, encoder odometry and
+/// safety events out. Time comes from the driver's injected
+/// [`crate::clock::Clock`]; timestamps are seconds on that clock.
+pub trait DiffDriveBase: Send {
+    /// Sets the wheel velocities (m/s). This also feeds the dead-man timer;
+    /// safety latches (bumper, wheel drop) may override the command with a stop.
+    fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError>;
+
+    /// Runs one I/O cycle: reads encoders and sensors, enforces the dead-man,
+    /// detects a silent or garbled link and re-establishes it.
+    fn poll(&mut self) -> Result<BaseFeedback, MotorError>;
+
+    /// Stops the wheels now (best effort) and leaves the base safe, e.g. on
+    /// shutdown.
+    fn stop(&mut self) -> Result<(), MotorError>;
+
+    /// The link counters.
+    fn health(&self) -> LinkHealth;
+}

@@ -1,0 +1,129 @@
+//! The sections the pipeline itself owns: the robot pose, the explored-area
+//! grid and the run's progress counters. The map, cells and planner state are
+//! added by their modules through the same [`Section`] trait.
+
+use nalgebra::Point2;
+
+use super::{CheckpointError, Decoder, Encoder, Section};
+use crate::geom::{heading, pose, Pose};
+use crate::grid::Grid;
+
+/// Largest grid a checkpoint may restore (cells): 8192 × 8192 at 5 cm is a
+/// 400 m square, far more than any room.
+const MAX_GRID_CELLS: u64 = 8192 * 8192;
+
+impl Section for Pose {
+    const NAME: &'static str = "pose";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        e.f64(self.translation.x);
+        e.f64(self.translation.y);
+        e.f64(heading(self));
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let x = d.finite("x")?;
+        let y = d.finite("y")?;
+        let theta = d.finite("heading")?;
+        Ok(pose(x, y, theta))
+    }
+}
+
+impl Section for Grid {
+    const NAME: &'static str = "grid";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        e.f64(self.origin().x);
+        e.f64(self.origin().y);
+        e.f64(self.resolution());
+        e.u32(self.width() as u32);
+        e.u32(self.height() as u32);
+        e.bytes(self.raw_evidence());
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let ox = d.finite("origin x")?;
+        let oy = d.finite("origin y")?;
+        let res = d.finite("resolution")?;
+        if res <= 0.0 {
+            return Err(d.error(format!("resolution {res} is not > 0")));
+        }
+        let w = d.u32()?;
+        let h = d.u32()?;
+        let n = u64::from(w) * u64::from(h);
+        if n > MAX_GRID_CELLS {
+            return Err(d.error(format!(
+                "{w} x {h} cells, more than the {MAX_GRID_CELLS} allowed"
+            )));
+        }
+        let cells = d.bytes()?;
+        if cells.len() as u64 != n {
+            return Err(d.error(format!("{} cell values for a {w} x {h} grid", cells.len())));
+        }
+        Grid::from_raw_evidence(
+            Point2::new(ox, oy),
+            res,
+            w as usize,
+            h as usize,
+            cells.to_vec(),
+        )
+        .ok_or_else(|| d.error("grid geometry rejected"))
+    }
+}
+
+/// How far a run had got: lets a restarted daemon resume and the report say
+/// how much progress a crash lost.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RunProgress {
+    /// Checkpoints written so far in this run, this one included.
+    pub sequence: u64,
+    /// Run time (s) when written, on the run's own (possibly simulated) clock.
+    pub elapsed: f64,
+    /// Fraction of the reachable floor covered, 0..=1.
+    pub coverage: f64,
+    /// Scans processed.
+    pub scans: u64,
+    /// Path driven so far (m).
+    pub path_length: f64,
+    /// Times the run was resumed from a checkpoint.
+    pub resumes: u32,
+}
+
+impl Section for RunProgress {
+    const NAME: &'static str = "progress";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        e.u64(self.sequence);
+        e.f64(self.elapsed);
+        e.f64(self.coverage);
+        e.u64(self.scans);
+        e.f64(self.path_length);
+        e.u32(self.resumes);
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let sequence = d.u64()?;
+        let elapsed = d.finite("elapsed")?;
+        let coverage = d.finite("coverage")?;
+        let scans = d.u64()?;
+        let path_length = d.finite("path_length")?;
+        let resumes = d.u32()?;
+        if elapsed < 0.0 || path_length < 0.0 {
+            return Err(d.error("elapsed time and path length cannot be negative"));
+        }
+        if !(0.0..=1.0).contains(&coverage) {
+            return Err(d.error(format!("coverage {coverage} is outside 0..=1")));
+        }
+        Ok(Self {
+            sequence,
+            elapsed,
+            coverage,
+            scans,
+            path_length,
+            resumes,
+        })
+    }
+}

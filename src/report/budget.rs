@@ -1,0 +1,252 @@
+//! The latency / CPU-budget report of a run: `report.md` (per-stage table of
+//! p50, p99, max, budget and overruns; CPU share against the budget; drops,
+//! late inputs, channel depths; supervisor counters) and one SVG latency
+//! histogram per stage plus the end-to-end one, written into the run folder.
+//! Built from a [`MetricsSnapshot`] alone, so `sweepline report RUN_DIR` can
+//! regenerate it from `metrics.toml` at any time.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use super::histogram::{fmt_duration, latency_svg};
+use crate::pipeline::metrics::{LatencyHistogram, MetricsSnapshot, Quantiles, METRICS_FILE};
+
+/// Target p99 of the end-to-end latency (scan's last byte → wheel command), s.
+pub const END_TO_END_P99_TARGET: f64 = 0.005;
+
+/// File name of the Markdown report.
+pub const REPORT_FILE: &str = "report.md";
+
+/// Why a report could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// File system error.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// OS error.
+        source: std::io::Error,
+    },
+    /// The metrics file is missing or unreadable.
+    #[error(transparent)]
+    Metrics(#[from] crate::pipeline::metrics::MetricsError),
+}
+
+fn pct(x: f64) -> String {
+    format!("{:.2} %", x * 100.0)
+}
+
+fn ok_mark(ok: bool) -> &'static str {
+    if ok {
+        "within"
+    } else {
+        "OVER"
+    }
+}
+
+/// File name of a stage's histogram picture.
+pub fn histogram_file(stage: &str) -> String {
+    let safe: String = stage
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    format!("latency-{safe}.svg")
+}
+
+/// The Markdown text of the report.
+pub fn budget_markdown(s: &MetricsSnapshot) -> String {
+    let mut md = String::new();
+    let share = s.cpu_share();
+    let _ = writeln!(md, "# Latency and CPU budget\n");
+    let _ = writeln!(
+        md,
+        "Run of {:.1} s wall time on {} core{}. Process CPU {:.2} s = **{} of one core** \
+         ({} of the machine) against a budget of {} of one core: **{}** budget.\n",
+        s.wall,
+        s.cores,
+        if s.cores == 1 { "" } else { "s" },
+        s.process_cpu,
+        pct(share),
+        pct(share / s.cores.max(1) as f64),
+        pct(s.cpu_budget),
+        ok_mark(share <= s.cpu_budget),
+    );
+
+    match &s.throttling {
+        Some(t) if t.periods > 0 => {
+            let _ = writeln!(
+                md,
+                "cgroup CPU quota: {} of {} enforcement periods throttled, {} held back in all \
+                 (throttling delays every stage at once).\n",
+                t.throttled,
+                t.periods,
+                fmt_duration(t.throttled_time)
+            );
+        }
+        Some(_) => {
+            let _ = writeln!(md, "cgroup CPU quota: none in force during this run.\n");
+        }
+        None => {}
+    }
+
+    let e2e = s.end_to_end();
+    let q = Quantiles::of(&e2e);
+    let _ = writeln!(md, "## End-to-end latency\n");
+    if q.count == 0 {
+        let _ = writeln!(md, "No stage recorded end-to-end latency in this run.\n");
+    } else {
+        let _ = writeln!(
+            md,
+            "Scan's last byte → the wheel command it produced, {} commands: \
+             p50 {}, p99 **{}**, max {} (target p99 ≤ {}: **{}**).\n",
+            q.count,
+            fmt_duration(q.p50),
+            fmt_duration(q.p99),
+            fmt_duration(q.max),
+            fmt_duration(END_TO_END_P99_TARGET),
+            ok_mark(q.p99 <= END_TO_END_P99_TARGET),
+        );
+        let _ = writeln!(
+            md,
+            "![end-to-end latency]({})\n",
+            histogram_file("end-to-end")
+        );
+    }
+
+    let _ = writeln!(md, "## Stages\n");
+    let _ = writeln!(
+        md,
+        "| stage | items | p50 | p99 | max | budget | overruns | degrade raises / peak / now | late | errors | CPU | CPU share of one core |"
+    );
+    let _ = writeln!(md, "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|");
+    for st in &s.stages {
+        let over_pct = if st.iterations > 0 {
+            format!(
+                " ({:.1} %)",
+                st.overruns as f64 / st.iterations as f64 * 100.0
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            md,
+            "| {}{} | {} | {} | {} | {} | {} | {}{} | {} / {} / {} | {} | {} | {:.3} s | {} |",
+            st.name,
+            if st.failed { " (FAILED)" } else { "" },
+            st.iterations,
+            fmt_duration(st.latency_q.p50),
+            fmt_duration(st.latency_q.p99),
+            fmt_duration(st.latency_q.max),
+            fmt_duration(st.budget),
+            st.overruns,
+            over_pct,
+            st.degrade_raises,
+            st.degrade_peak,
+            st.degrade_level,
+            st.late,
+            st.errors,
+            st.cpu,
+            if s.wall > 0.0 {
+                pct(st.cpu / s.wall)
+            } else {
+                "–".into()
+            },
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nLatency is the wall time of one work item (waiting excluded); an overrun is an item \
+         over the stage budget; repeated overruns raise the stage's degradation level (the \
+         stage does less work per item) and good runs lower it again. CPU is the thread's own \
+         CPU time (`CLOCK_THREAD_CPUTIME_ID`), waiting included.\n"
+    );
+
+    let _ = writeln!(md, "## Channels\n");
+    if s.edges.is_empty() {
+        let _ = writeln!(md, "No channels were registered.\n");
+    } else {
+        let _ = writeln!(
+            md,
+            "| edge | policy | capacity | sent | received | dropped | depth now / max |"
+        );
+        let _ = writeln!(md, "|---|---|--:|--:|--:|--:|--:|");
+        for e in &s.edges {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} / {} |",
+                e.name, e.policy, e.capacity, e.sent, e.received, e.dropped, e.depth, e.max_depth
+            );
+        }
+        let _ = writeln!(
+            md,
+            "\nDropped messages in all: **{}**; late inputs (older than `pipeline.late_after` when \
+             taken): **{}**.\n",
+            s.dropped(),
+            s.late()
+        );
+    }
+
+    let sup = &s.supervisor;
+    let _ = writeln!(md, "## Supervisor\n");
+    let _ = writeln!(
+        md,
+        "Watchdog pets {}, checks that found a stalled stage {}, failed notifications {}.\n",
+        sup.watchdog_pets, sup.stall_checks, sup.notify_errors
+    );
+
+    let _ = writeln!(md, "## Latency histograms\n");
+    for st in &s.stages {
+        let _ = writeln!(md, "![{}]({})", st.name, histogram_file(&st.name));
+    }
+    md
+}
+
+/// Writes `report.md` and the SVG histograms into `dir` (created if needed);
+/// returns the report's path.
+pub fn write_budget_report(dir: &Path, s: &MetricsSnapshot) -> Result<PathBuf, ReportError> {
+    let io = |p: &Path| {
+        let p = p.display().to_string();
+        move |source| ReportError::Io { path: p, source }
+    };
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    for st in &s.stages {
+        let h = LatencyHistogram::from_buckets(&st.latency);
+        let budget = (st.budget.is_finite() && st.budget > 0.0)
+            .then(|| ("budget", Duration::from_secs_f64(st.budget.min(1e6))));
+        let doc = latency_svg(
+            &format!("stage {}: processing latency", st.name),
+            &h,
+            budget,
+        );
+        let path = dir.join(histogram_file(&st.name));
+        svg::save(&path, &doc).map_err(io(&path))?;
+    }
+    let e2e = s.end_to_end();
+    if e2e.count() > 0 {
+        let doc = latency_svg(
+            "end-to-end: scan's last byte → wheel command",
+            &e2e,
+            Some(("p99 target", Duration::from_secs_f64(END_TO_END_P99_TARGET))),
+        );
+        let path = dir.join(histogram_file("end-to-end"));
+        svg::save(&path, &doc).map_err(io(&path))?;
+    }
+    let path = dir.join(REPORT_FILE);
+    std::fs::write(&path, budget_markdown(s)).map_err(io(&path))?;
+    Ok(path)
+}
+
+/// `sweepline report RUN_DIR`: reads `RUN_DIR/metrics.toml` and writes the
+/// report beside it.
+pub fn report_run_dir(run_dir: &Path) -> Result<PathBuf, ReportError> {
+    let snap = MetricsSnapshot::read(&run_dir.join(METRICS_FILE))?;
+    write_budget_report(run_dir, &snap)
+}

@@ -1,0 +1,97 @@
+//! Supervisor hooks that keep a run folder up to date: `metrics.toml`
+//! rewritten every `pipeline.metrics_period` while the run goes on (so a
+//! crash leaves recent metrics behind), and at the end the final metrics and
+//! the budget report. Wraps the daemon's own hooks and delegates to them.
+
+use std::path::{Path, PathBuf};
+
+use super::budget::write_budget_report;
+use crate::pipeline::clock::Stamp;
+use crate::pipeline::metrics::{MetricsSnapshot, METRICS_FILE};
+use crate::pipeline::periodic::Every;
+use crate::pipeline::supervisor::{Hooks, StopReason};
+use crate::pipeline::{Pipeline, PipelineParams};
+
+/// [`Hooks`] writing metrics and the report into a run folder around `inner`.
+pub struct RunFolderHooks<H> {
+    inner: H,
+    dir: PathBuf,
+    every: Every,
+    writes: u64,
+    errors: u64,
+    report: Option<PathBuf>,
+}
+
+impl<H: Hooks> RunFolderHooks<H> {
+    /// Wraps `inner`, writing into `dir` (created at the first write) every
+    /// `params.metrics_period`.
+    pub fn new(inner: H, dir: &Path, params: &PipelineParams) -> Self {
+        Self {
+            inner,
+            dir: dir.to_path_buf(),
+            every: Every::new(params.metrics_period, Stamp::now()),
+            writes: 0,
+            errors: 0,
+            report: None,
+        }
+    }
+
+    fn write(&mut self, snap: &MetricsSnapshot) {
+        let r = std::fs::create_dir_all(&self.dir)
+            .map_err(|e| e.to_string())
+            .and_then(|()| {
+                snap.write(&self.dir.join(METRICS_FILE))
+                    .map_err(|e| e.to_string())
+            });
+        match r {
+            Ok(()) => self.writes += 1,
+            Err(e) => {
+                self.errors += 1;
+                if self.errors <= 3 {
+                    log::warn!("cannot write metrics into {}: {e}", self.dir.display());
+                }
+            }
+        }
+    }
+
+    /// Metrics files written so far.
+    pub fn writes(&self) -> u64 {
+        self.writes
+    }
+
+    /// Path of the final report, once written.
+    pub fn report(&self) -> Option<&Path> {
+        self.report.as_deref()
+    }
+
+    /// The wrapped hooks.
+    pub fn into_inner(self) -> H {
+        self.inner
+    }
+}
+
+impl<H: Hooks> Hooks for RunFolderHooks<H> {
+    fn status(&mut self) -> String {
+        self.inner.status()
+    }
+
+    fn tick(&mut self, pipeline: &Pipeline, now: Stamp) {
+        self.inner.tick(pipeline, now);
+        if self.every.due(now) {
+            self.write(&pipeline.snapshot());
+        }
+    }
+
+    fn before_stop(&mut self, reason: &StopReason, pipeline: &Pipeline) {
+        self.inner.before_stop(reason, pipeline);
+    }
+
+    fn after_stop(&mut self, reason: &StopReason, snap: &MetricsSnapshot) {
+        self.inner.after_stop(reason, snap);
+        self.write(snap);
+        match write_budget_report(&self.dir, snap) {
+            Ok(p) => self.report = Some(p),
+            Err(e) => log::warn!("cannot write the budget report: {e}"),
+        }
+    }
+}

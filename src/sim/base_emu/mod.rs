@@ -1,0 +1,67 @@
+//! Emulated wheel bases: a RoboClaw and a Create 2 answering their real byte
+//! protocols, driving the simulated kinematics, with fault injection.
+//!
+//! Each device is a sans-IO core ([`BaseDevice`]: bytes in, bytes and wheel
+//! set-points out); [`spawn`] runs one on a wire (a pty the daemon opens as
+//! its device) in a thread, stepping [`DiffDriveSim`] on the injected clock.
+
+pub mod create2;
+pub mod pty_wire;
+pub mod roboclaw;
+pub mod runner;
+
+use crate::motor::{Sides, WheelSpeeds};
+
+pub use runner::{spawn, EmuError, EmuStats, EmuWire, EmulatorConfig, EmulatorHandle, Fault};
+
+/// Starts the emulator `cfg` on a new pty (with the symlink `link`, if given,
+/// pointing at it), timed by `clock`. The daemon opens
+/// [`EmulatorHandle::path`] as its wheel-base device. This is what
+/// `sweepline emulate roboclaw|create2` and the simulator call.
+pub fn spawn_on_pty(
+    cfg: EmulatorConfig,
+    link: Option<std::path::PathBuf>,
+    clock: crate::clock::SharedClock,
+) -> Result<EmulatorHandle, EmuError> {
+    let wire = pty_wire::PtyWire::new(link).map_err(|e| EmuError::Wire(e.to_string()))?;
+    spawn(cfg, Box::new(wire), clock)
+}
+
+/// What the device electronics sense of the body.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BodyState {
+    /// Wheel travel the encoders counted since start (m, left and right).
+    pub encoder: (f64, f64),
+    /// Front bumper switches.
+    pub bumper: Sides,
+    /// Wheel-drop switches.
+    pub wheel_drop: Sides,
+}
+
+/// Counters of an emulated device.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeviceStats {
+    /// Bytes received from the host.
+    pub bytes_in: u64,
+    /// Bytes skipped while looking for a packet start or known opcode.
+    pub bytes_skipped: u64,
+    /// Valid packets or commands handled.
+    pub packets_ok: u64,
+    /// Packets rejected (bad CRC, unknown command, not allowed in this mode).
+    pub packets_rejected: u64,
+    /// Sensor-stream frames sent.
+    pub frames_out: u64,
+    /// Times the controller's own serial timeout stopped the motors.
+    pub device_timeouts: u64,
+}
+
+/// A device core: the protocol side of an emulated wheel base.
+pub trait BaseDevice: Send {
+    /// Handles bytes from the host received at `now`; replies go to `out`.
+    fn on_bytes(&mut self, bytes: &[u8], now: f64, body: &BodyState, out: &mut Vec<u8>);
+    /// Lets time pass to `now`: returns the wheel set-points the motors follow;
+    /// unsolicited bytes (a sensor stream) go to `out`.
+    fn tick(&mut self, now: f64, body: &BodyState, out: &mut Vec<u8>) -> WheelSpeeds;
+    /// The device's counters.
+    fn stats(&self) -> DeviceStats;
+}

@@ -1,0 +1,451 @@
+//! Runs an emulated base in its own thread on a wire (a pty the daemon opens
+//! exactly like a device), stepping the kinematics on the injected clock and
+//! applying injected faults: a silent link, corrupted bytes either way, a
+//! bumper hit, a wheel drop, an unplugged cable.
+
+use std::io;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::clock::SharedClock;
+use crate::config::Config;
+use crate::geom::Pose;
+use crate::motor::{BaseKind, MotorParams, Sides, WheelSpeeds};
+use crate::sim::base_emu::create2::Create2Device;
+use crate::sim::base_emu::roboclaw::RoboClawDevice;
+use crate::sim::base_emu::{BaseDevice, BodyState, DeviceStats};
+use crate::sim::kinematics::{DiffDriveSim, KinematicsParams};
+use crate::sim::world::World;
+
+/// The emulator's end of the link.
+pub trait EmuWire: Send {
+    /// Reads what the host sent, waiting briefly; `TimedOut`/`WouldBlock` when
+    /// nothing came.
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize>;
+    /// Sends bytes to the host.
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()>;
+    /// Pulls the cable: the host sees the device vanish. False if unsupported.
+    fn unplug(&mut self) -> bool {
+        false
+    }
+    /// Plugs the cable back in.
+    fn replug(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+    /// The path the host opens, if the wire has one.
+    fn client_path(&self) -> Option<PathBuf>;
+}
+
+impl EmuWire for std::os::unix::net::UnixStream {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        io::Read::read(self, buf)
+    }
+    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+        io::Write::write_all(self, bytes)
+    }
+    fn client_path(&self) -> Option<PathBuf> {
+        None
+    }
+}
+
+/// A fault to inject.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Fault {
+    /// The link carries nothing either way for `secs` seconds (clock time).
+    Silence {
+        /// Duration (s).
+        secs: f64,
+    },
+    /// The next `bytes` bytes sent to the host get a bit flipped.
+    CorruptOut {
+        /// How many bytes.
+        bytes: u32,
+    },
+    /// The next `bytes` bytes from the host get a bit flipped.
+    CorruptIn {
+        /// How many bytes.
+        bytes: u32,
+    },
+    /// Both bumpers closed for `secs` seconds (as if something hit the robot).
+    Bump {
+        /// Duration (s).
+        secs: f64,
+    },
+    /// Both wheels dropped (robot lifted) for `secs` seconds.
+    WheelDrop {
+        /// Duration (s).
+        secs: f64,
+    },
+    /// Cable pulled for `secs` seconds (needs a wire that supports it).
+    Unplug {
+        /// Duration (s).
+        secs: f64,
+    },
+}
+
+/// Counters of a running emulator.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EmuStats {
+    /// The device core's counters.
+    pub device: DeviceStats,
+    /// Bytes corrupted by fault injection (both directions).
+    pub corrupted_bytes: u64,
+    /// Bytes swallowed by a silence fault (both directions).
+    pub silenced_bytes: u64,
+    /// Bumper closures (contact or injected).
+    pub bumps: u64,
+    /// Kinematics steps refused by a collision.
+    pub blocked_steps: u64,
+    /// Times the cable was pulled.
+    pub unplugs: u64,
+}
+
+/// Why an emulator could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum EmuError {
+    /// The wire (pty) could not be created.
+    #[error("cannot create the emulator's port: {0}")]
+    Wire(String),
+    /// The emulator thread could not be started.
+    #[error("cannot start the emulator thread: {0}")]
+    Thread(io::Error),
+}
+
+/// What to emulate and how.
+#[derive(Clone)]
+pub struct EmulatorConfig {
+    /// Which protocol.
+    pub kind: BaseKind,
+    /// Link settings the daemon uses (address, counts per revolution).
+    pub motor: MotorParams,
+    /// Wheel radius (m), for counts per metre.
+    pub wheel_radius: f64,
+    /// Kinematics and noise.
+    pub kinematics: KinematicsParams,
+    /// Where the robot starts.
+    pub start: Pose,
+    /// What the body collides with (may contain obstacles the scanner's world
+    /// lacks); `None` for open floor.
+    pub world: Option<Arc<World>>,
+    /// Kinematics step (s of clock time).
+    pub step: f64,
+    /// Seed of the fault-injection generator.
+    pub seed: u64,
+}
+
+impl EmulatorConfig {
+    /// An emulator of `kind` matching the daemon's configuration `cfg`.
+    pub fn from_config(cfg: &Config, kind: BaseKind) -> Self {
+        Self {
+            kind,
+            motor: MotorParams {
+                kind,
+                ..cfg.motor.clone()
+            },
+            wheel_radius: cfg.robot.wheel_radius,
+            kinematics: KinematicsParams {
+                wheel_base: cfg.robot.wheel_base,
+                body_radius: cfg.robot.radius,
+                ..KinematicsParams::default()
+            },
+            start: Pose::identity(),
+            world: None,
+            step: 0.005,
+            seed: 1,
+        }
+    }
+
+    fn device(&self) -> Box<dyn BaseDevice> {
+        let circ = 2.0 * std::f64::consts::PI * self.wheel_radius;
+        match self.kind {
+            BaseKind::Roboclaw => Box::new(RoboClawDevice::new(
+                self.motor.roboclaw.address,
+                self.motor.roboclaw.counts_per_rev / circ,
+                self.motor.roboclaw.m1_is_left,
+            )),
+            BaseKind::Create2 => Box::new(Create2Device::new(
+                self.motor.create2.counts_per_rev / circ,
+                self.kinematics.wheel_base,
+            )),
+        }
+    }
+}
+
+#[derive(Default)]
+struct Faults {
+    silent_until: f64,
+    corrupt_out: u32,
+    corrupt_in: u32,
+    bump_until: f64,
+    drop_until: f64,
+    unplug_for: Option<f64>,
+}
+
+struct Shared {
+    truth: Pose,
+    wheels: WheelSpeeds,
+    targets: WheelSpeeds,
+    stats: EmuStats,
+    faults: Faults,
+    now: f64,
+}
+
+/// A running emulator; stops its thread when dropped.
+pub struct EmulatorHandle {
+    shared: Arc<Mutex<Shared>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+    path: Option<PathBuf>,
+}
+
+impl EmulatorHandle {
+    /// The path the daemon opens as its wheel-base device.
+    pub fn path(&self) -> Option<PathBuf> {
+        self.path.clone()
+    }
+
+    fn with<T>(&self, f: impl FnOnce(&mut Shared) -> T) -> T {
+        let mut g = match self.shared.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        f(&mut g)
+    }
+
+    /// The robot's true pose.
+    pub fn truth(&self) -> Pose {
+        self.with(|s| s.truth)
+    }
+
+    /// The wheel speeds the motors currently run at (m/s).
+    pub fn wheels(&self) -> WheelSpeeds {
+        self.with(|s| s.wheels)
+    }
+
+    /// The wheel set-points the controller currently drives the motors at
+    /// (m/s); differs from [`EmulatorHandle::wheels`] while accelerating,
+    /// stalled against an obstacle or lifted.
+    pub fn motor_targets(&self) -> WheelSpeeds {
+        self.with(|s| s.targets)
+    }
+
+    /// The emulator's counters.
+    pub fn stats(&self) -> EmuStats {
+        self.with(|s| s.stats)
+    }
+
+    /// Injects a fault, timed from the emulator's current clock time.
+    pub fn inject(&self, fault: Fault) {
+        self.with(|s| {
+            let now = s.now;
+            let f = &mut s.faults;
+            match fault {
+                Fault::Silence { secs } => f.silent_until = now + secs,
+                Fault::CorruptOut { bytes } => f.corrupt_out += bytes,
+                Fault::CorruptIn { bytes } => f.corrupt_in += bytes,
+                Fault::Bump { secs } => f.bump_until = now + secs,
+                Fault::WheelDrop { secs } => f.drop_until = now + secs,
+                Fault::Unplug { secs } => f.unplug_for = Some(secs),
+            }
+        });
+    }
+
+    /// Stops the emulator and waits for its thread.
+    pub fn shutdown(mut self) {
+        self.halt();
+    }
+
+    fn halt(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for EmulatorHandle {
+    fn drop(&mut self) {
+        self.halt();
+    }
+}
+
+/// Starts the emulator described by `cfg` on `wire`, timed by `clock`.
+pub fn spawn(
+    cfg: EmulatorConfig,
+    mut wire: Box<dyn EmuWire>,
+    clock: SharedClock,
+) -> Result<EmulatorHandle, EmuError> {
+    let path = wire.client_path();
+    let shared = Arc::new(Mutex::new(Shared {
+        truth: cfg.start,
+        wheels: WheelSpeeds::STOP,
+        targets: WheelSpeeds::STOP,
+        stats: EmuStats::default(),
+        faults: Faults::default(),
+        now: clock.now(),
+    }));
+    let stop = Arc::new(AtomicBool::new(false));
+    let (sh, st) = (shared.clone(), stop.clone());
+    let name = match cfg.kind {
+        BaseKind::Roboclaw => "emu-roboclaw",
+        BaseKind::Create2 => "emu-create2",
+    };
+    let thread = std::thread::Builder::new()
+        .name(name.into())
+        .spawn(move || run(cfg, &mut *wire, clock, sh, st))
+        .map_err(EmuError::Thread)?;
+    Ok(EmulatorHandle {
+        shared,
+        stop,
+        thread: Some(thread),
+        path,
+    })
+}
+
+fn lock(m: &Mutex<Shared>) -> std::sync::MutexGuard<'_, Shared> {
+    match m.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    }
+}
+
+fn run(
+    cfg: EmulatorConfig,
+    wire: &mut dyn EmuWire,
+    clock: SharedClock,
+    shared: Arc<Mutex<Shared>>,
+    stop: Arc<AtomicBool>,
+) {
+    let mut device = cfg.device();
+    let mut sim = DiffDriveSim::new(cfg.kinematics.clone(), cfg.start);
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let world = cfg.world.clone();
+    let step = if cfg.step > 0.0 { cfg.step } else { 0.005 };
+    let mut target = WheelSpeeds::STOP;
+    let mut last = clock.now();
+    let mut inbuf = [0u8; 512];
+    let mut out: Vec<u8> = Vec::with_capacity(1024);
+    let mut was_bumped = false;
+    let mut unplugged_until: Option<f64> = None;
+    while !stop.load(Ordering::SeqCst) {
+        // Cable pulled: nothing flows, the robot coasts to a stop on its own
+        // controller (RoboClaw timeout) or keeps going (Create 2).
+        if let Some(until) = unplugged_until {
+            if clock.now() >= until {
+                if wire.replug().is_ok() {
+                    unplugged_until = None;
+                }
+            } else {
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+        }
+        let n = if unplugged_until.is_none() {
+            // Timeout, or the host has not opened the port yet: nothing read.
+            wire.read(&mut inbuf).unwrap_or_default()
+        } else {
+            0
+        };
+        let now = clock.now();
+        let (silent, mut corrupt_in, bump, lifted, unplug) = {
+            let mut s = lock(&shared);
+            s.now = now;
+            let f = &mut s.faults;
+            let r = (
+                now < f.silent_until,
+                f.corrupt_in,
+                now < f.bump_until,
+                now < f.drop_until,
+                f.unplug_for.take(),
+            );
+            f.corrupt_in = 0;
+            r
+        };
+        if let Some(secs) = unplug {
+            if wire.unplug() {
+                unplugged_until = Some(now + secs);
+                lock(&shared).stats.unplugs += 1;
+            }
+        }
+        // Kinematics up to now.
+        let mut dt = (now - last).clamp(0.0, 0.2);
+        last = now;
+        let mut blocked = 0u64;
+        while dt > 1e-12 {
+            let h = dt.min(step);
+            if !lifted {
+                let o = sim.step(target, h, world.as_deref());
+                blocked += u64::from(o.blocked);
+            }
+            dt -= h;
+        }
+        let contact = sim.bumper();
+        let body = BodyState {
+            encoder: sim.encoder_travel(),
+            bumper: Sides {
+                left: contact.left || bump,
+                right: contact.right || bump,
+            },
+            wheel_drop: Sides {
+                left: lifted,
+                right: lifted,
+            },
+        };
+        out.clear();
+        let mut silenced = 0u64;
+        let mut corrupted = 0u64;
+        if n > 0 {
+            let bytes = &mut inbuf[..n];
+            if silent {
+                silenced += n as u64;
+            } else {
+                for b in bytes.iter_mut() {
+                    if corrupt_in > 0 {
+                        *b ^= 1 << rng.random_range(0..8);
+                        corrupt_in -= 1;
+                        corrupted += 1;
+                    }
+                }
+                device.on_bytes(bytes, now, &body, &mut out);
+            }
+        }
+        target = device.tick(now, &body, &mut out);
+        let mut s = lock(&shared);
+        // Unused corruption budget carries over to the next bytes.
+        s.faults.corrupt_in += corrupt_in;
+        if !out.is_empty() {
+            if silent || unplugged_until.is_some() {
+                silenced += out.len() as u64;
+                out.clear();
+            } else {
+                for b in out.iter_mut() {
+                    if s.faults.corrupt_out > 0 {
+                        *b ^= 1 << rng.random_range(0..8);
+                        s.faults.corrupt_out -= 1;
+                        corrupted += 1;
+                    }
+                }
+            }
+        }
+        if body.bumper.any() && !was_bumped {
+            s.stats.bumps += 1;
+        }
+        was_bumped = body.bumper.any();
+        s.truth = sim.pose();
+        s.wheels = sim.wheel_speeds();
+        s.targets = target;
+        s.stats.device = device.stats();
+        s.stats.silenced_bytes += silenced;
+        s.stats.corrupted_bytes += corrupted;
+        s.stats.blocked_steps += blocked;
+        drop(s);
+        if !out.is_empty() {
+            // A host that does not read loses the bytes, as with real hardware.
+            let _ = wire.write_all(&out);
+        }
+    }
+}

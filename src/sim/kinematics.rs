@@ -1,0 +1,381 @@
+//! Differential-drive kinematics for the simulator: wheel set-points in, true
+//! pose, encoder travel and bumper contact out. Wheels follow their set-points
+//! under an acceleration limit; the floor lets them slip (the ground travel
+//! differs from what the encoders count) and the encoders add noise, both from
+//! a seeded generator. Time is injected: the caller passes each step's `dt`.
+//!
+//! Contact: the robot is a disk of the robot's radius; a step that would put
+//! it onto non-free floor of the collision [`World`] is not taken (the wheels
+//! stall), and the front bumper is closed while something touches the front
+//! half of the body.
+
+use nalgebra::{Point2, Vector2};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::geom::{heading, Pose};
+use crate::motor::odometry::arc_increment;
+use crate::motor::{Sides, WheelSpeeds};
+use crate::sim::world::World;
+
+/// Physical and noise parameters of the simulated base.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KinematicsParams {
+    /// Distance between the wheels' contact points (m).
+    pub wheel_base: f64,
+    /// Radius of the robot's circular body (m), for contact.
+    pub body_radius: f64,
+    /// Wheel acceleration limit (m/s²).
+    pub max_accel: f64,
+    /// Fastest wheel speed the motors reach (m/s).
+    pub max_wheel_speed: f64,
+    /// Slip: standard deviation of ground travel relative to wheel travel
+    /// (dimensionless, per unit of travel), drawn per wheel per step.
+    pub slip: f64,
+    /// Systematic ground-travel error of the left and right wheel (worn or
+    /// mis-measured tyres: 0.002 = the wheel covers 0.2 % more floor than its
+    /// encoder counts). Makes odometry drift the way real bases do.
+    pub scale_error: (f64, f64),
+    /// Standard deviation of encoder noise per step (m of wheel travel).
+    pub encoder_noise: f64,
+    /// How far beyond the body the bumper senses contact (m).
+    pub bumper_margin: f64,
+    /// Seed of the noise generator.
+    pub seed: u64,
+}
+
+impl Default for KinematicsParams {
+    fn default() -> Self {
+        Self {
+            wheel_base: 0.235,
+            body_radius: 0.17,
+            max_accel: 1.0,
+            max_wheel_speed: 0.5,
+            slip: 0.01,
+            scale_error: (0.002, -0.001),
+            encoder_noise: 2e-5,
+            bumper_margin: 0.02,
+            seed: 1,
+        }
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepOutcome {
+    /// The step was refused because the body would have hit something.
+    pub blocked: bool,
+    /// Bumper state after the step.
+    pub bumper: Sides,
+}
+
+/// A simulated differential-drive base.
+#[derive(Clone, Debug)]
+pub struct DiffDriveSim {
+    params: KinematicsParams,
+    pose: Pose,
+    wheel: WheelSpeeds,
+    encoder: (f64, f64),
+    bumper: Sides,
+    rng: ChaCha8Rng,
+}
+
+impl DiffDriveSim {
+    /// A base at rest at `start`.
+    pub fn new(params: KinematicsParams, start: Pose) -> Self {
+        let rng = ChaCha8Rng::seed_from_u64(params.seed);
+        Self {
+            params,
+            pose: start,
+            wheel: WheelSpeeds::STOP,
+            encoder: (0.0, 0.0),
+            bumper: Sides::default(),
+            rng,
+        }
+    }
+
+    /// The true pose (ground truth).
+    pub fn pose(&self) -> Pose {
+        self.pose
+    }
+
+    /// Moves the robot to `pose` without motion (test setup).
+    pub fn teleport(&mut self, pose: Pose) {
+        self.pose = pose;
+    }
+
+    /// Current wheel surface speeds (m/s).
+    pub fn wheel_speeds(&self) -> WheelSpeeds {
+        self.wheel
+    }
+
+    /// Wheel travel counted by the encoders since start (m, left and right).
+    pub fn encoder_travel(&self) -> (f64, f64) {
+        self.encoder
+    }
+
+    /// Bumper state after the last step.
+    pub fn bumper(&self) -> Sides {
+        self.bumper
+    }
+
+    fn gauss(&mut self) -> f64 {
+        // Box-Muller; u1 in (0, 1] so the log is finite.
+        let u1: f64 = 1.0 - self.rng.random::<f64>();
+        let u2: f64 = self.rng.random::<f64>();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
+    /// Advances by `dt` seconds towards wheel set-points `target`; `world`, when
+    /// given, is what the body collides with.
+    pub fn step(&mut self, target: WheelSpeeds, dt: f64, world: Option<&World>) -> StepOutcome {
+        if !(dt.is_finite() && dt > 0.0) {
+            return StepOutcome {
+                blocked: false,
+                bumper: self.bumper,
+            };
+        }
+        let p = self.params.clone();
+        let vmax = p.max_wheel_speed;
+        let clamp = |v: f64| {
+            if v.is_finite() {
+                v.clamp(-vmax, vmax)
+            } else {
+                0.0
+            }
+        };
+        let dv = p.max_accel * dt;
+        let approach = |cur: f64, tgt: f64| cur + (tgt - cur).clamp(-dv, dv);
+        let next = WheelSpeeds {
+            left: approach(self.wheel.left, clamp(target.left)),
+            right: approach(self.wheel.right, clamp(target.right)),
+        };
+        let dl = 0.5 * (self.wheel.left + next.left) * dt;
+        let dr = 0.5 * (self.wheel.right + next.right) * dt;
+        let (slip, noise) = (p.slip, p.encoder_noise);
+        let (el, er) = p.scale_error;
+        let gl = dl * (1.0 + el + slip * self.gauss());
+        let gr = dr * (1.0 + er + slip * self.gauss());
+        let candidate = self.pose * arc_increment(gl, gr, p.wheel_base);
+        let blocked = match world {
+            Some(w) if dl != 0.0 || dr != 0.0 => {
+                let c = candidate.translation.vector;
+                // A body already overlapping something (a bad start) may move;
+                // otherwise the disk must stay on free floor.
+                !w.disk_is_free(&Point2::from(c), p.body_radius)
+                    && w.disk_is_free(&Point2::from(self.pose.translation.vector), p.body_radius)
+            }
+            _ => false,
+        };
+        if blocked {
+            // The wheels stall against the obstacle: no travel, nothing counted.
+            self.wheel = WheelSpeeds::STOP;
+        } else {
+            self.pose = candidate;
+            self.wheel = next;
+            let nl = noise * self.gauss();
+            let nr = noise * self.gauss();
+            self.encoder.0 += dl + nl;
+            self.encoder.1 += dr + nr;
+        }
+        self.bumper = match world {
+            Some(w) => self.front_contact(w),
+            None => Sides::default(),
+        };
+        StepOutcome {
+            blocked,
+            bumper: self.bumper,
+        }
+    }
+
+    /// Which side of the front half touches something.
+    fn front_contact(&self, w: &World) -> Sides {
+        let r = self.params.body_radius + self.params.bumper_margin;
+        let th = heading(&self.pose);
+        let c = Point2::from(self.pose.translation.vector);
+        let mut s = Sides::default();
+        for k in -8i32..=8 {
+            let a = th + (k as f64) * 10f64.to_radians();
+            let q = c + Vector2::new(a.cos(), a.sin()) * r;
+            if !w.free.is_free(&q) {
+                if k >= 0 {
+                    s.left = true;
+                }
+                if k <= 0 {
+                    s.right = true;
+                }
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    fn quiet() -> KinematicsParams {
+        KinematicsParams {
+            slip: 0.0,
+            scale_error: (0.0, 0.0),
+            encoder_noise: 0.0,
+            max_accel: 1e9,
+            ..KinematicsParams::default()
+        }
+    }
+
+    #[test]
+    fn straight_and_turn_without_noise() {
+        let mut s = DiffDriveSim::new(quiet(), pose(0.0, 0.0, 0.0));
+        for _ in 0..100 {
+            s.step(
+                WheelSpeeds {
+                    left: 0.2,
+                    right: 0.2,
+                },
+                0.01,
+                None,
+            );
+        }
+        // The first step ramps up (trapezoid): 1 mm short of 0.2 m.
+        assert!((s.pose().translation.x - 0.199).abs() < 1e-9);
+        let (el, er) = s.encoder_travel();
+        assert!((el - 0.199).abs() < 1e-9 && (er - 0.199).abs() < 1e-9);
+        let w = WheelSpeeds::from_body(0.0, 1.0, 0.235);
+        for _ in 0..100 {
+            s.step(w, 0.01, None);
+        }
+        // The ramp from straight to spinning costs half a step of turn.
+        assert!(
+            (heading(&s.pose()) - 1.0).abs() < 0.01,
+            "{}",
+            heading(&s.pose())
+        );
+    }
+
+    #[test]
+    fn acceleration_is_limited() {
+        let p = KinematicsParams {
+            max_accel: 0.5,
+            ..quiet()
+        };
+        let mut s = DiffDriveSim::new(p, pose(0.0, 0.0, 0.0));
+        s.step(
+            WheelSpeeds {
+                left: 0.4,
+                right: 0.4,
+            },
+            0.1,
+            None,
+        );
+        assert!((s.wheel_speeds().left - 0.05).abs() < 1e-12);
+    }
+
+    #[test]
+    fn slip_moves_ground_truth_away_from_encoders_deterministically() {
+        let p = KinematicsParams {
+            slip: 0.05,
+            ..KinematicsParams::default()
+        };
+        let run = |seed| {
+            let mut s =
+                DiffDriveSim::new(KinematicsParams { seed, ..p.clone() }, pose(0.0, 0.0, 0.0));
+            for _ in 0..500 {
+                s.step(
+                    WheelSpeeds {
+                        left: 0.2,
+                        right: 0.2,
+                    },
+                    0.01,
+                    None,
+                );
+            }
+            s.pose()
+        };
+        let a = run(7);
+        assert_eq!(a, run(7), "same seed, same run");
+        assert_ne!(a, run(8));
+        // Encoders said ~1 m straight; truth wandered but stayed close.
+        assert!((a.translation.x - 1.0).abs() < 0.05, "{a}");
+        assert!(a.translation.y.abs() > 1e-6);
+    }
+
+    #[test]
+    fn wall_blocks_and_closes_the_bumper_and_reversing_frees_it() {
+        let w = World::parse("room 0 0 2 0 2 2 0 2\n").unwrap();
+        let mut s = DiffDriveSim::new(quiet(), pose(1.0, 1.0, 0.0));
+        let mut hit = None;
+        for i in 0..1000 {
+            let o = s.step(
+                WheelSpeeds {
+                    left: 0.2,
+                    right: 0.2,
+                },
+                0.01,
+                Some(&w),
+            );
+            if o.blocked {
+                hit = Some(i);
+                break;
+            }
+        }
+        assert!(hit.is_some(), "never reached the wall");
+        let x = s.pose().translation.x;
+        // Within one ground-truth raster cell (0.02 m) of touching.
+        assert!((x - (2.0 - 0.17)).abs() <= 0.02 + 1e-9, "stopped at {x}");
+        assert!(s.bumper().left && s.bumper().right, "{:?}", s.bumper());
+        // Pushing on stays put.
+        s.step(
+            WheelSpeeds {
+                left: 0.2,
+                right: 0.2,
+            },
+            0.01,
+            Some(&w),
+        );
+        assert_eq!(s.pose().translation.x, x);
+        for _ in 0..50 {
+            s.step(
+                WheelSpeeds {
+                    left: -0.2,
+                    right: -0.2,
+                },
+                0.01,
+                Some(&w),
+            );
+        }
+        assert!(!s.bumper().any());
+        assert!(s.pose().translation.x < x);
+    }
+
+    #[test]
+    fn bad_dt_is_ignored() {
+        let mut s = DiffDriveSim::new(quiet(), pose(0.0, 0.0, 0.0));
+        s.step(
+            WheelSpeeds {
+                left: 1.0,
+                right: 1.0,
+            },
+            f64::NAN,
+            None,
+        );
+        s.step(
+            WheelSpeeds {
+                left: 1.0,
+                right: 1.0,
+            },
+            -1.0,
+            None,
+        );
+        s.step(
+            WheelSpeeds {
+                left: f64::NAN,
+                right: 0.0,
+            },
+            0.1,
+            None,
+        );
+        assert!(s.pose().translation.vector.iter().all(|v| v.is_finite()));
+    }
+}

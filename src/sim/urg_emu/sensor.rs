@@ -1,0 +1,692 @@
+//! The emulated sensor itself, sans-IO: command lines in, reply bytes out,
+//! scans produced when the emulator clock says a revolution has ended. The
+//! runner in [`super`] moves the bytes over the pty.
+//!
+//! Behaviour follows the real URG-04LX (and UTM-30LX) as captured and as
+//! documented in `../shared/research/scip-and-drivers.md`: SCIP 1.1 boot
+//! with the `SCIP2.0` switch, a 24-bit millisecond clock reset by RS, time
+//! adjust mode (TM0/TM1/TM2, everything else answered `0E` in it), MD/MS/ME
+//! streams with the remaining-scan counter in the echo, GD needing the laser
+//! on, RB twice within a second to reboot, and the exact VV/PP/II texts.
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::faults::{Faults, ScanFault};
+use super::model::{Model, ModelSpec};
+use super::scene::{Echo, Scene};
+use crate::scip::{
+    write_status_reply, Cluster, Command, DataKind, DataLineWriter, KvLine, ScanRequest, Status,
+    StatusCode, StreamRequest, Tag, TaggedCommand, TimeControl, Width,
+};
+
+/// Period of the sensor clock (ms).
+pub const CLOCK_WRAP_MS: u64 = 1 << 24;
+/// How many sent scans the log keeps.
+pub const LOG_CAPACITY: usize = 100_000;
+
+/// One scan the emulator put on the wire.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SentScan {
+    /// Sequence number over the emulator's life (from 1).
+    pub index: u64,
+    /// The 24-bit timestamp it carried.
+    pub stamp: u32,
+    /// The emulator's own unwrapped clock at that scan (ms since the first
+    /// boot's clock origin, continuing over reboots).
+    pub true_ms: u64,
+    /// Which power-on it belongs to (from 1; unplug/replug and RB add one).
+    pub boot: u32,
+    /// Emulator-clock time (s) at which the scan was measured: the truth a
+    /// driver's host stamp is checked against.
+    pub at: f64,
+    /// What was done to it on the wire, if anything.
+    pub fault: Option<ScanFault>,
+}
+
+/// What the emulator did, for tests and the CLI's summary.
+#[derive(Clone, Debug, Default)]
+pub struct EmuLog {
+    /// Scans sent (the last [`LOG_CAPACITY`]).
+    pub sent: VecDeque<SentScan>,
+    /// Command lines received, in order (the last 1000).
+    pub commands: VecDeque<String>,
+    /// Power-ons (1 + replugs + reboots).
+    pub boots: u32,
+    /// Unplugs performed.
+    pub unplugs: u32,
+    /// Stalls performed.
+    pub stalls: u32,
+}
+
+impl EmuLog {
+    /// Scans whose data were damaged on the wire.
+    pub fn corrupted(&self) -> usize {
+        self.sent
+            .iter()
+            .filter(|s| s.fault.is_some_and(|f| f.corrupts()))
+            .count()
+    }
+}
+
+/// Something the runner must do after a scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Action {
+    /// Go silent for this many seconds.
+    Stall(f64),
+    /// Unplug for this many seconds, then replug and power on again.
+    Unplug(f64),
+}
+
+struct Stream {
+    req: StreamRequest,
+    tag: Tag,
+    /// Scans still to send; `None` = until QT.
+    remaining: Option<u8>,
+    next: f64,
+}
+
+/// The sensor state machine.
+pub struct Sensor {
+    spec: ModelSpec,
+    faults: Faults,
+    scip1_boot: bool,
+    rng: ChaCha8Rng,
+    scene: Box<dyn Scene>,
+    log: Arc<Mutex<EmuLog>>,
+    scip2: bool,
+    laser: bool,
+    adjust: bool,
+    high_sensitivity: bool,
+    stream: Option<Stream>,
+    /// Sensor clock (ms) at `t0`.
+    clock0: u64,
+    t0: f64,
+    /// Unwrapped true clock (ms) at `t0`, continuing over reboots.
+    true0: u64,
+    boot: u32,
+    rate: f64,
+    rb_at: Option<f64>,
+    sent: u64,
+    last_stamp: u32,
+    action: Option<Action>,
+    angles: Vec<f64>,
+    echoes: Vec<Echo>,
+    block: Vec<u8>,
+}
+
+fn ok() -> Status {
+    Status::Scip2(StatusCode::OK)
+}
+
+fn st(code: &[u8; 2]) -> Status {
+    Status::Scip2(StatusCode(*code))
+}
+
+impl Sensor {
+    /// A sensor powered on at `now` (emulator clock, s).
+    pub fn new(
+        spec: ModelSpec,
+        faults: Faults,
+        scip1_boot: bool,
+        scene: Box<dyn Scene>,
+        seed: u64,
+        log: Arc<Mutex<EmuLog>>,
+        now: f64,
+    ) -> Self {
+        let clock0 = if faults.clock_wrap {
+            CLOCK_WRAP_MS - 2000
+        } else {
+            0
+        };
+        if let Ok(mut l) = log.lock() {
+            // Steady state never grows the log (no allocation per scan).
+            l.sent.reserve(4096);
+            l.commands.reserve(1000);
+        }
+        let mut s = Sensor {
+            spec,
+            faults,
+            scip1_boot,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            scene,
+            log,
+            scip2: true,
+            laser: false,
+            adjust: false,
+            high_sensitivity: false,
+            stream: None,
+            clock0,
+            t0: now,
+            true0: clock0,
+            boot: 0,
+            rate: 1.0,
+            rb_at: None,
+            sent: 0,
+            last_stamp: 0,
+            action: None,
+            angles: Vec::new(),
+            echoes: Vec::new(),
+            block: Vec::with_capacity(8192),
+        };
+        s.power_on(now, false);
+        s
+    }
+
+    /// Power-on reset at `now`: SCIP mode as booted, laser off, no stream;
+    /// `reset_clock` restarts the sensor clock at 0 (a reboot), otherwise it
+    /// keeps its origin (first boot).
+    pub fn power_on(&mut self, now: f64, reset_clock: bool) {
+        if reset_clock {
+            self.true0 = self.true_ms(now);
+            self.clock0 = 0;
+            self.t0 = now;
+        }
+        self.scip2 = !self.scip1_boot;
+        self.laser = false;
+        self.adjust = false;
+        self.high_sensitivity = false;
+        self.stream = None;
+        self.rb_at = None;
+        self.boot += 1;
+        if let Ok(mut l) = self.log.lock() {
+            l.boots = self.boot;
+        }
+    }
+
+    /// The model's fixed facts.
+    pub fn spec(&self) -> &ModelSpec {
+        &self.spec
+    }
+
+    /// The 24-bit sensor clock at `now` (ms).
+    pub fn clock_ms(&self, now: f64) -> u32 {
+        ((self.clock0 + self.elapsed_ms(now)) % CLOCK_WRAP_MS) as u32
+    }
+
+    fn elapsed_ms(&self, now: f64) -> u64 {
+        // The epsilon keeps k·period from flooring to the millisecond below.
+        ((now - self.t0).max(0.0) * 1000.0 * self.rate + 1e-6).floor() as u64
+    }
+
+    /// Makes the sensor's crystal run fast (positive) or slow by `ppm`
+    /// parts per million relative to the emulator clock.
+    pub fn set_drift_ppm(&mut self, ppm: f64) {
+        let now = self.t0;
+        if ppm.is_finite() && ppm.abs() < 1e5 {
+            self.true0 = self.true_ms(now);
+            self.rate = 1.0 + ppm * 1e-6;
+        }
+    }
+
+    fn true_ms(&self, now: f64) -> u64 {
+        self.true0 + self.elapsed_ms(now)
+    }
+
+    /// Whether the sensor is in time-adjust mode.
+    pub fn in_time_adjust(&self) -> bool {
+        self.adjust
+    }
+
+    /// When the next scan is due (emulator clock), if streaming.
+    pub fn next_due(&self) -> Option<f64> {
+        self.stream.as_ref().map(|s| s.next)
+    }
+
+    /// The pending stall or unplug, if any.
+    pub fn take_action(&mut self) -> Option<Action> {
+        self.action.take()
+    }
+
+    /// Answers one received command line (without its line end) at `now`.
+    pub fn on_line(&mut self, line: &[u8], now: f64, out: &mut Vec<u8>) {
+        if line.is_empty() {
+            return;
+        }
+        if let Ok(mut l) = self.log.lock() {
+            if l.commands.len() >= 1000 {
+                l.commands.pop_front();
+            }
+            l.commands
+                .push_back(String::from_utf8_lossy(line).into_owned());
+        }
+        if !self.scip2 {
+            // SCIP 1.1 firmware: only the switch is understood here; every
+            // other line gets the one-character error status.
+            let status = if line == b"SCIP2.0" {
+                self.scip2 = true;
+                Status::Scip1(b'0')
+            } else {
+                Status::Scip1(b'E')
+            };
+            let _ = write_status_reply(line, status, out);
+            return;
+        }
+        let body = line.split(|&b| b == b';').next().unwrap_or(line);
+        if body == b"RB" {
+            self.reboot_request(line, now, out);
+            return;
+        }
+        self.rb_at = None;
+        let cmd = match TaggedCommand::parse(line) {
+            Ok(c) => c,
+            Err(e) => {
+                let _ = write_status_reply(line, Status::Scip2(e.status()), out);
+                return;
+            }
+        };
+        if self.adjust && !matches!(cmd.command, Command::Tm(_) | Command::Rs) {
+            let _ = write_status_reply(line, Status::Scip2(StatusCode::UNDEFINED), out);
+            return;
+        }
+        match cmd.command {
+            Command::Scip20 => {
+                let _ = write_status_reply(line, Status::Scip2(StatusCode::UNDEFINED), out);
+            }
+            Command::Vv => {
+                let fields = self.spec.vv;
+                Self::kv_reply(line, fields.iter().map(|(k, v)| (*k, v.to_string())), out);
+            }
+            Command::Pp => Self::kv_reply(line, self.spec.pp().into_iter(), out),
+            Command::Ii => {
+                let ii = self.spec.ii(self.laser, self.clock_ms(now));
+                Self::kv_reply(line, ii.into_iter(), out)
+            }
+            Command::Bm => {
+                let s = if self.laser { st(b"02") } else { ok() };
+                self.laser = true;
+                let _ = write_status_reply(line, s, out);
+            }
+            Command::Qt => {
+                self.stream = None;
+                self.laser = false;
+                let _ = write_status_reply(line, ok(), out);
+            }
+            Command::Rs => {
+                self.stream = None;
+                self.laser = false;
+                self.adjust = false;
+                self.high_sensitivity = false;
+                self.true0 = self.true_ms(now);
+                self.clock0 = 0;
+                self.t0 = now;
+                let _ = write_status_reply(line, ok(), out);
+            }
+            Command::Tm(tc) => self.time_command(line, tc, now, out),
+            Command::Ss(_) => {
+                // USB-CDC: the bit rate cannot be changed.
+                let _ = write_status_reply(line, st(b"04"), out);
+            }
+            Command::Cr(level) => {
+                let s = match self.spec.model {
+                    Model::Urg04lx if level == 0 => st(&self.spec.cr_status),
+                    Model::Urg04lx if level <= 10 || level == 99 => ok(),
+                    Model::Urg04lx => st(b"02"),
+                    Model::Utm30lx => st(&self.spec.cr_status),
+                };
+                let _ = write_status_reply(line, s, out);
+            }
+            Command::Hs(on) => {
+                let s = match self.spec.model {
+                    Model::Urg04lx if on == self.high_sensitivity => st(b"02"),
+                    Model::Urg04lx => {
+                        self.high_sensitivity = on;
+                        ok()
+                    }
+                    Model::Utm30lx => st(b"03"),
+                };
+                let _ = write_status_reply(line, s, out);
+            }
+            Command::Get(req) => {
+                if let Err(s) = self.check_request(&req) {
+                    let _ = write_status_reply(line, s, out);
+                } else if !self.laser {
+                    let _ = write_status_reply(line, Status::Scip2(StatusCode::DENIED), out);
+                } else {
+                    let t = now;
+                    self.block.clear();
+                    let mut block = std::mem::take(&mut self.block);
+                    block.extend_from_slice(line);
+                    block.push(b'\n');
+                    let _ = crate::scip::reply::write_status(ok(), &mut block);
+                    {
+                        let mut w = DataLineWriter::new(&mut block);
+                        let _ = w.put_value(self.clock_ms(t), Width::Four);
+                        let _ = w.finish();
+                    }
+                    self.measure(t, &req, &mut block);
+                    block.push(b'\n');
+                    out.extend_from_slice(&block);
+                    self.block = block;
+                }
+            }
+            Command::Stream(req) => {
+                if let Err(s) = self.check_request(&req.scan) {
+                    let _ = write_status_reply(line, s, out);
+                    return;
+                }
+                self.laser = true;
+                let _ = write_status_reply(line, ok(), out);
+                let p = self.spec.period();
+                let k = ((now - self.t0) / p).floor() + 1.0;
+                self.stream = Some(Stream {
+                    req,
+                    tag: cmd.tag,
+                    remaining: (req.count > 0).then_some(req.count),
+                    next: self.t0 + k * p,
+                });
+            }
+        }
+    }
+
+    fn check_request(&self, req: &ScanRequest) -> Result<(), Status> {
+        if req.kind == DataKind::DistanceIntensity && !self.spec.has_me {
+            return Err(Status::Scip2(StatusCode::UNDEFINED));
+        }
+        if req.cluster == Cluster::UrgIntensity && !self.spec.has_ff {
+            return Err(st(b"03"));
+        }
+        req.check_range(0, self.spec.amax).map_err(Status::Scip2)
+    }
+
+    fn reboot_request(&mut self, line: &[u8], now: f64, out: &mut Vec<u8>) {
+        match self.rb_at {
+            Some(t) if now - t <= 1.0 => {
+                let _ = write_status_reply(line, ok(), out);
+                self.power_on(now, true);
+            }
+            _ => {
+                self.rb_at = Some(now);
+                let _ = write_status_reply(line, st(b"01"), out);
+            }
+        }
+    }
+
+    fn time_command(&mut self, line: &[u8], tc: TimeControl, now: f64, out: &mut Vec<u8>) {
+        match tc {
+            TimeControl::Enter => {
+                let s = if self.stream.is_some() {
+                    Status::Scip2(StatusCode::DENIED)
+                } else if self.adjust {
+                    st(b"02")
+                } else {
+                    self.adjust = true;
+                    self.laser = false;
+                    ok()
+                };
+                let _ = write_status_reply(line, s, out);
+            }
+            TimeControl::Read => {
+                if !self.adjust {
+                    let _ = write_status_reply(line, st(b"04"), out);
+                    return;
+                }
+                out.extend_from_slice(line);
+                out.push(b'\n');
+                let _ = crate::scip::reply::write_status(ok(), out);
+                let mut w = DataLineWriter::new(out);
+                let _ = w.put_value(self.clock_ms(now), Width::Four);
+                let _ = w.finish();
+                out.push(b'\n');
+            }
+            TimeControl::Leave => {
+                let s = if self.adjust {
+                    self.adjust = false;
+                    ok()
+                } else {
+                    st(b"03")
+                };
+                let _ = write_status_reply(line, s, out);
+            }
+        }
+    }
+
+    fn kv_reply(
+        line: &[u8],
+        fields: impl Iterator<Item = (&'static str, String)>,
+        out: &mut Vec<u8>,
+    ) {
+        out.extend_from_slice(line);
+        out.push(b'\n');
+        let _ = crate::scip::reply::write_status(ok(), out);
+        for (k, v) in fields {
+            let _ = KvLine::encode(k, &v, out);
+        }
+        out.push(b'\n');
+    }
+
+    /// Produces the scan due at or before `now`, if streaming; writes it
+    /// to `out`.
+    pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
+        let Some(stream) = self.stream.as_mut() else {
+            return;
+        };
+        if now < stream.next {
+            return;
+        }
+        let p = self.spec.period();
+        let interval = p * f64::from(stream.req.skip + 1);
+        let t = stream.next;
+        // Revolutions that ended while we were late are lost, as on the sensor.
+        while stream.next <= now {
+            stream.next += interval;
+        }
+        let remaining = match stream.remaining {
+            Some(r) => r.saturating_sub(1),
+            None => 0,
+        };
+        let finished = stream.remaining == Some(1);
+        if let Some(r) = stream.remaining.as_mut() {
+            *r -= 1;
+        }
+        let echo = TaggedCommand::with_tag(
+            Command::Stream(stream.req.with_remaining(remaining)),
+            stream.tag.clone(),
+        );
+        let req = stream.req.scan;
+        if finished {
+            self.stream = None;
+        }
+        self.sent += 1;
+        let fault = self.faults.scan_fault(self.sent);
+        let stamp = if fault == Some(ScanFault::StuckClock) {
+            self.last_stamp
+        } else {
+            self.clock_ms(t)
+        };
+        self.last_stamp = stamp;
+        let mut block = std::mem::take(&mut self.block);
+        block.clear();
+        if self.faults.noise_every > 0
+            && self.sent.is_multiple_of(u64::from(self.faults.noise_every))
+        {
+            block.extend_from_slice(b"\x00\x13\xfe\x07~\xff\n");
+        }
+        let _ = echo.encode(&mut block);
+        if fault == Some(ScanFault::ErrorStatus) {
+            let _ = crate::scip::reply::write_status(st(&self.faults.status_code), &mut block);
+            block.push(b'\n');
+        } else {
+            let _ = crate::scip::reply::write_status(Status::Scip2(StatusCode::DATA), &mut block);
+            let data_start = {
+                let mut w = DataLineWriter::new(&mut block);
+                let _ = w.put_value(stamp, Width::Four);
+                let _ = w.finish();
+                block.len()
+            };
+            self.measure(t, &req, &mut block);
+            if let Some(f) = fault {
+                self.damage(&mut block, data_start, f);
+            }
+            block.push(b'\n');
+        }
+        out.extend_from_slice(&block);
+        self.block = block;
+        let entry = SentScan {
+            index: self.sent,
+            stamp,
+            true_ms: self.true_ms(t),
+            boot: self.boot,
+            at: t,
+            fault,
+        };
+        if let Ok(mut l) = self.log.lock() {
+            if l.sent.len() >= LOG_CAPACITY {
+                l.sent.pop_front();
+            }
+            l.sent.push_back(entry);
+        }
+        let hit = |every: u32| every > 0 && self.sent.is_multiple_of(u64::from(every));
+        if let Some((n, d)) = self.faults.unplug {
+            if hit(n) {
+                self.action = Some(Action::Unplug(d));
+            }
+        }
+        if let Some((n, d)) = self.faults.stall {
+            if hit(n) && self.action.is_none() {
+                self.action = Some(Action::Stall(d));
+                // The revolutions during the stall are never sent.
+                if let Some(s) = self.stream.as_mut() {
+                    while s.next <= now + d {
+                        s.next += interval;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Damages one data line of the block (after `data_start`) as `fault` says.
+    fn damage(&mut self, block: &mut Vec<u8>, data_start: usize, fault: ScanFault) {
+        // Data lines: [start, end) of each line's bytes without the LF.
+        let mut lines: Vec<(usize, usize)> = Vec::new();
+        let mut s = data_start;
+        for (i, &b) in block.iter().enumerate().skip(data_start) {
+            if b == b'\n' {
+                if i > s + 1 {
+                    lines.push((s, i));
+                }
+                s = i + 1;
+            }
+        }
+        if lines.is_empty() {
+            return;
+        }
+        let (a, e) = lines[self.rng.random_range(0..lines.len())];
+        let sum_at = e - 1;
+        match fault {
+            ScanFault::Checksum => {
+                let old = block[sum_at];
+                let mut new = old;
+                while new == old {
+                    new = self.rng.random_range(0x30u8..=0x6f);
+                }
+                block[sum_at] = new;
+            }
+            ScanFault::DroppedByte => {
+                let at = self.rng.random_range(a..sum_at);
+                block.remove(at);
+            }
+            ScanFault::ExtraByte => {
+                // Never '@' (0x40 ≡ 0 mod 64): the checksum must change.
+                let mut c = b'@';
+                while c == b'@' {
+                    c = self.rng.random_range(0x30u8..=0x6f);
+                }
+                let at = self.rng.random_range(a..=sum_at);
+                block.insert(at, c);
+            }
+            ScanFault::ErrorStatus | ScanFault::StuckClock => {}
+        }
+    }
+
+    /// Samples the scene and writes the data lines of one scan of `req` at
+    /// time `t`.
+    fn measure(&mut self, t: f64, req: &ScanRequest, out: &mut Vec<u8>) {
+        let (start, end) = (req.start, req.end);
+        self.angles.clear();
+        self.angles
+            .extend((start..=end).map(|s| self.spec.angle(s)));
+        self.echoes.clear();
+        self.echoes.resize(self.angles.len(), Echo::NoReturn);
+        self.scene.sample(t, &self.angles, &mut self.echoes);
+        let spec = &self.spec;
+        let mut w = DataLineWriter::new(out);
+        let steps = self.echoes.len();
+        match req.cluster {
+            Cluster::UrgIntensity => {
+                // Experimental URG-04LX raw intensity mode: the value of an
+                // even step is the distance of the pair (s, s+1), the value of
+                // an odd step the intensity of the pair (s-1, s).
+                for (k, s) in (start..=end).enumerate() {
+                    let (base, is_dist) = if s % 2 == 0 {
+                        (k, true)
+                    } else {
+                        (k.saturating_sub(usize::from(k > 0)), false)
+                    };
+                    let (d, i) = reading(spec, self.echoes[base]);
+                    let _ = w.put_value(if is_dist { d } else { i }, Width::Three);
+                }
+            }
+            Cluster::Steps(c) => {
+                let c = usize::from(c.max(1));
+                let mut k = 0;
+                while k < steps {
+                    let group = &self.echoes[k..(k + c).min(steps)];
+                    let mut best: Option<(u32, u32)> = None;
+                    let mut first_err = None;
+                    for e in group {
+                        let (d, i) = reading(spec, *e);
+                        if d >= spec.dmin {
+                            if best.is_none_or(|(bd, _)| d < bd) {
+                                best = Some((d, i));
+                            }
+                        } else if first_err.is_none() {
+                            first_err = Some((d, 0));
+                        }
+                    }
+                    let (d, i) = best.or(first_err).unwrap_or((spec.no_return_code, 0));
+                    match req.kind {
+                        DataKind::Distance => {
+                            let _ = w.put_value(d, Width::Three);
+                        }
+                        DataKind::ShortDistance => {
+                            let _ = w.put_value(d.min(4095), Width::Two);
+                        }
+                        DataKind::DistanceIntensity => {
+                            let _ = w.put_value(d, Width::Three);
+                            let _ = w.put_value(i.min(262_143), Width::Three);
+                        }
+                    }
+                    k += c;
+                }
+            }
+        }
+        let _ = w.finish();
+    }
+}
+
+/// The wire values (distance mm or error code, intensity) of one echo.
+fn reading(spec: &ModelSpec, e: Echo) -> (u32, u32) {
+    match e {
+        Echo::Hit {
+            range,
+            reflectivity,
+        } => {
+            let mm = (range * 1000.0).round();
+            if !mm.is_finite() || mm > f64::from(spec.dmax) {
+                (spec.no_return_code, 0)
+            } else if mm < f64::from(spec.dmin) {
+                // Too close to measure.
+                (if spec.model == Model::Urg04lx { 19 } else { 2 }, 0)
+            } else {
+                let i = reflectivity.clamp(0.0, 1.0) * 10_000.0 / range.max(0.25);
+                (mm as u32, i.round() as u32)
+            }
+        }
+        Echo::NoReturn => (spec.no_return_code, 0),
+        Echo::Error(c) => (c.min(spec.dmin.saturating_sub(1)), 0),
+    }
+}
