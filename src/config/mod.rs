@@ -195,6 +195,7 @@ impl Config {
         }
         self.pipeline.validate()?;
         self.motor.validate()?;
+        self.map.validate()?;
         Ok(())
     }
 }

@@ -201,6 +201,14 @@ mod tests {
     }
 
     #[test]
+    fn config_file_checks_the_map_table() {
+        let e = crate::config::Config::from_toml("[map]\nmerge_distance = -0.1\n", "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("map.merge_distance"), "{e}");
+    }
+
+    #[test]
     fn bad_values_name_their_key() {
         let cases: Vec<(MapParams, &str)> = vec![
             (
