@@ -191,4 +191,10 @@ fn readers_on_other_threads_see_whole_growing_snapshots() {
     assert_eq!(last.version, 1 + 30, "first scan, then every 2nd");
     assert!(seen_version <= last.version);
     assert_eq!(last.points.len(), map.points().len());
+    assert_eq!(last.walls.len(), last.segments.len());
+    assert!(last
+        .walls
+        .iter()
+        .zip(&last.segments)
+        .all(|(w, s)| *w == s.seg));
 }

@@ -379,6 +379,8 @@ impl Map {
         snap.points.reserve(self.points.capacity());
         snap.segments.clear();
         snap.segments.reserve(self.segments.capacity());
+        snap.walls.clear();
+        snap.walls.reserve(self.segments.capacity());
         snap.curves.clear();
         snap.curves.reserve(segments::MAX_CURVES);
         snap.trajectory.clear();
@@ -394,6 +396,7 @@ impl Map {
             &mut self.snap_index,
             &mut snap.segments,
         );
+        snap.walls.extend(snap.segments.iter().map(|s| s.seg));
         snap.curves.clear();
         snap.curves.extend_from_slice(self.segments.curves());
         snap.grid.copy_from(&self.grid);

@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 
 use super::lines::Curve;
 use super::segments::MapSegment;
-use crate::geom::{IPoint, Pose};
+use crate::geom::{IPoint, Pose, Segment};
 use crate::grid::Grid;
 
 /// An immutable picture of the map at one moment.
@@ -26,6 +26,9 @@ pub struct MapSnapshot {
     pub points: Vec<IPoint>,
     /// Wall segments, end points snapped to corners.
     pub segments: Vec<MapSegment>,
+    /// The same segments as plain [`Segment`]s, the form the decomposition
+    /// takes (`decomp` reads `&snapshot.walls`).
+    pub walls: Vec<Segment>,
     /// Curved surfaces as polylines.
     pub curves: Vec<Curve>,
     /// The explored-area grid: unknown / free / occupied. Its free cells next
@@ -45,6 +48,7 @@ impl MapSnapshot {
             scans_merged: 0,
             points: Vec::new(),
             segments: Vec::new(),
+            walls: Vec::new(),
             curves: Vec::new(),
             grid,
             pose,
