@@ -198,3 +198,64 @@ fn readers_on_other_threads_see_whole_growing_snapshots() {
         .zip(&last.segments)
         .all(|(w, s)| *w == s.seg));
 }
+
+#[test]
+fn random_garbage_never_panics_nor_stores_non_finite_points() {
+    use rand::Rng;
+    let mut r = rng(99);
+    let specials = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        0.0,
+        -0.0,
+        1e300,
+        -1e300,
+        f64::MIN_POSITIVE,
+    ];
+    let mut pick = |r: &mut rand_chacha::ChaCha8Rng, scale: f64| -> f64 {
+        if r.random::<f64>() < 0.1 {
+            specials[r.random_range(0..specials.len())]
+        } else {
+            (r.random::<f64>() - 0.5) * scale
+        }
+    };
+    let mut map = Map::new(MapParams::default(), Pose::identity()).unwrap();
+    for _ in 0..300 {
+        let mut s = LaserScan::default();
+        let n = r.random_range(0..700);
+        for _ in 0..n {
+            let b = Beam {
+                angle: pick(&mut r, 7.0),
+                range: pick(&mut r, 12.0).abs(),
+                intensity: pick(&mut r, 2.0),
+                valid: r.random::<f64>() < 0.9,
+            };
+            let _ = s.beams.push(b);
+        }
+        let p = pose(pick(&mut r, 20.0), pick(&mut r, 20.0), pick(&mut r, 7.0));
+        let q = if r.random::<f64>() < 0.8 {
+            ScanQuality::Good
+        } else {
+            ScanQuality::Bad
+        };
+        let _ = map.update(&s, &p, q);
+    }
+    map.publish();
+    let snap = map.snapshot();
+    assert!(snap
+        .points
+        .iter()
+        .all(|q| q.x.is_finite() && q.y.is_finite() && q.intensity.is_finite()));
+    assert!(snap.segments.iter().all(|s| s
+        .seg
+        .a
+        .coords
+        .iter()
+        .chain(s.seg.b.coords.iter())
+        .all(|v| v.is_finite())));
+    assert!(
+        !snap.points.is_empty(),
+        "some random beams are valid and must be stored"
+    );
+}

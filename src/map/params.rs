@@ -113,6 +113,9 @@ impl Default for MapParams {
     }
 }
 
+/// Longest range any setting may name (m): bounds the work of one beam.
+const MAX_SANE_RANGE: f64 = 200.0;
+
 impl MapParams {
     /// Checks value ranges; errors name the key (`map.<field>`).
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -151,6 +154,19 @@ impl MapParams {
                 "map.min_range",
                 "must be a finite number >= 0 and below map.max_range",
             ));
+        }
+        for (k, v) in [
+            ("map.max_range", self.max_range),
+            ("map.free_clear_range", self.free_clear_range),
+        ] {
+            if v > MAX_SANE_RANGE {
+                return Err(invalid(
+                    k,
+                    &format!(
+                        "must be at most {MAX_SANE_RANGE} m (no laser scanner reaches further)"
+                    ),
+                ));
+            }
         }
         if self.min_spacing >= self.merge_distance {
             return Err(invalid(
@@ -252,6 +268,13 @@ mod tests {
                     ..Default::default()
                 },
                 "map.grid_extent",
+            ),
+            (
+                MapParams {
+                    max_range: 1e9,
+                    ..Default::default()
+                },
+                "map.max_range",
             ),
             (
                 MapParams {
