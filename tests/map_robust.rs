@@ -213,7 +213,7 @@ fn random_garbage_never_panics_nor_stores_non_finite_points() {
         -1e300,
         f64::MIN_POSITIVE,
     ];
-    let mut pick = |r: &mut rand_chacha::ChaCha8Rng, scale: f64| -> f64 {
+    let pick = |r: &mut rand_chacha::ChaCha8Rng, scale: f64| -> f64 {
         if r.random::<f64>() < 0.1 {
             specials[r.random_range(0..specials.len())]
         } else {
