@@ -111,6 +111,7 @@ pub struct Sensor {
     rate: f64,
     rb_at: Option<f64>,
     sent: u64,
+    hung: bool,
     last_stamp: u32,
     action: Option<Action>,
     angles: Vec<f64>,
@@ -166,6 +167,7 @@ impl Sensor {
             rate: 1.0,
             rb_at: None,
             sent: 0,
+            hung: false,
             last_stamp: 0,
             action: None,
             angles: Vec::new(),
@@ -191,6 +193,7 @@ impl Sensor {
         self.high_sensitivity = false;
         self.stream = None;
         self.rb_at = None;
+        self.hung = false;
         self.boot += 1;
         if let Ok(mut l) = self.log.lock() {
             l.boots = self.boot;
@@ -268,6 +271,9 @@ impl Sensor {
         let body = line.split(|&b| b == b';').next().unwrap_or(line);
         if body == b"RB" {
             self.reboot_request(line, now, out);
+            return;
+        }
+        if self.hung {
             return;
         }
         self.rb_at = None;
@@ -461,6 +467,9 @@ impl Sensor {
     /// Produces the scan due at or before `now`, if streaming; writes it
     /// to `out`.
     pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
+        if self.hung {
+            return;
+        }
         let Some(stream) = self.stream.as_mut() else {
             return;
         };
@@ -538,6 +547,9 @@ impl Sensor {
                 l.sent.pop_front();
             }
             l.sent.push_back(entry);
+        }
+        if self.faults.hang_after > 0 && self.sent == u64::from(self.faults.hang_after) {
+            self.hung = true;
         }
         let hit = |every: u32| every > 0 && self.sent.is_multiple_of(u64::from(every));
         if let Some((n, d)) = self.faults.unplug {
