@@ -48,6 +48,10 @@ fn a_badly_registered_scan_is_not_merged() {
     assert_eq!(map.segment_map().segments(), &before_segments[..]);
     assert_eq!(map.grid().counts(), before_grid);
     assert_eq!(map.trajectory().len(), before_traj);
+    assert_eq!(
+        before_traj, 40,
+        "the path moves 10 cm per scan: every pose is kept"
+    );
     assert_eq!(map.scan_counts(), (41, 40));
     // The pose still follows the caller (equation 3 continues from it).
     assert_eq!(map.pose(), wrong);
@@ -157,7 +161,7 @@ fn readers_on_other_threads_see_whole_growing_snapshots() {
                 let s = cell.load();
                 assert!(s.version >= last_version, "version went back");
                 assert!(s.points.len() >= last_points, "points went back");
-                assert_eq!(s.trajectory.len() as u64, s.scans_merged);
+                assert!(s.trajectory.len() as u64 <= s.scans_merged);
                 last_version = s.version;
                 last_points = s.points.len();
                 loads += 1;

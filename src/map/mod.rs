@@ -24,7 +24,7 @@
 //! store and its hash index (amortised, reserved up front for
 //! `reserve_points`), of the segment list when a new wall appears, of the
 //! curve list (bounded by [`segments::MAX_CURVES`]) and of the trajectory
-//! (one pose per merged scan). Publication reuses the buffers of the snapshot
+//! (one pose per 5 cm or 0.1 rad driven). Publication reuses the buffers of the snapshot
 //! before last when no reader holds it any more, else builds a new one.
 
 pub mod correction;
@@ -54,6 +54,12 @@ use crate::config::ConfigError;
 use crate::geom::{IPoint, Pose};
 use crate::grid::Grid;
 use crate::scan::LaserScan;
+
+/// The trajectory keeps a pose once the robot has moved this far (m) ...
+const TRAJECTORY_STEP: f64 = 0.05;
+/// ... or turned this much (rad) since the last kept pose: it grows with the
+/// path driven, not with time standing still.
+const TRAJECTORY_TURN: f64 = 0.1;
 
 /// Segments the map reserves room for up front.
 const RESERVE_SEGMENTS: usize = 1024;
@@ -190,7 +196,7 @@ impl Map {
         &self.grid
     }
 
-    /// Poses of the merged scans.
+    /// Poses of the merged scans, one kept every 5 cm or 0.1 rad of motion.
     pub fn trajectory(&self) -> &[Pose] {
         &self.trajectory
     }
@@ -332,7 +338,13 @@ impl Map {
         // 6. Explored-area grid.
         integrate_grid(&mut self.grid, scan, &corrected, p);
         self.pose = corrected;
-        self.trajectory.push(corrected);
+        let moved = self.trajectory.last().is_none_or(|last| {
+            let (t, r) = pose::motion_size(&pose::increment_between(last, &corrected));
+            t >= TRAJECTORY_STEP || r >= TRAJECTORY_TURN
+        });
+        if moved {
+            self.trajectory.push(corrected);
+        }
         self.scans_merged += 1;
         report.pose = corrected;
         report.merged = true;
@@ -504,6 +516,26 @@ mod tests {
         assert!(m.points().is_empty());
         let e = m.update_with_increment(&s, &mk(f64::NAN, 0.0, 0.0), ScanQuality::Good);
         assert!(matches!(e, Err(MapError::NonFinitePose(_))));
+    }
+
+    #[test]
+    fn standing_still_does_not_grow_the_trajectory() {
+        let params = MapParams {
+            correction: false,
+            ..Default::default()
+        };
+        let mut m = Map::new(params, mk(1.0, 1.0, 0.0)).unwrap();
+        let s = ring_scan(2.0);
+        for _ in 0..5 {
+            m.update(&s, &mk(1.0, 1.0, 0.0), ScanQuality::Good).unwrap();
+        }
+        assert_eq!(m.trajectory().len(), 1);
+        m.update(&s, &mk(1.06, 1.0, 0.0), ScanQuality::Good)
+            .unwrap();
+        m.update(&s, &mk(1.06, 1.0, 0.15), ScanQuality::Good)
+            .unwrap();
+        assert_eq!(m.trajectory().len(), 3);
+        assert_eq!(m.scan_counts(), (7, 7));
     }
 
     #[test]

@@ -36,7 +36,7 @@ pub struct MapSnapshot {
     pub grid: Grid,
     /// The robot's (sensor's) pose after the last merged scan.
     pub pose: Pose,
-    /// Poses of the merged scans, in order.
+    /// Poses of the merged scans, in order, one kept every 5 cm or 0.1 rad of motion.
     pub trajectory: Vec<Pose>,
 }
 
