@@ -227,6 +227,53 @@ mod tests {
     use super::*;
 
     #[test]
+    fn draws_points_segments_and_trajectory() {
+        use crate::geom::{pose, IPoint};
+        use crate::map::fit::Moments;
+        let grid = crate::grid::Grid::new(Point2::new(0.0, 0.0), 0.1, 10, 10);
+        let mut snap = MapSnapshot::empty(grid, pose(0.0, 0.0, 0.0));
+        snap.points = vec![
+            IPoint::new(0.1, 0.2, 0.0),
+            IPoint::new(0.5, 0.2, 1.0),
+            IPoint::new(0.9, 0.2, f64::NAN),
+        ];
+        let pts = [
+            Point2::new(0.0, 1.0),
+            Point2::new(1.0, 1.0),
+            Point2::new(0.5, 1.0),
+        ];
+        let m = Moments::of(pts.iter().copied());
+        let fit = m.fit(0.01).unwrap();
+        snap.segments = vec![crate::map::MapSegment {
+            seg: Segment::new(pts[0], pts[1]),
+            residual: 0.0,
+            observations: 2,
+            moments: m,
+            fit,
+        }];
+        snap.trajectory = vec![pose(0.0, 0.0, 0.0), pose(0.5, 0.5, 0.0)];
+        let text = render(&snap, &[Segment::new(pts[0], pts[1])]).to_string();
+        // 3 points + 2 segment end points.
+        assert_eq!(text.matches("<circle").count(), 5, "{text}");
+        assert!(text.contains("#440154") && text.contains("#fde725"));
+        assert_eq!(
+            text.matches("<line").count(),
+            2,
+            "segment and reference wall"
+        );
+        assert!(text.contains("3 points"));
+        let empty = render(
+            &MapSnapshot::empty(
+                crate::grid::Grid::new(Point2::new(0.0, 0.0), 0.1, 0, 0),
+                pose(0.0, 0.0, 0.0),
+            ),
+            &[],
+        )
+        .to_string();
+        assert!(empty.contains("0 points"));
+    }
+
+    #[test]
     fn colours_span_the_map() {
         assert_eq!(intensity_colour(0.0), "#440154");
         assert_eq!(intensity_colour(1.0), "#fde725");
