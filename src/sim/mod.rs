@@ -2,6 +2,10 @@
 //! ptys, and replay of recorded logs.
 pub mod base_emu;
 pub mod carmen;
+pub mod coverage_metrics;
+pub mod coverage_svg;
+pub mod floorplan;
 pub mod kinematics;
+pub mod lockstep;
 pub mod urg_emu;
 pub mod world;
