@@ -1,6 +1,7 @@
 //! Simulation: worlds, ray casting, robot kinematics, device emulators on
 //! ptys, and replay of recorded logs.
 pub mod base_emu;
+pub mod carmen;
 pub mod coverage_metrics;
 pub mod coverage_svg;
 pub mod floorplan;
@@ -8,5 +9,3 @@ pub mod kinematics;
 pub mod lockstep;
 pub mod urg_emu;
 pub mod world;
-
-pub mod carmen;
