@@ -201,9 +201,6 @@ impl Config {
             let (key, rest) = m.split_once(' ').unwrap_or(("scanner", m.as_str()));
             invalid(key, rest)
         })?;
-        self.scanner
-            .validate()
-            .map_err(|m| invalid("scanner", &m))?;
         self.map.validate()?;
         Ok(())
     }
