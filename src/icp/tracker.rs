@@ -132,7 +132,6 @@ impl Tracker {
             (Some(now), None) => Some((*now, self.pose)),
             _ => None,
         };
-        let cv_guess = unit(self.pose * self.velocity);
         let prepared = self.matcher.prepare_points(points);
         if !self.started && external.is_none() {
             let step = match prepared {
@@ -161,6 +160,7 @@ impl Tracker {
             }
             return step;
         }
+        let cv_guess = unit(self.pose * self.velocity);
         let guess = match (self.matcher.params().prior, fresh_odom) {
             (Prior::Odometry, Some((_, g))) => g,
             _ => cv_guess,
