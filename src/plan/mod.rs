@@ -35,7 +35,9 @@ pub struct PlanParams {
     /// Extra cost factor of travel over floor the tool has already swept
     /// (0 = plain distance): transit paths and the choice of the next cell
     /// then prefer unswept floor, as the tool is always on and every metre
-    /// over swept floor is overlap.
+    /// over swept floor is overlap. Off by default: 0.3-2 gave no net gain
+    /// over the paper world and five rooms, and 1.0 once left 10 % of a
+    /// room uncovered online.
     pub swept_travel_cost: f64,
     /// Uncovered patches smaller than this are left alone (m²).
     pub min_patch_area: f64,
