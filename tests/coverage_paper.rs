@@ -52,10 +52,13 @@ fn paper_workspace_online_against_offline() {
     // the bound leaves room for changes in the decomposition).
     let ratio = m.path_length / o.path_length;
     assert!(ratio <= 1.3, "online/offline path {ratio}");
-    // Target: overlap <= 15 %; reached so far (tool always on, transits
-    // included): see the README's coverage section.
-    assert!(o.overlap <= 0.40, "offline overlap {}", o.overlap);
-    assert!(m.overlap <= 0.55, "online overlap {}", m.overlap);
+    // Target: overlap <= 15 %; not reached (measured 0.339 offline, 0.476
+    // online): about two thirds of the repeat sweeping is lane over lane
+    // (each cell's last lane hugging its far side re-sweeps part of the one
+    // before), the rest transits between cells with the tool on. See the
+    // README's coverage section.
+    assert!(o.overlap <= 0.37, "offline overlap {}", o.overlap);
+    assert!(m.overlap <= 0.52, "online overlap {}", m.overlap);
     // The swept area is the reachable floor plus the tool's reach beyond it.
     assert!(m.covered_area >= m.reachable_area * 0.99);
     assert!(

@@ -52,7 +52,11 @@ fn five_floor_plan_rooms() {
             o.coverage
         );
         assert!(ratio <= 1.3, "{spec}: online/offline path {ratio}");
-        assert!(m.overlap <= 0.70, "{spec}: online overlap {}", m.overlap);
+        // Target <= 15 %, not reached: measured 0.53-0.62 online and
+        // 0.48-0.64 offline, most of it transits between cells and short
+        // lanes among furniture with the tool always on.
+        assert!(m.overlap <= 0.66, "{spec}: online overlap {}", m.overlap);
+        assert!(o.overlap <= 0.68, "{spec}: offline overlap {}", o.overlap);
         sum_cov += m.coverage;
     }
     let mean = sum_cov / ROOMS.len() as f64;

@@ -93,6 +93,9 @@ pub struct CSpace {
     /// Travel distance from the last [`CSpace::distances_from`] source (m; ∞ unreachable).
     pub dist: Vec<f64>,
     prev: Vec<u32>,
+    /// Extra cost factor per cell (0 = none): travel over a cell costs
+    /// `(1 + extra)` times its length. See [`CSpace::set_extra_cost`].
+    extra: Vec<f32>,
     inflate: Vec<(i64, i64)>,
     hard: Vec<(i64, i64)>,
     radius: f64,
@@ -169,6 +172,7 @@ impl CSpace {
             radius,
             dist: Vec::new(),
             prev: Vec::new(),
+            extra: Vec::new(),
             inflate: Vec::new(),
             inflation,
             heap: BinaryHeap::new(),
@@ -196,6 +200,7 @@ impl CSpace {
             self.collision_free = vec![true; n];
             self.dist = vec![f64::INFINITY; n];
             self.prev = vec![u32::MAX; n];
+            self.extra = vec![0.0; n];
             // Offsets whose obstacle square lies closer than the inflation.
             self.inflate = square_offsets(self.inflation, frame.res);
             self.hard = square_offsets(self.radius, frame.res);
@@ -264,6 +269,16 @@ impl CSpace {
         }
     }
 
+    /// Sets the extra travel cost factor of every cell (`f(i)` for cell
+    /// `i`, at least 0): paths and travel costs then prefer cheap cells, e.g.
+    /// floor the tool has not swept yet. Reset on a change of the grid's
+    /// geometry.
+    pub fn set_extra_cost(&mut self, f: impl Fn(usize) -> f64) {
+        for (i, e) in self.extra.iter_mut().enumerate() {
+            *e = f(i).max(0.0) as f32;
+        }
+    }
+
     /// Dijkstra travel distances (8-connected, m) over traversable cells from
     /// `source` (which may itself be non-traversable: the robot may start in
     /// an inflation zone). Fills [`CSpace::dist`].
@@ -303,7 +318,7 @@ impl CSpace {
                 {
                     continue;
                 }
-                let nc = cost + c * r;
+                let nc = cost + c * r * (1.0 + self.extra[j] as f64);
                 if nc < self.dist[j] {
                     self.dist[j] = nc;
                     self.prev[j] = idx;
@@ -386,7 +401,7 @@ impl CSpace {
                 {
                     continue;
                 }
-                let ng = gi + c * r;
+                let ng = gi + c * r * (1.0 + self.extra[j] as f64);
                 if g.get(&j).is_none_or(|&(old, _)| ng < old) {
                     g.insert(j, (ng, i));
                     heap.push(Entry {
@@ -423,6 +438,20 @@ impl CSpace {
         })
     }
 
+    fn extra_at(&self, i: usize) -> f32 {
+        self.extra.get(i).copied().unwrap_or(0.0)
+    }
+
+    /// The dearest extra cost factor along the segment `a`–`b`.
+    fn segment_extra(&self, a: &Point2<f64>, b: &Point2<f64>) -> f32 {
+        let d = b - a;
+        let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
+        (0..=n)
+            .filter_map(|k| self.frame.index_of(&(a + d * (k as f64 / n as f64))))
+            .map(|i| self.extra_at(i))
+            .fold(0.0, f32::max)
+    }
+
     /// String-pulls a cell path: keeps only the points where line of sight breaks.
     fn shorten(&self, cells: &[usize]) -> Vec<Point2<f64>> {
         let pts: Vec<Point2<f64>> = cells.iter().map(|&i| self.frame.centre(i)).collect();
@@ -436,8 +465,13 @@ impl CSpace {
             // Farthest point visible from the anchor.
             let mut far = k;
             let mut j = k;
+            // A shortcut may not cross dearer cells than the ones it replaces.
+            let mut dearest = self.extra_at(cells[anchor]);
             while j < pts.len() {
-                if self.segment_clear(&pts[anchor], &pts[j]) {
+                dearest = dearest.max(self.extra_at(cells[j]));
+                if self.segment_clear(&pts[anchor], &pts[j])
+                    && self.segment_extra(&pts[anchor], &pts[j]) <= dearest
+                {
                     far = j;
                 }
                 j += 1;
@@ -527,6 +561,43 @@ mod tests {
         // Line of sight shortens the 8-connected detour, never below the taut string.
         assert!(len <= d + 1e-9 && len > 4.0, "{len} vs {d}");
         assert!(q.len() < 8, "{q:?}");
+    }
+
+    #[test]
+    fn dear_cells_are_avoided_unless_the_detour_costs_more() {
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&room_grid());
+        let f = c.frame;
+        let a = f.index_of(&Point2::new(0.5, 0.5)).unwrap();
+        let b = f.index_of(&Point2::new(1.5, 0.5)).unwrap();
+        let length =
+            |p: &[Point2<f64>]| -> f64 { p.windows(2).map(|s| (s[1] - s[0]).norm()).sum() };
+        // A band of swept floor across the straight way, open above y = 1.2.
+        let band = |c: &CSpace, i: usize, w: f64| {
+            let p = c.frame.centre(i);
+            if (0.8..1.2).contains(&p.x) && p.y < 1.2 {
+                w
+            } else {
+                0.0
+            }
+        };
+        for (w, detour) in [(20.0, true), (0.5, false)] {
+            let extra: Vec<f64> = (0..f.len()).map(|i| band(&c, i, w)).collect();
+            c.set_extra_cost(|i| extra[i]);
+            c.distances_from(a);
+            let p = c.path_to(b).unwrap();
+            let q = c.astar(a, b).unwrap();
+            for path in [&p, &q] {
+                assert_eq!(path.iter().any(|q| q.y > 1.2), detour, "w {w}: {path:?}");
+                if !detour {
+                    assert!((length(path) - 1.0).abs() < 0.01, "{path:?}");
+                }
+            }
+        }
+        // Negative factors count as none.
+        c.set_extra_cost(|_| -3.0);
+        c.distances_from(a);
+        assert!((c.dist[b] - 1.0).abs() < 1e-9, "{}", c.dist[b]);
     }
 
     #[test]

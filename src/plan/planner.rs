@@ -459,6 +459,11 @@ impl CoveragePlanner {
             }
             return Err(PlanError::Trapped { x: p.x, y: p.y });
         }
+        // Travel over swept floor sweeps it again (the tool is always on):
+        // transits and the choice of the next cell prefer unswept floor.
+        let (covered, w) = (&self.covered, self.params.swept_travel_cost);
+        self.cspace
+            .set_extra_cost(|i| if covered[i] { w } else { 0.0 });
         self.cspace.distances_from(robot);
         self.compute_targets();
         let mut cands = self.cell_candidates(decomp, CellStatus::Final);

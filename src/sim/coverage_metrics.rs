@@ -473,6 +473,55 @@ mod tests {
     }
 
     #[test]
+    fn turning_in_place_sweeps_nothing_twice() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        for k in 0..=200 {
+            let th = k as f64 * std::f64::consts::TAU / 100.0;
+            t.record(&pose(0.5, 0.5, th), k as f64 * 0.05);
+        }
+        let m = t.metrics();
+        assert_eq!(m.overlap, 0.0);
+        assert!((m.covered_area - 0.0707).abs() < 0.01, "{}", m.covered_area);
+    }
+
+    #[test]
+    fn a_u_turn_between_lanes_one_spacing_apart_overlaps_only_a_seam() {
+        // The planner's lane end: lane, turn in place, shift one spacing
+        // (0.29 m for a 0.30 m tool), turn in place, lane back.
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let (y1, y2) = (0.5, 0.79);
+        let mut k = 0.0;
+        let mut rec = |t: &mut CoverageTracker, x: f64, y: f64, th: f64| {
+            t.record(&pose(x, y, th), k);
+            k += 0.05;
+        };
+        let half = std::f64::consts::FRAC_PI_2;
+        for i in 0..=250 {
+            rec(&mut t, 0.5 + i as f64 * 0.01, y1, 0.0);
+        }
+        for i in 0..=40 {
+            rec(&mut t, 3.0, y1, half * i as f64 / 40.0);
+        }
+        for i in 0..=29 {
+            rec(&mut t, 3.0, y1 + i as f64 * 0.01, half);
+        }
+        for i in 0..=40 {
+            rec(&mut t, 3.0, y2, half + half * i as f64 / 40.0);
+        }
+        for i in 0..=250 {
+            rec(&mut t, 3.0 - i as f64 * 0.01, y2, std::f64::consts::PI);
+        }
+        let m = t.metrics();
+        // Two 2.5 m strips of 0.3 m plus the end caps: ~1.65 m²; swept twice
+        // only the seam where the strips meet (about one 2 cm row) and the
+        // rim of the turn.
+        assert!((m.covered_area - 1.65).abs() < 0.1, "{}", m.covered_area);
+        assert!(m.overlap > 0.0 && m.overlap < 0.03, "{}", m.overlap);
+    }
+
+    #[test]
     fn touching_the_box_is_a_collision() {
         let w = World::parse(ROOM).unwrap();
         let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
