@@ -132,3 +132,73 @@ fn a_missing_device_is_waited_for_then_streamed() {
     drop(emu);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_driver_left_on_a_vanished_pty_number_leaves_the_next_pty_alone() {
+    use std::sync::Arc;
+    use std::time::Duration;
+    use sweepline::serial::DeviceConnector;
+    use sweepline::sim::urg_emu::{Emulator, EmulatorConfig, RectRoom};
+    use sweepline::urg::{ScaledClock, UrgDriver};
+    let clock = Arc::new(ScaledClock::new(RATE));
+    // A driver on a bare /dev/pts/N whose emulator then goes away.
+    let gone = Emulator::spawn(
+        EmulatorConfig::default(),
+        Box::new(RectRoom::bench(2)),
+        clock.clone(),
+    )
+    .unwrap();
+    let number = gone.path().unwrap();
+    let stale = UrgDriver::start(
+        Box::new(DeviceConnector::new(&number)),
+        test_params(),
+        clock.clone(),
+    )
+    .unwrap();
+    stale
+        .scans()
+        .recv_timeout(Duration::from_secs(10))
+        .expect("the first emulator streams");
+    drop(gone);
+    // The next pty made on this machine gets the same number (the kernel
+    // hands out the lowest free one; retry while another process holds it).
+    let dir = temp_dir("reused");
+    let link = dir.join("urg");
+    let emu = (0..300)
+        .find_map(|_| {
+            let cfg = EmulatorConfig {
+                link: Some(link.clone()),
+                ..EmulatorConfig::default()
+            };
+            let e = Emulator::spawn(cfg, Box::new(RectRoom::bench(2)), clock.clone()).unwrap();
+            if std::fs::read_link(&link).ok().as_deref() == Some(number.as_path()) {
+                return Some(e);
+            }
+            drop(e);
+            std::thread::sleep(Duration::from_millis(10));
+            None
+        })
+        .expect("a new pty with the old number");
+    // Give the stale driver several back-off rounds to (wrongly) take it.
+    std::thread::sleep(Duration::from_millis(600));
+    while stale.scans().try_recv().is_ok() {}
+    let owner = UrgDriver::start(
+        Box::new(DeviceConnector::new(&link)),
+        test_params(),
+        clock.clone(),
+    )
+    .unwrap();
+    let s = owner
+        .scans()
+        .recv_timeout(Duration::from_secs(10))
+        .expect("the new pty's owner streams");
+    assert_eq!(s.scan.beams.len(), 682);
+    assert!(stale.scans().try_recv().is_err(), "stale driver got a scan");
+    let h = stale.health().snapshot();
+    assert_eq!(h.reconnects, 0, "{h:?}");
+    assert!(!h.streaming);
+    owner.shutdown();
+    stale.shutdown();
+    drop(emu);
+    let _ = std::fs::remove_dir_all(&dir);
+}

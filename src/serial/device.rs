@@ -4,7 +4,9 @@
 //! ignored by USB-CDC devices and ptys.
 
 use std::io::{self, Read, Write};
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Duration;
 
 use serialport::{ClearBuffer, SerialPort, TTYPort};
@@ -44,7 +46,6 @@ pub fn open_device(path: &Path, baud: u32, read_timeout: Duration) -> io::Result
 
 impl Drop for DevicePort {
     fn drop(&mut self) {
-        use std::os::fd::AsRawFd;
         // The kernel keeps a tty exclusive until its *last* close; an
         // emulator holding its own slave fd would then refuse our re-open.
         // Give the exclusivity back explicitly (the flock goes with the fd).
@@ -62,7 +63,6 @@ impl Read for DevicePort {
     /// timeout or EINTR costs no allocation on the scan path: errors are
     /// built from their kind only.
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        use std::os::fd::AsRawFd;
         let fd = self.tty.as_raw_fd();
         let mut p = libc::pollfd {
             fd,
@@ -125,12 +125,65 @@ impl Port for DevicePort {
 
 /// Opens a device by path, again after every unplug; the path may be a
 /// udev or emulator symlink that disappears and comes back.
+///
+/// A bare pseudo-terminal path (`/dev/pts/N`) is never re-opened once the
+/// pty behind it has gone: the kernel hands the number `N` to the next pty
+/// created on the machine (another emulator's, or a second device's of the
+/// same daemon), and a driver still retrying `/dev/pts/N` would take that
+/// pty exclusively and lock its real owner out. Through a symlink, which the
+/// emulator re-points on replug, re-opening is always allowed.
 #[derive(Clone, Debug)]
 pub struct DeviceConnector {
     /// The device path.
     pub path: PathBuf,
     /// Bit rate to request (ignored by USB-CDC and ptys).
     pub baud: u32,
+    /// An `O_PATH` handle on the pty node first opened through a bare
+    /// `/dev/pts/N` path: it does not open the tty, but tells when that pty
+    /// is gone (its node's link count drops to 0).
+    pty: Option<Arc<OwnedFd>>,
+}
+
+/// Unix98 pty slaves use character majors 136..=143 on Linux.
+fn is_pty_slave(rdev: u64) -> bool {
+    (136..=143).contains(&libc::major(rdev as libc::dev_t))
+}
+
+fn fstat(fd: RawFd) -> Option<libc::stat> {
+    // SAFETY: fstat fills the zeroed struct; the caller's fd is open.
+    unsafe {
+        let mut st: libc::stat = std::mem::zeroed();
+        (libc::fstat(fd, &mut st) == 0).then_some(st)
+    }
+}
+
+/// Whether `path` itself (not through a symlink) is a pty slave node.
+fn bare_pty_path(path: &Path) -> bool {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    std::fs::symlink_metadata(path)
+        .is_ok_and(|m| m.file_type().is_char_device() && is_pty_slave(m.rdev()))
+}
+
+/// An `O_PATH` handle on the node `path` names, if it is the very pty
+/// `port` has open.
+fn pin_pty(path: &Path, port: &DevicePort) -> Option<OwnedFd> {
+    use std::os::unix::ffi::OsStrExt;
+    let open = fstat(port.tty.as_raw_fd())?;
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).ok()?;
+    // SAFETY: a NUL-terminated path; O_PATH opens no device.
+    let fd = unsafe {
+        libc::open(
+            c.as_ptr(),
+            libc::O_PATH | libc::O_CLOEXEC | libc::O_NOFOLLOW,
+        )
+    };
+    if fd < 0 {
+        return None;
+    }
+    // SAFETY: open just returned this fd and nothing else owns it.
+    let fd = unsafe { OwnedFd::from_raw_fd(fd) };
+    let node = fstat(fd.as_raw_fd())?;
+    (node.st_ino == open.st_ino && node.st_dev == open.st_dev && node.st_nlink > 0).then_some(fd)
 }
 
 impl DeviceConnector {
@@ -139,18 +192,123 @@ impl DeviceConnector {
         Self {
             path: path.into(),
             baud: 115_200,
+            pty: None,
         }
+    }
+
+    /// Whether `path` is a bare pty path whose first pty has gone (any node
+    /// there now is another pty that got the same number).
+    fn pty_gone(&self) -> bool {
+        self.pty
+            .as_ref()
+            .is_some_and(|fd| fstat(fd.as_raw_fd()).is_none_or(|st| st.st_nlink == 0))
+    }
+
+    fn gone_error(&self) -> io::Error {
+        io::Error::new(
+            io::ErrorKind::NotFound,
+            format!(
+                "{}: the pseudo-terminal first opened here is gone and pty numbers are \
+                 reused, so this path may now name another device; open the emulator's \
+                 symlink to follow a replug",
+                self.path.display()
+            ),
+        )
     }
 }
 
 impl Connector for DeviceConnector {
     fn open(&mut self, read_timeout: Duration) -> io::Result<Box<dyn Port>> {
-        Ok(Box::new(open_device(&self.path, self.baud, read_timeout)?))
+        if self.pty_gone() {
+            return Err(self.gone_error());
+        }
+        let port = open_device(&self.path, self.baud, read_timeout)?;
+        // Only a bare pty path is pinned: a symlink may rightly move.
+        if self.pty.is_none() && bare_pty_path(&self.path) {
+            self.pty = pin_pty(&self.path, &port).map(Arc::new);
+        } else if self.pty_gone() {
+            // The pty went away and its number was reused between the
+            // check above and the open: leave that one to its owner.
+            return Err(self.gone_error());
+        }
+        Ok(Box::new(port))
     }
     fn present(&self) -> bool {
-        self.path.exists()
+        self.path.exists() && !self.pty_gone()
     }
     fn describe(&self) -> String {
         self.path.display().to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::{Pty, PtyHost};
+
+    const T: Duration = Duration::from_millis(20);
+
+    /// A new pty that got `path`'s number (the kernel gives the lowest free
+    /// one; another process may hold it for a moment, so try a while).
+    fn pty_numbered(path: &Path) -> Pty {
+        for _ in 0..300 {
+            let p = Pty::open().unwrap();
+            if p.slave_path() == path {
+                return p;
+            }
+            drop(p);
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        panic!("no new pty got the number of {}", path.display());
+    }
+
+    #[test]
+    fn a_bare_pty_path_is_reopened_while_its_pty_lives() {
+        let mut pty = Pty::open().unwrap();
+        let mut c = DeviceConnector::new(pty.slave_path());
+        for _ in 0..3 {
+            assert!(c.present());
+            let mut port = c.open(T).unwrap();
+            port.write_all(b"QT\n").unwrap();
+            port.discard_input().unwrap();
+            let mut buf = [0u8; 8];
+            let n = pty.read(&mut buf).unwrap();
+            assert_eq!(&buf[..n], b"QT\n");
+        }
+    }
+
+    #[test]
+    fn a_reused_pty_number_is_left_to_its_new_owner() {
+        let first = Pty::open().unwrap();
+        let path = first.slave_path().to_path_buf();
+        let mut c = DeviceConnector::new(&path);
+        drop(c.open(T).unwrap());
+        drop(first);
+        assert!(!c.present(), "the pty is gone");
+        let second = pty_numbered(&path);
+        assert!(!c.present(), "{} is someone else's pty now", path.display());
+        let e = c.open(T).err().expect("a reused number must not be opened");
+        assert_eq!(e.kind(), io::ErrorKind::NotFound);
+        assert!(e.to_string().contains("symlink"), "{e}");
+        // The new pty's owner opens it: nobody holds it.
+        let mut owner = DeviceConnector::new(second.slave_path());
+        assert!(owner.open(T).is_ok());
+    }
+
+    #[test]
+    fn a_symlink_follows_the_replugged_pty() {
+        let dir = std::env::temp_dir().join(format!("sweepline-dev-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let link = dir.join("dev");
+        let mut host = PtyHost::new(Some(link.clone())).unwrap();
+        let mut c = DeviceConnector::new(&link);
+        drop(c.open(T).unwrap());
+        host.unplug();
+        assert!(!c.present());
+        host.replug().unwrap();
+        assert!(c.present());
+        assert!(c.open(T).is_ok());
+        drop(host);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

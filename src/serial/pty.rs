@@ -255,18 +255,21 @@ impl PtyHost {
         self.pty.is_some()
     }
 
-    /// Closes the pty (clients see a hang-up) and removes the symlink.
+    /// Removes the symlink, then closes the pty (clients see a hang-up).
+    /// In that order, so the link never names a freed pty number that the
+    /// kernel may already have given to someone else's new pty.
     pub fn unplug(&mut self) {
-        self.pty = None;
         if let Some(l) = &self.link {
             let _ = std::fs::remove_file(l);
         }
+        self.pty = None;
     }
 
     /// Creates a new pty (a new `/dev/pts/N`) and re-points the symlink at
-    /// it atomically (symlink to a temporary name, then rename over).
+    /// it atomically (symlink to a temporary name, then rename over); a pty
+    /// still plugged in is unplugged first.
     pub fn replug(&mut self) -> Result<(), PtyError> {
-        self.pty = None;
+        self.unplug();
         let pty = Pty::open()?;
         if let Some(l) = &self.link {
             let tmp = l.with_file_name(format!(
