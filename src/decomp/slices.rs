@@ -199,20 +199,7 @@ impl Slices {
         input: &SliceInput<'_>,
     ) -> Option<(usize, usize, usize, usize)> {
         let g = input.grid;
-        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0usize, 0usize);
-        for y in 0..g.height() {
-            for x in 0..g.width() {
-                if g.evidence((x, y)) != 0 {
-                    x0 = x0.min(x);
-                    x1 = x1.max(x);
-                    y0 = y0.min(y);
-                    y1 = y1.max(y);
-                }
-            }
-        }
-        if x0 == usize::MAX {
-            return None;
-        }
+        let ((x0, y0), (x1, y1)) = g.explored_cells()?;
         self.grid_box = (x0, y0, x1 + 1, y1 + 1);
         let (o, r) = (g.origin(), g.resolution());
         let margin = input.radius + 2.0 * f.h;

@@ -35,20 +35,9 @@ fn status_colour(s: CellStatus) -> &'static str {
 /// of `grid`, with a half-metre margin (the whole grid when nothing is explored).
 pub fn explored_bounds(grid: &Grid) -> (Point2<f64>, Point2<f64>) {
     let (o, r) = (grid.origin(), grid.resolution());
-    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-    for y in 0..grid.height() {
-        for x in 0..grid.width() {
-            if grid.evidence((x, y)) != 0 {
-                x0 = x0.min(x);
-                y0 = y0.min(y);
-                x1 = x1.max(x);
-                y1 = y1.max(y);
-            }
-        }
-    }
-    if x0 == usize::MAX {
-        (x0, y0, x1, y1) = (0, 0, grid.width().max(1) - 1, grid.height().max(1) - 1);
-    }
+    let ((x0, y0), (x1, y1)) = grid
+        .explored_cells()
+        .unwrap_or(((0, 0), (grid.width().max(1) - 1, grid.height().max(1) - 1)));
     (
         Point2::new(o.x + x0 as f64 * r - 0.5, o.y + y0 as f64 * r - 0.5),
         Point2::new(

@@ -69,21 +69,12 @@ impl FreeRaster {
 
     /// The cell containing `p`, if inside.
     pub fn cell_of(&self, p: &Point2<f64>) -> Option<(usize, usize)> {
-        let fx = (p.x - self.origin.x) / self.resolution;
-        let fy = (p.y - self.origin.y) / self.resolution;
-        if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
-            return None;
-        }
-        let (cx, cy) = (fx as usize, fy as usize);
-        (cx < self.width && cy < self.height).then_some((cx, cy))
+        crate::grid::cell_containing(self.origin, self.resolution, (self.width, self.height), p)
     }
 
     /// Centre of cell (`cx`, `cy`).
     pub fn centre_of(&self, cx: usize, cy: usize) -> Point2<f64> {
-        Point2::new(
-            self.origin.x + (cx as f64 + 0.5) * self.resolution,
-            self.origin.y + (cy as f64 + 0.5) * self.resolution,
-        )
+        crate::grid::cell_centre(self.origin, self.resolution, (cx, cy))
     }
 
     /// Free area in m².
