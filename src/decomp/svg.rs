@@ -8,6 +8,7 @@ use svg::Document;
 
 use crate::geom::Segment;
 use crate::grid::{CellState, Grid};
+use crate::svg_canvas::canvas;
 
 use super::cell::{CellStatus, Decomposition};
 
@@ -81,16 +82,7 @@ pub fn render_view(
     let sx = |x: f64| (x - wx0) * SCALE;
     let sy = |y: f64| (wy1 - y) * SCALE;
     let (w, h) = ((wx1 - wx0) * SCALE, (wy1 - wy0) * SCALE + 30.0);
-    let mut doc = Document::new()
-        .set("viewBox", (0.0, 0.0, w, h))
-        .set("width", w)
-        .set("height", h)
-        .add(
-            Rectangle::new()
-                .set("width", w)
-                .set("height", h)
-                .set("fill", "#9a9a9a"),
-        );
+    let mut doc = canvas(w, h, "#9a9a9a");
     // The grid, one rectangle per run of equal state in a row.
     for y in y0..=y1 {
         let mut x = x0;

@@ -11,6 +11,7 @@ use svg::Document;
 use super::snapshot::MapSnapshot;
 use crate::geom::Segment;
 use crate::grid::CellState;
+use crate::svg_canvas::canvas;
 
 /// Pixels per metre at which pictures are drawn.
 const PX_PER_M: f64 = 100.0;
@@ -88,16 +89,7 @@ pub fn render(snap: &MapSnapshot, reference: &[Segment]) -> Document {
         max: max + nalgebra::Vector2::new(0.2, 0.2),
     };
     let (w, h) = view.size();
-    let mut doc = Document::new()
-        .set("viewBox", (0.0, 0.0, w, h))
-        .set("width", w)
-        .set("height", h)
-        .add(
-            Rectangle::new()
-                .set("width", w)
-                .set("height", h)
-                .set("fill", "#f4f4f4"),
-        );
+    let mut doc = canvas(w, h, "#f4f4f4");
     // Explored free space, as runs of free cells per row.
     let g = &snap.grid;
     let r = g.resolution();

@@ -13,6 +13,7 @@ use crate::decomp::{CellStatus, Decomposition};
 use crate::geom::Pose;
 use crate::sim::coverage_metrics::CoverageMetrics;
 use crate::sim::world::{FreeRaster, World};
+use crate::svg_canvas::canvas;
 
 /// Pixels per metre.
 const SCALE: f64 = 100.0;
@@ -44,16 +45,7 @@ impl View {
         (self.y1 - y) * SCALE
     }
     fn doc(&self, extra_h: f64) -> Document {
-        Document::new()
-            .set("viewBox", (0.0, 0.0, self.w, self.h + extra_h))
-            .set("width", self.w)
-            .set("height", self.h + extra_h)
-            .add(
-                Rectangle::new()
-                    .set("width", self.w)
-                    .set("height", self.h + extra_h)
-                    .set("fill", "#ffffff"),
-            )
+        canvas(self.w, self.h + extra_h, "#ffffff")
     }
 }
 
