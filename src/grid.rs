@@ -141,6 +141,29 @@ impl Grid {
         self.cells[c.1 * self.width + c.0]
     }
 
+    /// The maximal runs of cells of equal state along row `y` within the
+    /// columns `cols` (clipped to the grid), as `(first column, one past the
+    /// last, state)`, unknown runs included: what a picture draws as one
+    /// rectangle each.
+    pub fn state_runs(
+        &self,
+        y: usize,
+        cols: std::ops::Range<usize>,
+    ) -> impl Iterator<Item = (usize, usize, CellState)> + '_ {
+        let end = cols.end.min(self.width);
+        let mut x = cols.start;
+        std::iter::from_fn(move || {
+            if y >= self.height || x >= end {
+                return None;
+            }
+            let (start, st) = (x, self.state((x, y)));
+            while x < end && self.state((x, y)) == st {
+                x += 1;
+            }
+            Some((start, x, st))
+        })
+    }
+
     /// The lowest and highest cell (column, row) of the bounding box of every
     /// observed cell (evidence not 0), or `None` when nothing was observed yet.
     pub fn explored_cells(&self) -> Option<(CellIndex, CellIndex)> {
@@ -309,6 +332,30 @@ mod tests {
         g.set_state((3, 7), CellState::Free);
         g.set_state((12, 2), CellState::Occupied);
         assert_eq!(g.explored_cells(), Some(((3, 2), (12, 7))));
+    }
+
+    #[test]
+    fn state_runs_split_a_row_at_every_change() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 8, 2);
+        for x in 1..4 {
+            g.set_state((x, 1), CellState::Free);
+        }
+        g.set_state((4, 1), CellState::Occupied);
+        let runs: Vec<_> = g.state_runs(1, 0..100).collect();
+        assert_eq!(
+            runs,
+            vec![
+                (0, 1, CellState::Unknown),
+                (1, 4, CellState::Free),
+                (4, 5, CellState::Occupied),
+                (5, 8, CellState::Unknown),
+            ]
+        );
+        assert_eq!(
+            g.state_runs(1, 2..4).collect::<Vec<_>>(),
+            vec![(2, 4, CellState::Free)]
+        );
+        assert_eq!(g.state_runs(2, 0..8).count(), 0);
     }
 
     #[test]

@@ -85,13 +85,7 @@ pub fn render_view(
     let mut doc = canvas(w, h, "#9a9a9a");
     // The grid, one rectangle per run of equal state in a row.
     for y in y0..=y1 {
-        let mut x = x0;
-        while x <= x1 {
-            let s = grid.state((x, y));
-            let start = x;
-            while x <= x1 && grid.state((x, y)) == s {
-                x += 1;
-            }
+        for (start, end, s) in grid.state_runs(y, x0..x1 + 1) {
             let fill = match s {
                 CellState::Unknown => continue,
                 CellState::Free => "#ffffff",
@@ -101,7 +95,7 @@ pub fn render_view(
                 Rectangle::new()
                     .set("x", sx(o.x + start as f64 * r))
                     .set("y", sy(o.y + (y + 1) as f64 * r))
-                    .set("width", (x - start) as f64 * r * SCALE)
+                    .set("width", (end - start) as f64 * r * SCALE)
                     .set("height", r * SCALE)
                     .set("fill", fill),
             );

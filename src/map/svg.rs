@@ -96,23 +96,16 @@ pub fn render(snap: &MapSnapshot, reference: &[Segment]) -> Document {
     let mut free = Group::new().set("fill", "#ffffff");
     let mut occ = Group::new().set("fill", "#c8c8c8");
     for cy in 0..g.height() {
-        let mut cx = 0;
-        while cx < g.width() {
-            let st = g.state((cx, cy));
+        for (start, end, st) in g.state_runs(cy, 0..g.width()) {
             if st == CellState::Unknown {
-                cx += 1;
                 continue;
-            }
-            let start = cx;
-            while cx < g.width() && g.state((cx, cy)) == st {
-                cx += 1;
             }
             let x0 = g.origin().x + start as f64 * r;
             let y1 = g.origin().y + (cy + 1) as f64 * r;
             let rect = Rectangle::new()
                 .set("x", view.x(x0))
                 .set("y", view.y(y1))
-                .set("width", (cx - start) as f64 * r * PX_PER_M)
+                .set("width", (end - start) as f64 * r * PX_PER_M)
                 .set("height", r * PX_PER_M);
             if st == CellState::Free {
                 free = free.add(rect);
