@@ -8,6 +8,7 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{Criterion, Throughput};
+use sweepline::pipeline::clock::thread_cpu_time;
 use sweepline::scan::LaserScan;
 use sweepline::scip::{
     self, Cluster, Command, DataKind, Decoder, Event, ReplyBody, ScanRequest, SensorParams, Status,
@@ -82,18 +83,6 @@ fn decode_fill(
     n_beams
 }
 
-/// CPU time of this thread (s): unlike wall time, it excludes the time the
-/// thread waits for a core on a loaded machine.
-fn thread_cpu_time() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes one timespec into the valid pointer given.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
-
 fn report(what: &str, mut t: Vec<f64>) {
     t.sort_by(f64::total_cmp);
     let n = t.len();
@@ -112,11 +101,11 @@ fn percentiles(what: &str, mut routine: impl FnMut() -> usize) {
     let mut wall = Vec::with_capacity(10_000);
     let mut cpu = Vec::with_capacity(10_000);
     for _ in 0..10_000 {
-        let (c0, w0) = (thread_cpu_time(), Instant::now());
+        let (c0, w0) = (thread_cpu_time().as_secs_f64(), Instant::now());
         black_box(routine());
         let (w, c) = (
             w0.elapsed().as_nanos() as f64 / 1000.0,
-            (thread_cpu_time() - c0) * 1e6,
+            (thread_cpu_time().as_secs_f64() - c0) * 1e6,
         );
         wall.push(w);
         cpu.push(c);
