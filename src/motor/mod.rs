@@ -7,6 +7,8 @@
 //! * [`odometry`]: wrapping counters to pose increments, and
 //!   [`odometry::OdometryTrack`] for the pose at a scan's timestamp;
 //! * [`safety`]: the dead-man and the bumper/wheel-drop gate;
+//! * [`command`]: the requested set-point, dead-man, gate and pending safety
+//!   events every driver holds;
 //! * [`link`]: the port under a driver, re-opened after the device vanished;
 //! * [`params`]: the `[motor]` table.
 //!
@@ -43,6 +45,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod command;
 pub mod crc16;
 pub mod create2;
 pub mod link;
