@@ -10,10 +10,8 @@ use std::time::{Duration, Instant};
 
 use sweepline::clock::{MonotonicClock, SharedClock};
 use sweepline::config::Config;
-use sweepline::motor::create2::driver::Create2Driver;
 use sweepline::motor::link::ConnectorOpener;
-use sweepline::motor::roboclaw::driver::RoboClawDriver;
-use sweepline::motor::{BaseKind, DiffDriveBase, WheelSpeeds};
+use sweepline::motor::{base_driver, BaseKind, DiffDriveBase, WheelSpeeds};
 use sweepline::serial::DeviceConnector;
 use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig};
 
@@ -62,14 +60,8 @@ fn steady_state_command_and_poll_do_not_allocate() {
         let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
             emu.path().unwrap(),
         ))));
-        let mut base: Box<dyn DiffDriveBase> = match kind {
-            BaseKind::Roboclaw => {
-                Box::new(RoboClawDriver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-            BaseKind::Create2 => {
-                Box::new(Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-        };
+        let mut base: Box<dyn DiffDriveBase> =
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
         let mut cycle = |watch: bool, i: u32| {
             let w = 0.05 + 0.001 * (i % 50) as f64;
             WATCHED.with(|c| c.set(watch));

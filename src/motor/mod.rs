@@ -71,7 +71,20 @@ pub fn open_base(
     let mut dev = crate::serial::DeviceConnector::new(p.device.clone());
     dev.baud = p.baud;
     let opener = Box::new(link::ConnectorOpener(Box::new(dev)));
-    match p.kind {
+    base_driver(p.kind, p, robot, opener, clock)
+}
+
+/// Builds the driver for a base of `kind` over whatever port `opener` opens (a
+/// tty, an emulator's pty, an in-process loopback): [`open_base`] without the
+/// choice of port.
+pub fn base_driver(
+    kind: BaseKind,
+    p: &MotorParams,
+    robot: &crate::config::RobotParams,
+    opener: Box<dyn link::LinkOpener>,
+    clock: crate::clock::SharedClock,
+) -> Box<dyn DiffDriveBase> {
+    match kind {
         BaseKind::Roboclaw => Box::new(roboclaw::driver::RoboClawDriver::new(
             p, robot, opener, clock,
         )),
