@@ -4,7 +4,9 @@
 //! what may be sent; how it is sent is the driver's business.
 
 use crate::motor::safety::{DeadMan, SafetyGate};
-use crate::motor::{BaseFeedback, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds};
+use crate::motor::{
+    BaseFeedback, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
+};
 
 /// Requested wheel speeds, dead-man, safety gate and pending safety events.
 #[derive(Clone, Debug)]
@@ -75,6 +77,37 @@ impl WheelCommand {
         true
     }
 
+    /// Updates the bumper state; on a newly closed bumper counts and logs the
+    /// safety stop and returns `true` (the driver must send
+    /// [`WheelCommand::effective`] now). Any change is queued as an event.
+    pub fn set_bumper(&mut self, s: Sides, health: &mut LinkHealth) -> bool {
+        let Some(e) = self.gate.set_bumper(s) else {
+            return false;
+        };
+        let stop = matches!(e, SafetyEvent::Bumper(_));
+        if stop {
+            log::warn!("wheel base: bumper closed ({s:?}); wheels stopped");
+            health.safety_stops += 1;
+        }
+        self.push(e);
+        stop
+    }
+
+    /// Updates the wheel-drop state, as [`WheelCommand::set_bumper`] does the
+    /// bumper's.
+    pub fn set_wheel_drop(&mut self, s: Sides, health: &mut LinkHealth) -> bool {
+        let Some(e) = self.gate.set_wheel_drop(s) else {
+            return false;
+        };
+        let stop = matches!(e, SafetyEvent::WheelDrop(_));
+        if stop {
+            log::warn!("wheel base: wheel drop ({s:?}); wheels stopped");
+            health.safety_stops += 1;
+        }
+        self.push(e);
+        stop
+    }
+
     /// Forgets the request and re-arms the dead-man tripped: after an explicit
     /// stop nothing moves until a fresh command arrives.
     pub fn halt(&mut self) {
@@ -106,7 +139,6 @@ impl WheelCommand {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motor::Sides;
 
     #[test]
     fn accept_rejects_non_finite_and_clamps() {
@@ -152,17 +184,44 @@ mod tests {
         )
         .unwrap();
         assert!(!c.check_deadman(1.2, &mut h));
-        let _ = c.gate.set_bumper(Sides {
+        let bumped = Sides {
             left: true,
             right: false,
-        });
+        };
+        assert!(c.set_bumper(bumped, &mut h), "a closing bumper stops");
+        assert!(!c.set_bumper(bumped, &mut h), "no change, no stop");
+        assert_eq!(h.safety_stops, 1);
         assert_eq!(c.effective(), WheelSpeeds::STOP, "bumper blocks forward");
-        let _ = c.gate.set_bumper(Sides::default());
+        assert!(!c.set_bumper(Sides::default(), &mut h), "release");
+        assert!(c.set_wheel_drop(bumped, &mut h));
+        assert_eq!(h.safety_stops, 2);
+        assert_eq!(
+            c.effective(),
+            WheelSpeeds::STOP,
+            "a dropped wheel holds all"
+        );
+        assert!(!c.set_wheel_drop(Sides::default(), &mut h));
+        assert_eq!(
+            c.effective(),
+            WheelSpeeds {
+                left: 0.3,
+                right: 0.3
+            }
+        );
         assert!(c.check_deadman(1.3, &mut h));
         assert_eq!(h.deadman_stops, 1);
         assert_eq!(c.effective(), WheelSpeeds::STOP);
         let fb = c.feedback(None, true, Some(12.0));
-        assert_eq!(fb.events.as_slice(), &[SafetyEvent::DeadMan]);
+        assert_eq!(
+            fb.events.as_slice(),
+            &[
+                SafetyEvent::Bumper(bumped),
+                SafetyEvent::BumperReleased,
+                SafetyEvent::WheelDrop(bumped),
+                SafetyEvent::WheelDropCleared,
+                SafetyEvent::DeadMan
+            ]
+        );
         assert!(c.feedback(None, true, None).events.is_empty());
     }
 

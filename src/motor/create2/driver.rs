@@ -186,24 +186,10 @@ impl Create2Driver {
         }
         let mut stop_now = false;
         if let Some(s) = f.wheel_drops() {
-            if let Some(e) = self.cmd.gate.set_wheel_drop(s) {
-                if matches!(e, SafetyEvent::WheelDrop(_)) {
-                    log::warn!("wheel base: wheel drop ({s:?}); wheels stopped");
-                    self.health.safety_stops += 1;
-                    stop_now = true;
-                }
-                self.cmd.push(e);
-            }
+            stop_now |= self.cmd.set_wheel_drop(s, &mut self.health);
         }
         if let Some(s) = f.bumps() {
-            if let Some(e) = self.cmd.gate.set_bumper(s) {
-                if matches!(e, SafetyEvent::Bumper(_)) {
-                    log::warn!("wheel base: bumper closed ({s:?}); wheels stopped");
-                    self.health.safety_stops += 1;
-                    stop_now = true;
-                }
-                self.cmd.push(e);
-            }
+            stop_now |= self.cmd.set_bumper(s, &mut self.health);
         }
         if stop_now {
             self.send_wheels();

@@ -279,14 +279,9 @@ impl RoboClawDriver {
     }
 
     fn apply_bumper(&mut self, s: Sides) {
-        if let Some(e) = self.cmd.gate.set_bumper(s) {
-            if matches!(e, SafetyEvent::Bumper(_)) {
-                self.health.safety_stops += 1;
-                log::warn!("wheel base: bumper closed ({s:?}); wheels stopped");
-                let w = self.cmd.effective();
-                let _ = self.send_speeds(w);
-            }
-            self.cmd.push(e);
+        if self.cmd.set_bumper(s, &mut self.health) {
+            let w = self.cmd.effective();
+            let _ = self.send_speeds(w);
         }
     }
 }
