@@ -11,8 +11,8 @@ use criterion::{Criterion, Throughput};
 use sweepline::pipeline::clock::thread_cpu_time;
 use sweepline::scan::LaserScan;
 use sweepline::scip::{
-    self, Cluster, Command, DataKind, Decoder, Event, ReplyBody, ScanRequest, SensorParams, Status,
-    StatusCode, StreamRequest, TaggedCommand, Width,
+    self, Cluster, Command, DataKind, Decoder, Event, ReplyBody, ScanData, ScanRequest,
+    SensorParams, Status, StatusCode, StreamRequest, TaggedCommand, Width,
 };
 
 /// One MD scan reply of a URG-04LX (682 steps, 3-character values), as sent.
@@ -43,21 +43,28 @@ fn md_scan_bytes() -> Vec<u8> {
     out
 }
 
-/// Decodes one reply and sums its values (so nothing is optimised away).
-fn decode_sum(dec: &mut Decoder, bytes: &[u8]) -> u64 {
+/// Feeds `bytes` to the decoder and hands every scan reply that decodes to `f`.
+fn each_scan(dec: &mut Decoder, bytes: &[u8], mut f: impl FnMut(&ScanData<'_>)) {
     let mut rest = bytes;
-    let mut sum = 0u64;
     while !rest.is_empty() {
         let (n, ev) = dec.feed(rest);
         rest = &rest[n..];
         if let Some(Event::Reply(raw)) = ev {
             if let Ok(reply) = raw.decode() {
                 if let ReplyBody::Scan(s) = reply.body {
-                    sum += s.values().map(|v| u64::from(v.distance)).sum::<u64>();
+                    f(&s);
                 }
             }
         }
     }
+}
+
+/// Decodes one reply and sums its values (so nothing is optimised away).
+fn decode_sum(dec: &mut Decoder, bytes: &[u8]) -> u64 {
+    let mut sum = 0u64;
+    each_scan(dec, bytes, |s| {
+        sum += s.values().map(|v| u64::from(v.distance)).sum::<u64>();
+    });
     sum
 }
 
@@ -67,19 +74,10 @@ fn decode_fill(
     params: &SensorParams,
     out: &mut LaserScan,
 ) -> usize {
-    let mut rest = bytes;
     let mut n_beams = 0;
-    while !rest.is_empty() {
-        let (n, ev) = dec.feed(rest);
-        rest = &rest[n..];
-        if let Some(Event::Reply(raw)) = ev {
-            if let Ok(reply) = raw.decode() {
-                if let ReplyBody::Scan(s) = reply.body {
-                    n_beams = scip::fill_laser_scan(&s, params, 0.0, 0, out).unwrap_or(0);
-                }
-            }
-        }
-    }
+    each_scan(dec, bytes, |s| {
+        n_beams = scip::fill_laser_scan(s, params, 0.0, 0, out).unwrap_or(0);
+    });
     n_beams
 }
 
