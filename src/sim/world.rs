@@ -67,6 +67,16 @@ impl FreeRaster {
         }
     }
 
+    /// Whether cell (`x`, `y`) is free; false outside the raster (negative
+    /// coordinates included), so neighbour scans need no bounds checks.
+    pub fn free_at(&self, x: i64, y: i64) -> bool {
+        x >= 0
+            && y >= 0
+            && (x as usize) < self.width
+            && (y as usize) < self.height
+            && self.free[y as usize * self.width + x as usize]
+    }
+
     /// The cell containing `p`, if inside.
     pub fn cell_of(&self, p: &Point2<f64>) -> Option<(usize, usize)> {
         crate::grid::cell_containing(self.origin, self.resolution, (self.width, self.height), p)
@@ -308,13 +318,7 @@ impl World {
     pub fn from_raster(name: &str, raster: FreeRaster, reflectivity: f64, start: Pose) -> World {
         let (w, h, r) = (raster.width, raster.height, raster.resolution);
         let o = raster.origin;
-        let at = |x: i64, y: i64| -> bool {
-            x >= 0
-                && y >= 0
-                && (x as usize) < w
-                && (y as usize) < h
-                && raster.free[y as usize * w + x as usize]
-        };
+        let at = |x: i64, y: i64| raster.free_at(x, y);
         let mut walls = Vec::new();
         // Horizontal edges: between row y-1 and row y, for y in 0..=h.
         for y in 0..=h as i64 {
@@ -689,6 +693,9 @@ mod tests {
             height: 10,
             free,
         };
+        assert!(raster.free_at(2, 7) && raster.free_at(7, 2));
+        assert!(!raster.free_at(1, 5) && !raster.free_at(8, 5));
+        assert!(!raster.free_at(-1, 5) && !raster.free_at(5, 10) && !raster.free_at(10, 0));
         let w = World::from_raster("sq", raster, 0.5, pose(0.5, 0.5, 0.0));
         assert_eq!(w.walls.len(), 4);
         let h = w.cast_ray(&Point2::new(0.5, 0.5), 0.0, 5.0).unwrap();
