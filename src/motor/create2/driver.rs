@@ -15,7 +15,7 @@ use crate::config::RobotParams;
 use crate::motor::command::WheelCommand;
 use crate::motor::create2::codec::{encode, pkt, OiCommand, OiMode, SensorFrame, StreamParser};
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
-use crate::motor::odometry::{CounterWidth, Odometer};
+use crate::motor::odometry::{counts_per_metre, CounterWidth, Odometer};
 use crate::motor::params::MotorParams;
 use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
@@ -66,8 +66,7 @@ impl Create2Driver {
         clock: SharedClock,
     ) -> Self {
         let read_timeout = clock.to_wall(0.01).max(Duration::from_millis(5));
-        let counts_per_metre =
-            p.create2.counts_per_rev / (2.0 * std::f64::consts::PI * robot.wheel_radius);
+        let counts_per_metre = counts_per_metre(p.create2.counts_per_rev, robot.wheel_radius);
         let payload = StreamParser::payload_len(&STREAM_IDS).unwrap_or(0);
         Self {
             link: Link::new(opener, read_timeout, p.reconnect_interval),

@@ -13,7 +13,7 @@ use crate::clock::SharedClock;
 use crate::config::RobotParams;
 use crate::motor::command::WheelCommand;
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
-use crate::motor::odometry::{CounterWidth, Odometer};
+use crate::motor::odometry::{counts_per_metre, CounterWidth, Odometer};
 use crate::motor::params::MotorParams;
 use crate::motor::roboclaw::codec::{
     encode_command, Command, Reply, ReplyDecoder, ReplyError, STATUS_ESTOP,
@@ -76,8 +76,7 @@ impl RoboClawDriver {
         let read_timeout = clock
             .to_wall(p.roboclaw.reply_timeout)
             .max(Duration::from_millis(10));
-        let counts_per_metre =
-            p.roboclaw.counts_per_rev / (2.0 * std::f64::consts::PI * robot.wheel_radius);
+        let counts_per_metre = counts_per_metre(p.roboclaw.counts_per_rev, robot.wheel_radius);
         Self {
             link: Link::new(opener, read_timeout, p.reconnect_interval),
             clock,
