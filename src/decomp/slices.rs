@@ -445,6 +445,15 @@ impl Slices {
     fn cut_pieces(&mut self, f: &SweepFrame, frozen: &[FrozenSpan], min_beside: f64) {
         let (i0, i1, k0, k1) = self.window;
         let min_len = f.h * 0.5;
+        // The shortest piece kept: beside a frozen cell, shorter ones are left
+        // to that cell's tool overlap.
+        let need = |beside_frozen: bool| {
+            if beside_frozen {
+                min_beside.max(min_len)
+            } else {
+                min_len
+            }
+        };
         let mut fz = 0usize;
         for k in 0..f.nv {
             self.piece_rows[k] = self.pieces.len() as u32;
@@ -498,12 +507,7 @@ impl Slices {
                     if el > cur {
                         let beside =
                             matches!(ek, End::Frozen(_)) || matches!(cur_end, End::Frozen(_));
-                        let need = if beside {
-                            min_beside.max(min_len)
-                        } else {
-                            min_len
-                        };
-                        if el - cur >= need {
+                        if el - cur >= need(beside) {
                             self.pieces.push(Piece {
                                 row: k as u32,
                                 l: cur,
@@ -522,12 +526,7 @@ impl Slices {
                         break;
                     }
                 }
-                let need = if matches!(cur_end, End::Frozen(_)) {
-                    min_beside.max(min_len)
-                } else {
-                    min_len
-                };
-                if ru - cur >= need {
+                if ru - cur >= need(matches!(cur_end, End::Frozen(_))) {
                     self.pieces.push(Piece {
                         row: k as u32,
                         l: cur,
