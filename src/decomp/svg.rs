@@ -3,12 +3,12 @@
 //! coloured by state with their ids; virtual edges dashed; frontiers red.
 
 use nalgebra::Point2;
-use svg::node::element::{Circle, Line, Polygon, Rectangle, Text};
+use svg::node::element::{Circle, Line, Polygon, Rectangle};
 use svg::Document;
 
 use crate::geom::Segment;
 use crate::grid::{CellState, Grid};
-use crate::svg_canvas::canvas;
+use crate::svg_canvas::{canvas, label};
 
 use super::cell::{CellStatus, Decomposition};
 
@@ -132,14 +132,8 @@ pub fn render_view(
         let n = c.polygon.len() as f64;
         let cx = c.polygon.iter().map(|p| p.x).sum::<f64>() / n;
         let cy = c.polygon.iter().map(|p| p.y).sum::<f64>() / n;
-        doc = doc.add(
-            Text::new(format!("{}", c.id.0))
-                .set("x", sx(cx))
-                .set("y", sy(cy))
-                .set("font-size", 16)
-                .set("font-family", "sans-serif")
-                .set("text-anchor", "middle"),
-        );
+        doc =
+            doc.add(label(sx(cx), sy(cy), format!("{}", c.id.0), 16).set("text-anchor", "middle"));
     }
     if let Some(p) = robot {
         doc = doc.add(
@@ -152,13 +146,7 @@ pub fn render_view(
                 .set("stroke-width", 3),
         );
     }
-    doc.add(
-        Text::new(caption.to_string())
-            .set("x", 8)
-            .set("y", h - 8.0)
-            .set("font-size", 16)
-            .set("font-family", "sans-serif"),
-    )
+    doc.add(label(8.0, h - 8.0, caption.to_string(), 16))
 }
 
 fn line(
@@ -198,16 +186,9 @@ pub fn panels(docs: Vec<Document>, columns: usize, panel_size: (f64, f64)) -> Do
             (i % columns) as f64 * pw,
             (i / columns) as f64 * (ph + 24.0),
         );
-        let label = format!("({})", (b'a' + (i % 26) as u8) as char);
+        let letter = format!("({})", (b'a' + (i % 26) as u8) as char);
         out = out
-            .add(
-                Text::new(label)
-                    .set("x", cx + pw / 2.0)
-                    .set("y", cy + 18.0)
-                    .set("font-size", 18)
-                    .set("font-family", "sans-serif")
-                    .set("text-anchor", "middle"),
-            )
+            .add(label(cx + pw / 2.0, cy + 18.0, letter, 18).set("text-anchor", "middle"))
             .add(d.set("x", cx).set("y", cy + 24.0));
     }
     out

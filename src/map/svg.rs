@@ -5,13 +5,13 @@
 use std::fmt::Write as _;
 
 use nalgebra::Point2;
-use svg::node::element::{Circle, Group, Line, Polyline, Rectangle, Text};
+use svg::node::element::{Circle, Group, Line, Polyline, Rectangle};
 use svg::Document;
 
 use super::snapshot::MapSnapshot;
 use crate::geom::Segment;
 use crate::grid::CellState;
-use crate::svg_canvas::canvas;
+use crate::svg_canvas::{canvas, label};
 
 /// Pixels per metre at which pictures are drawn.
 const PX_PER_M: f64 = 100.0;
@@ -182,13 +182,7 @@ pub fn render(snap: &MapSnapshot, reference: &[Segment]) -> Document {
             ", reference walls green"
         }
     );
-    doc.add(
-        Text::new(caption)
-            .set("x", MARGIN)
-            .set("y", h - 6.0)
-            .set("font-family", "sans-serif")
-            .set("font-size", 12),
-    )
+    doc.add(label(MARGIN, h - 6.0, caption, 12))
 }
 
 fn line(view: &View, s: &Segment) -> Line {

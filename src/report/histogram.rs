@@ -7,7 +7,7 @@ use svg::node::element::{Group, Line, Rectangle, Text};
 use svg::Document;
 
 use crate::pipeline::metrics::LatencyHistogram;
-use crate::svg_canvas::canvas;
+use crate::svg_canvas::{canvas, label};
 
 const W: f64 = 720.0;
 const H: f64 = 340.0;
@@ -34,12 +34,7 @@ pub fn fmt_duration(secs: f64) -> String {
 }
 
 fn text(x: f64, y: f64, s: &str, size: u32, anchor: &str) -> Text {
-    Text::new(s)
-        .set("x", x)
-        .set("y", y)
-        .set("font-family", "sans-serif")
-        .set("font-size", size)
-        .set("text-anchor", anchor)
+    label(x, y, s, size).set("text-anchor", anchor)
 }
 
 /// Histogram of `hist` titled `title`, with a limit (a stage budget, a
