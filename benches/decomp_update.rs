@@ -19,6 +19,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use decomp_support::*;
 use sweepline::decomp::{DecompParams, Decomposer};
 use sweepline::grid::Grid;
+use sweepline::pipeline::clock::thread_cpu_time;
 use sweepline::sim::floorplan::{load_room, MAPS_DIR};
 use sweepline::sim::world::World;
 
@@ -26,16 +27,6 @@ use sweepline::sim::world::World;
 /// room we use (lab_f_scan:19, 12.5 × 11.3 m) and a large hall
 /// (lab_a_scan:0, 35 × 29 m).
 const ROOMS: &[&str] = &["lab_f_scan:19", "lab_a_scan:0"];
-
-fn thread_cpu() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes into the timespec we own.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
 
 fn worlds() -> Vec<(String, World)> {
     let mut out = vec![("paper".to_string(), paper_world())];
@@ -67,9 +58,12 @@ fn tour_run(world: &World, daemon_grid: bool) -> (Decomposer, Grid, Vec<(f64, f6
     let mut times = Vec::new();
     for p in tour(world, 1.0) {
         scan(world, &mut grid, &p);
-        let (w0, c0) = (Instant::now(), thread_cpu());
+        let (w0, c0) = (Instant::now(), thread_cpu_time().as_secs_f64());
         black_box(dec.update(&grid, &[]));
-        times.push((w0.elapsed().as_secs_f64(), thread_cpu() - c0));
+        times.push((
+            w0.elapsed().as_secs_f64(),
+            thread_cpu_time().as_secs_f64() - c0,
+        ));
     }
     (dec, grid, times)
 }

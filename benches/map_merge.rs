@@ -15,6 +15,8 @@ use criterion::Criterion;
 use map_support::*;
 use sweepline::geom::Pose;
 use sweepline::map::{Map, MapParams, ScanQuality};
+use sweepline::pipeline::clock::thread_cpu_time;
+use sweepline::pipeline::metrics::quantile_sorted;
 use sweepline::scan::LaserScan;
 use sweepline::sim::world::World;
 
@@ -73,21 +75,6 @@ fn setup(params: MapParams) -> (Map, Vec<(LaserScan, Pose)>) {
     (map, timing)
 }
 
-/// CPU time consumed by the calling thread (s): on a shared, loaded machine
-/// wall-clock time also counts the time other processes held the core.
-fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes into the timespec we own.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
-
 fn percentiles(label: &str, params: MapParams) {
     let (mut map, scans) = setup(params);
     let n0 = map.points().len();
@@ -95,25 +82,24 @@ fn percentiles(label: &str, params: MapParams) {
     let mut cpu = Vec::with_capacity(10_000);
     for i in 0..10_000 {
         let (s, p) = &scans[i % scans.len()];
-        let c0 = thread_cpu_seconds();
+        let c0 = thread_cpu_time().as_secs_f64();
         let start = Instant::now();
         let r = map.update(s, p, ScanQuality::Good);
         wall.push(start.elapsed().as_secs_f64() * 1e3);
-        cpu.push((thread_cpu_seconds() - c0) * 1e3);
+        cpu.push((thread_cpu_time().as_secs_f64() - c0) * 1e3);
         assert!(r.is_ok());
     }
     for t in [&mut wall, &mut cpu] {
         t.sort_by(f64::total_cmp);
     }
-    let q = |t: &[f64], f: f64| t[((t.len() as f64 - 1.0) * f).round() as usize];
     println!(
         "map update, {label}: map {n0} -> {} points, 682-beam scans, 10000 updates:\n  thread CPU p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms\n  wall clock p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms",
         map.points().len(),
-        q(&cpu, 0.5),
-        q(&cpu, 0.99),
+        quantile_sorted(&cpu, 0.5),
+        quantile_sorted(&cpu, 0.99),
         cpu[cpu.len() - 1],
-        q(&wall, 0.5),
-        q(&wall, 0.99),
+        quantile_sorted(&wall, 0.5),
+        quantile_sorted(&wall, 0.99),
         wall[wall.len() - 1]
     );
 }

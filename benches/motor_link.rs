@@ -7,10 +7,8 @@ use std::sync::Arc;
 use criterion::{criterion_group, criterion_main, Criterion};
 use sweepline::clock::{MonotonicClock, SharedClock};
 use sweepline::config::Config;
-use sweepline::motor::create2::driver::Create2Driver;
 use sweepline::motor::link::ConnectorOpener;
-use sweepline::motor::roboclaw::driver::RoboClawDriver;
-use sweepline::motor::{BaseKind, DiffDriveBase, WheelSpeeds};
+use sweepline::motor::{base_driver, BaseKind, DiffDriveBase, WheelSpeeds};
 use sweepline::serial::DeviceConnector;
 use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig};
 
@@ -25,14 +23,8 @@ fn cycle(c: &mut Criterion) {
         let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
             emu.path().expect("pty path"),
         ))));
-        let mut base: Box<dyn DiffDriveBase> = match kind {
-            BaseKind::Roboclaw => {
-                Box::new(RoboClawDriver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-            BaseKind::Create2 => {
-                Box::new(Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-        };
+        let mut base: Box<dyn DiffDriveBase> =
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
         for _ in 0..50 {
             let _ = base.poll();
             std::thread::sleep(std::time::Duration::from_millis(5));

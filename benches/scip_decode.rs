@@ -8,10 +8,11 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{Criterion, Throughput};
+use sweepline::pipeline::clock::thread_cpu_time;
 use sweepline::scan::LaserScan;
 use sweepline::scip::{
-    self, Cluster, Command, DataKind, Decoder, Event, ReplyBody, ScanRequest, SensorParams, Status,
-    StatusCode, StreamRequest, TaggedCommand, Width,
+    self, Cluster, Command, DataKind, Decoder, Event, ReplyBody, ScanData, ScanRequest,
+    SensorParams, Status, StatusCode, StreamRequest, TaggedCommand, Width,
 };
 
 /// One MD scan reply of a URG-04LX (682 steps, 3-character values), as sent.
@@ -42,21 +43,28 @@ fn md_scan_bytes() -> Vec<u8> {
     out
 }
 
-/// Decodes one reply and sums its values (so nothing is optimised away).
-fn decode_sum(dec: &mut Decoder, bytes: &[u8]) -> u64 {
+/// Feeds `bytes` to the decoder and hands every scan reply that decodes to `f`.
+fn each_scan(dec: &mut Decoder, bytes: &[u8], mut f: impl FnMut(&ScanData<'_>)) {
     let mut rest = bytes;
-    let mut sum = 0u64;
     while !rest.is_empty() {
         let (n, ev) = dec.feed(rest);
         rest = &rest[n..];
         if let Some(Event::Reply(raw)) = ev {
             if let Ok(reply) = raw.decode() {
                 if let ReplyBody::Scan(s) = reply.body {
-                    sum += s.values().map(|v| u64::from(v.distance)).sum::<u64>();
+                    f(&s);
                 }
             }
         }
     }
+}
+
+/// Decodes one reply and sums its values (so nothing is optimised away).
+fn decode_sum(dec: &mut Decoder, bytes: &[u8]) -> u64 {
+    let mut sum = 0u64;
+    each_scan(dec, bytes, |s| {
+        sum += s.values().map(|v| u64::from(v.distance)).sum::<u64>();
+    });
     sum
 }
 
@@ -66,32 +74,11 @@ fn decode_fill(
     params: &SensorParams,
     out: &mut LaserScan,
 ) -> usize {
-    let mut rest = bytes;
     let mut n_beams = 0;
-    while !rest.is_empty() {
-        let (n, ev) = dec.feed(rest);
-        rest = &rest[n..];
-        if let Some(Event::Reply(raw)) = ev {
-            if let Ok(reply) = raw.decode() {
-                if let ReplyBody::Scan(s) = reply.body {
-                    n_beams = scip::fill_laser_scan(&s, params, 0.0, 0, out).unwrap_or(0);
-                }
-            }
-        }
-    }
+    each_scan(dec, bytes, |s| {
+        n_beams = scip::fill_laser_scan(s, params, 0.0, 0, out).unwrap_or(0);
+    });
     n_beams
-}
-
-/// CPU time of this thread (s): unlike wall time, it excludes the time the
-/// thread waits for a core on a loaded machine.
-fn thread_cpu_time() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes one timespec into the valid pointer given.
-    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 fn report(what: &str, mut t: Vec<f64>) {
@@ -112,11 +99,11 @@ fn percentiles(what: &str, mut routine: impl FnMut() -> usize) {
     let mut wall = Vec::with_capacity(10_000);
     let mut cpu = Vec::with_capacity(10_000);
     for _ in 0..10_000 {
-        let (c0, w0) = (thread_cpu_time(), Instant::now());
+        let (c0, w0) = (thread_cpu_time().as_secs_f64(), Instant::now());
         black_box(routine());
         let (w, c) = (
             w0.elapsed().as_nanos() as f64 / 1000.0,
-            (thread_cpu_time() - c0) * 1e6,
+            (thread_cpu_time().as_secs_f64() - c0) * 1e6,
         );
         wall.push(w);
         cpu.push(c);

@@ -27,6 +27,34 @@ const HIT: u8 = 40;
 /// Step removed by a pass-through.
 const MISS: u8 = 8;
 
+/// The cell of a raster of `size` = (columns, rows) cells of `resolution`
+/// metres, lower-left corner at `origin`, that contains world point `p`; `None`
+/// outside the raster or for non-finite input. The one cell-indexing rule of
+/// every raster in the crate ([`Grid`], the simulator's floor raster).
+pub fn cell_containing(
+    origin: Point2<f64>,
+    resolution: f64,
+    size: (usize, usize),
+    p: &Point2<f64>,
+) -> Option<CellIndex> {
+    let fx = (p.x - origin.x) / resolution;
+    let fy = (p.y - origin.y) / resolution;
+    if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
+        return None;
+    }
+    let (cx, cy) = (fx as usize, fy as usize);
+    (cx < size.0 && cy < size.1).then_some((cx, cy))
+}
+
+/// World position of the centre of cell `c` of a raster of `resolution`-metre
+/// cells whose lower-left corner is at `origin` (see [`cell_containing`]).
+pub fn cell_centre(origin: Point2<f64>, resolution: f64, c: CellIndex) -> Point2<f64> {
+    Point2::new(
+        origin.x + (c.0 as f64 + 0.5) * resolution,
+        origin.y + (c.1 as f64 + 0.5) * resolution,
+    )
+}
+
 /// An evidence grid over a fixed rectangle of the world.
 #[derive(Clone, Debug)]
 pub struct Grid {
@@ -88,21 +116,12 @@ impl Grid {
     /// The cell containing world point `p`, or `None` outside the grid or for
     /// non-finite input.
     pub fn cell_of(&self, p: &Point2<f64>) -> Option<CellIndex> {
-        let fx = (p.x - self.origin.x) / self.resolution;
-        let fy = (p.y - self.origin.y) / self.resolution;
-        if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
-            return None;
-        }
-        let (cx, cy) = (fx as usize, fy as usize);
-        (cx < self.width && cy < self.height).then_some((cx, cy))
+        cell_containing(self.origin, self.resolution, (self.width, self.height), p)
     }
 
     /// World position of the centre of cell `c`.
     pub fn centre_of(&self, c: CellIndex) -> Point2<f64> {
-        Point2::new(
-            self.origin.x + (c.0 as f64 + 0.5) * self.resolution,
-            self.origin.y + (c.1 as f64 + 0.5) * self.resolution,
-        )
+        cell_centre(self.origin, self.resolution, c)
     }
 
     /// State of cell `c` (unknown outside the grid).
@@ -120,6 +139,46 @@ impl Grid {
     /// Raw evidence value of cell `c` (0 = unknown, else 1..=255, higher = more occupied).
     pub fn evidence(&self, c: CellIndex) -> u8 {
         self.cells[c.1 * self.width + c.0]
+    }
+
+    /// The maximal runs of cells of equal state along row `y` within the
+    /// columns `cols` (clipped to the grid), as `(first column, one past the
+    /// last, state)`, unknown runs included: what a picture draws as one
+    /// rectangle each.
+    pub fn state_runs(
+        &self,
+        y: usize,
+        cols: std::ops::Range<usize>,
+    ) -> impl Iterator<Item = (usize, usize, CellState)> + '_ {
+        let end = cols.end.min(self.width);
+        let mut x = cols.start;
+        std::iter::from_fn(move || {
+            if y >= self.height || x >= end {
+                return None;
+            }
+            let (start, st) = (x, self.state((x, y)));
+            while x < end && self.state((x, y)) == st {
+                x += 1;
+            }
+            Some((start, x, st))
+        })
+    }
+
+    /// The lowest and highest cell (column, row) of the bounding box of every
+    /// observed cell (evidence not 0), or `None` when nothing was observed yet.
+    pub fn explored_cells(&self) -> Option<(CellIndex, CellIndex)> {
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                if self.cells[y * self.width + x] != UNKNOWN {
+                    x0 = x0.min(x);
+                    y0 = y0.min(y);
+                    x1 = x1.max(x);
+                    y1 = y1.max(y);
+                }
+            }
+        }
+        (x0 != usize::MAX).then_some(((x0, y0), (x1, y1)))
     }
 
     /// Overwrites the state of cell `c` (used by tests and checkpoint restore).
@@ -265,6 +324,51 @@ impl Grid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn explored_cells_bound_every_observed_cell() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 20, 20);
+        assert_eq!(g.explored_cells(), None);
+        g.set_state((3, 7), CellState::Free);
+        g.set_state((12, 2), CellState::Occupied);
+        assert_eq!(g.explored_cells(), Some(((3, 2), (12, 7))));
+    }
+
+    #[test]
+    fn state_runs_split_a_row_at_every_change() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 8, 2);
+        for x in 1..4 {
+            g.set_state((x, 1), CellState::Free);
+        }
+        g.set_state((4, 1), CellState::Occupied);
+        let runs: Vec<_> = g.state_runs(1, 0..100).collect();
+        assert_eq!(
+            runs,
+            vec![
+                (0, 1, CellState::Unknown),
+                (1, 4, CellState::Free),
+                (4, 5, CellState::Occupied),
+                (5, 8, CellState::Unknown),
+            ]
+        );
+        assert_eq!(
+            g.state_runs(1, 2..4).collect::<Vec<_>>(),
+            vec![(2, 4, CellState::Free)]
+        );
+        assert_eq!(g.state_runs(2, 0..8).count(), 0);
+    }
+
+    #[test]
+    fn cell_containing_rejects_outside_and_non_finite_points() {
+        let o = Point2::new(-1.0, 2.0);
+        let at = |x: f64, y: f64| cell_containing(o, 0.5, (4, 3), &Point2::new(x, y));
+        assert_eq!(at(-0.9, 2.1), Some((0, 0)));
+        assert_eq!(at(0.99, 3.49), Some((3, 2)));
+        assert_eq!(at(1.0, 2.1), None);
+        assert_eq!(at(-1.1, 2.1), None);
+        assert_eq!(at(f64::NAN, 2.1), None);
+        assert_eq!(cell_centre(o, 0.5, (3, 2)), Point2::new(0.75, 3.25));
+    }
 
     #[test]
     fn ray_marks_free_then_occupied() {

@@ -30,5 +30,6 @@ pub mod scan;
 pub mod scip;
 pub mod serial;
 pub mod sim;
+pub mod svg_canvas;
 pub mod testdata;
 pub mod urg;

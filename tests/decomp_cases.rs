@@ -18,6 +18,15 @@ fn decomposer() -> Decomposer {
     Decomposer::new(&DecompParams::default(), 0.17).unwrap()
 }
 
+/// Distance from `p` to the nearest wall of `world`.
+fn wall_clearance(world: &World, p: &Point2<f64>) -> f64 {
+    world
+        .walls
+        .iter()
+        .map(|w| w.seg.distance_to(p))
+        .fold(f64::INFINITY, f64::min)
+}
+
 fn distance_to_polygon(poly: &[Point2<f64>], p: &Point2<f64>) -> f64 {
     (0..poly.len())
         .map(|i| Segment::new(poly[i], poly[(i + 1) % poly.len()]).distance_to(p))
@@ -195,11 +204,7 @@ fn cells_do_not_reach_into_the_inflation_zone() {
     // at most half a slice (vertices at slice boundaries).
     for c in &d.cells {
         for v in &c.polygon {
-            let clearance = world
-                .walls
-                .iter()
-                .map(|w| w.seg.distance_to(v))
-                .fold(f64::INFINITY, f64::min);
+            let clearance = wall_clearance(&world, v);
             assert!(
                 clearance > 0.17 - 0.03,
                 "cell {:?} vertex {v} at {clearance:.3} m from a wall",
@@ -659,11 +664,7 @@ fn slanted_and_round_walls_give_trapezoids_and_polylines() {
     // within half a slice of a slice point with full clearance.
     for c in &d.cells {
         for v in &c.polygon {
-            let clearance = world
-                .walls
-                .iter()
-                .map(|w| w.seg.distance_to(v))
-                .fold(f64::INFINITY, f64::min);
+            let clearance = wall_clearance(&world, v);
             assert!(clearance > 0.17 - 0.025 - 1e-3, "{v} at {clearance:.3} m");
         }
     }

@@ -13,7 +13,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use sweepline::geom::{pose, IPoint};
-use sweepline::icp::synth::{cast, ScanSpec, Wall};
+use sweepline::icp::synth::{cast_seeded, cast_world, ScanSpec, Wall};
 use sweepline::icp::{IcpParams, Matcher, Outcome, Reference, Tracker};
 use sweepline::scan::{Beam, LaserScan};
 
@@ -61,21 +61,15 @@ fn steady_state_matching_does_not_allocate() {
         ..IcpParams::default()
     };
     let at = pose(2.0, 1.5, 0.2);
-    let refpts: Vec<IPoint> = cast(&walls, &at, &ScanSpec::default())
-        .iter()
-        .map(|p| p.transformed(&at))
-        .collect();
+    let refpts = cast_world(&walls, &at, ScanSpec::default().seed);
     let mut reference = Reference::new();
     reference.rebuild_ordered(&refpts, &params).unwrap();
     let scans: Vec<Vec<IPoint>> = (0..5)
         .map(|k| {
-            cast(
+            cast_seeded(
                 &walls,
                 &pose(2.0 + 0.02 * k as f64, 1.5, 0.2 + 0.01 * k as f64),
-                &ScanSpec {
-                    seed: k,
-                    ..ScanSpec::default()
-                },
+                k,
             )
         })
         .collect();
@@ -139,14 +133,7 @@ fn steady_state_matching_does_not_allocate() {
     // A keyframe step rebuilds the tree (and, before the window is full,
     // grows a new keyframe's buffers): a bounded number of allocations.
     let moved = pose(2.5, 1.5, 0.2);
-    let far = cast(
-        &walls,
-        &moved,
-        &ScanSpec {
-            seed: 42,
-            ..ScanSpec::default()
-        },
-    );
+    let far = cast_seeded(&walls, &moved, 42);
     let before = allocs();
     let s = t.step(&far, Some(&moved));
     let kf_allocs = allocs() - before;

@@ -3,7 +3,7 @@
 //! references and guesses, each with a typed result that says what happened.
 
 use sweepline::geom::{pose, IPoint, Pose};
-use sweepline::icp::synth::{cast, room, ScanSpec, Wall};
+use sweepline::icp::synth::{cast, cast_seeded, room, ScanSpec, Wall};
 use sweepline::icp::{IcpError, IcpParams, Matcher, Outcome, Reference, Tracker};
 use sweepline::scan::{Beam, LaserScan};
 
@@ -226,14 +226,7 @@ fn tracker_survives_garbage_and_recovers() {
         Outcome::Failed(IcpError::TooFewScanPoints { .. })
     ));
     // Then a good scan matches again.
-    let next = cast(
-        &walls,
-        &pose(2.1, 1.5, 0.05),
-        &ScanSpec {
-            seed: 3,
-            ..ScanSpec::default()
-        },
-    );
+    let next = cast_seeded(&walls, &pose(2.1, 1.5, 0.05), 3);
     let s = t.step(&next, None);
     assert!(matches!(s.outcome, Outcome::Matched(_)), "{:?}", s.outcome);
     let d = pose(2.1, 1.5, 0.05).inverse() * s.pose;
@@ -275,17 +268,7 @@ fn long_runs_of_predictions_stay_finite() {
         Outcome::First
     ));
     let moved = pose(2.05, 1.5, 0.03);
-    let s = t.step(
-        &cast(
-            &walls,
-            &moved,
-            &ScanSpec {
-                seed: 5,
-                ..ScanSpec::default()
-            },
-        ),
-        None,
-    );
+    let s = t.step(&cast_seeded(&walls, &moved, 5), None);
     assert!(matches!(s.outcome, Outcome::Matched(_)), "{:?}", s.outcome);
     let mut odom = pose(0.0, 0.0, 0.0);
     for k in 0..20_000 {

@@ -3,7 +3,7 @@
 //! true one. And with w = 0 the matcher is exactly plain point-to-point ICP.
 
 use sweepline::geom::{pose, IPoint, Pose};
-use sweepline::icp::synth::{cast, ScanSpec, Wall};
+use sweepline::icp::synth::{cast_seeded, cast_world, Wall};
 use sweepline::icp::{IcpParams, Matcher, Metric, Reference};
 
 /// A wall along y = `y` from x = -10 to 10, intensity 0.3, with markers
@@ -31,17 +31,6 @@ fn corridor() -> Vec<Wall> {
     w
 }
 
-fn world_scan(walls: &[Wall], at: &Pose, seed: u64) -> Vec<IPoint> {
-    let spec = ScanSpec {
-        seed,
-        ..ScanSpec::default()
-    };
-    cast(walls, at, &spec)
-        .iter()
-        .map(|p| p.transformed(at))
-        .collect()
-}
-
 fn run(w: f64, metric: Metric) -> (Pose, bool) {
     let walls = corridor();
     let mut params = IcpParams {
@@ -62,18 +51,11 @@ fn run(w: f64, metric: Metric) -> (Pose, bool) {
     }
     let mut reference = Reference::new();
     reference
-        .rebuild_ordered(&world_scan(&walls, &pose(0.0, 0.0, 0.0), 1), &params)
+        .rebuild_ordered(&cast_world(&walls, &pose(0.0, 0.0, 0.0), 1), &params)
         .unwrap();
     // The robot moved 0.3 m down the corridor; its odometry slipped and says 0.
     let truth = pose(0.3, 0.02, 0.01);
-    let scan = cast(
-        &walls,
-        &truth,
-        &ScanSpec {
-            seed: 2,
-            ..ScanSpec::default()
-        },
-    );
+    let scan = cast_seeded(&walls, &truth, 2);
     let mut m = Matcher::new(params).unwrap();
     let r = m
         .match_points(&reference, &scan, &pose(0.0, 0.0, 0.0))
@@ -177,16 +159,9 @@ fn plain_icp(reference: &[IPoint], scan: &[IPoint], guess: &Pose, iterations: us
 #[test]
 fn zero_weight_is_exactly_plain_point_to_point_icp() {
     let walls = corridor();
-    let refpts = world_scan(&walls, &pose(0.0, 0.0, 0.0), 5);
+    let refpts = cast_world(&walls, &pose(0.0, 0.0, 0.0), 5);
     let truth = pose(0.05, 0.03, 0.04);
-    let scan = cast(
-        &walls,
-        &truth,
-        &ScanSpec {
-            seed: 6,
-            ..ScanSpec::default()
-        },
-    );
+    let scan = cast_seeded(&walls, &truth, 6);
     let guess = pose(0.0, 0.0, 0.0);
     let iterations = 8;
     // Everything beyond the paper's algorithm switched off: no gate, no

@@ -2,7 +2,7 @@
 //! point-to-point ICP, quality report.
 
 use sweepline::geom::{pose, IPoint, Pose};
-use sweepline::icp::synth::{cast, room, ScanSpec, Wall};
+use sweepline::icp::synth::{cast, cast_seeded, cast_world, room, ScanSpec, Wall};
 use sweepline::icp::{IcpParams, Matcher, Metric, Reference};
 
 /// An L-shaped room with a pillar: no symmetry, every direction constrained.
@@ -30,30 +30,12 @@ fn err(a: &Pose, b: &Pose) -> (f64, f64) {
     (d.translation.vector.norm(), d.rotation.angle().abs())
 }
 
-fn world_points(walls: &[Wall], at: &Pose, seed: u64) -> Vec<IPoint> {
-    let spec = ScanSpec {
-        seed,
-        ..ScanSpec::default()
-    };
-    cast(walls, at, &spec)
-        .iter()
-        .map(|p| p.transformed(at))
-        .collect()
-}
-
 #[test]
 fn converges_to_the_true_pose_with_both_metrics() {
     let walls = scene();
     let truth = pose(2.0, 1.5, 0.3);
-    let refpts = world_points(&walls, &pose(2.2, 1.4, 0.2), 7);
-    let scan = cast(
-        &walls,
-        &truth,
-        &ScanSpec {
-            seed: 8,
-            ..ScanSpec::default()
-        },
-    );
+    let refpts = cast_world(&walls, &pose(2.2, 1.4, 0.2), 7);
+    let scan = cast_seeded(&walls, &truth, 8);
     for metric in [Metric::PointToLine, Metric::PointToPoint] {
         // Point-to-point ICP converges linearly (slowly); give it room.
         let params = IcpParams {
@@ -100,16 +82,9 @@ fn converges_far_from_the_origin() {
     let params = IcpParams::default();
     let mut reference = Reference::new();
     reference
-        .rebuild_ordered(&world_points(&walls, &truth, 3), &params)
+        .rebuild_ordered(&cast_world(&walls, &truth, 3), &params)
         .unwrap();
-    let scan = cast(
-        &walls,
-        &truth,
-        &ScanSpec {
-            seed: 4,
-            ..ScanSpec::default()
-        },
-    );
+    let scan = cast_seeded(&walls, &truth, 4);
     let mut m = Matcher::new(params).unwrap();
     let r = m
         .match_points(&reference, &scan, &(truth * pose(0.05, 0.05, 0.02)))
@@ -182,16 +157,9 @@ fn prior_weight_holds_the_translation_to_the_guess() {
     let params = IcpParams::default();
     let mut reference = Reference::new();
     reference
-        .rebuild_ordered(&world_points(&walls, &truth, 11), &params)
+        .rebuild_ordered(&cast_world(&walls, &truth, 11), &params)
         .unwrap();
-    let scan = cast(
-        &walls,
-        &truth,
-        &ScanSpec {
-            seed: 12,
-            ..ScanSpec::default()
-        },
-    );
+    let scan = cast_seeded(&walls, &truth, 12);
     let guess = truth * pose(0.06, -0.04, 0.0);
     let mut m = Matcher::new(params).unwrap();
     let free = m.match_prepared_weighted(&reference, &guess, 0.0);

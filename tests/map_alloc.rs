@@ -3,41 +3,13 @@
 //! snapshot publications included, makes no heap allocation. Counted with a
 //! global allocator that counts only on the thread that armed it.
 
+mod alloc_support;
 mod map_support;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
+use alloc_support::{count_allocs, Counting};
 use map_support::*;
 use sweepline::map::{Map, MapParams, ScanQuality};
 use sweepline::sim::world::World;
-
-struct Counting;
-
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-thread_local! {
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if ARMED.with(|a| a.get()) {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if ARMED.with(|a| a.get()) {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -45,10 +17,8 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn second_pass_allocates_nothing() {
     // The counter works: an armed allocation is seen.
-    ARMED.with(|a| a.set(true));
-    let v: Vec<u64> = Vec::with_capacity(16);
-    ARMED.with(|a| a.set(false));
-    assert_eq!(ALLOCS.load(Ordering::Relaxed), 1);
+    let (v, n) = count_allocs(|| Vec::<u64>::with_capacity(16));
+    assert_eq!(n, 1);
     drop(v);
     let (_, text) = &worlds()[0];
     let world = World::parse(text).unwrap();
@@ -73,11 +43,7 @@ fn second_pass_allocates_nothing() {
     let points_before = map.points().len();
     let mut allocating_updates = 0;
     for (s, p) in second {
-        ALLOCS.store(0, Ordering::Relaxed);
-        ARMED.with(|a| a.set(true));
-        let rep = map.update(s, p, ScanQuality::Good);
-        ARMED.with(|a| a.set(false));
-        let n = ALLOCS.load(Ordering::Relaxed);
+        let (rep, n) = count_allocs(|| map.update(s, p, ScanQuality::Good));
         rep.unwrap();
         if n > 0 {
             allocating_updates += 1;

@@ -2,51 +2,18 @@
 //! allocator watches the control thread while it commands and polls an
 //! emulated base over a pty (the emulator's own thread is not counted).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use sweepline::clock::{MonotonicClock, SharedClock};
 use sweepline::config::Config;
-use sweepline::motor::create2::driver::Create2Driver;
 use sweepline::motor::link::ConnectorOpener;
-use sweepline::motor::roboclaw::driver::RoboClawDriver;
-use sweepline::motor::{BaseKind, DiffDriveBase, WheelSpeeds};
+use sweepline::motor::{base_driver, BaseKind, DiffDriveBase, WheelSpeeds};
 use sweepline::serial::DeviceConnector;
 use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig};
 
-struct Counting;
-
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-
-thread_local! {
-    static WATCHED: Cell<bool> = const { Cell::new(false) };
-}
-
-fn watched() -> bool {
-    WATCHED.try_with(|w| w.get()).unwrap_or(false)
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if watched() {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if watched() {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(p, l, n) }
-    }
-}
+mod alloc_support;
+use alloc_support::{allocs, set_counting, Counting};
 
 #[global_allocator]
 static A: Counting = Counting;
@@ -62,24 +29,18 @@ fn steady_state_command_and_poll_do_not_allocate() {
         let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
             emu.path().unwrap(),
         ))));
-        let mut base: Box<dyn DiffDriveBase> = match kind {
-            BaseKind::Roboclaw => {
-                Box::new(RoboClawDriver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-            BaseKind::Create2 => {
-                Box::new(Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-        };
+        let mut base: Box<dyn DiffDriveBase> =
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
         let mut cycle = |watch: bool, i: u32| {
             let w = 0.05 + 0.001 * (i % 50) as f64;
-            WATCHED.with(|c| c.set(watch));
+            set_counting(watch);
             base.set_wheels(WheelSpeeds {
                 left: w,
                 right: w * 0.9,
             })
             .unwrap();
             let fb = base.poll().unwrap();
-            WATCHED.with(|c| c.set(false));
+            set_counting(false);
             fb
         };
         // Warm up: open the port, initialise, first odometry.
@@ -90,7 +51,7 @@ fn steady_state_command_and_poll_do_not_allocate() {
             i += 1;
             std::thread::sleep(Duration::from_millis(20));
         }
-        let before = ALLOCS.load(Ordering::Relaxed);
+        let before = allocs();
         let mut odometry = 0;
         for _ in 0..40 {
             let fb = cycle(true, i);
@@ -99,7 +60,7 @@ fn steady_state_command_and_poll_do_not_allocate() {
             i += 1;
             std::thread::sleep(Duration::from_millis(20));
         }
-        let n = ALLOCS.load(Ordering::Relaxed) - before;
+        let n = allocs() - before;
         assert!(odometry > 30, "{kind:?}: only {odometry} odometry updates");
         assert_eq!(n, 0, "{kind:?}: {n} allocations in 40 steady-state cycles");
         drop(base);

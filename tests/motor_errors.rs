@@ -5,20 +5,15 @@ use std::sync::Arc;
 
 use sweepline::clock::{MonotonicClock, SharedClock};
 use sweepline::config::Config;
-use sweepline::motor::create2::driver::Create2Driver;
 use sweepline::motor::link::ConnectorOpener;
-use sweepline::motor::roboclaw::driver::RoboClawDriver;
-use sweepline::motor::{BaseKind, DiffDriveBase, MotorError, WheelSpeeds};
+use sweepline::motor::{base_driver, BaseKind, DiffDriveBase, MotorError, WheelSpeeds};
 use sweepline::serial::DeviceConnector;
 
 fn driver(kind: BaseKind, path: &str) -> Box<dyn DiffDriveBase> {
     let clock: SharedClock = Arc::new(MonotonicClock::new());
     let cfg = Config::default();
     let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(path))));
-    match kind {
-        BaseKind::Roboclaw => Box::new(RoboClawDriver::new(&cfg.motor, &cfg.robot, opener, clock)),
-        BaseKind::Create2 => Box::new(Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock)),
-    }
+    base_driver(kind, &cfg.motor, &cfg.robot, opener, clock)
 }
 
 #[test]

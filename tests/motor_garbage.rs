@@ -11,10 +11,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sweepline::clock::{MonotonicClock, SharedClock};
 use sweepline::config::Config;
-use sweepline::motor::create2::driver::Create2Driver;
 use sweepline::motor::link::{ByteLink, LinkOpener};
-use sweepline::motor::roboclaw::driver::RoboClawDriver;
-use sweepline::motor::{BaseKind, DiffDriveBase, WheelSpeeds};
+use sweepline::motor::{base_driver, BaseKind, DiffDriveBase, WheelSpeeds};
 
 /// Hands out one end of a socket pair once.
 struct Once(Mutex<Option<UnixStream>>);
@@ -58,14 +56,8 @@ fn noise_never_panics_nor_fakes_a_link() {
         let clock: SharedClock = Arc::new(MonotonicClock::new());
         let cfg = Config::default();
         let opener = Box::new(Once(Mutex::new(Some(host))));
-        let mut base: Box<dyn DiffDriveBase> = match kind {
-            BaseKind::Roboclaw => {
-                Box::new(RoboClawDriver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-            BaseKind::Create2 => {
-                Box::new(Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock))
-            }
-        };
+        let mut base: Box<dyn DiffDriveBase> =
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
         let mut travel = 0.0;
         for _ in 0..40 {
             base.set_wheels(WheelSpeeds {

@@ -11,7 +11,9 @@ use sweepline::geom::{heading, pose, Pose};
 use sweepline::motor::create2::driver::Create2Driver;
 use sweepline::motor::link::ConnectorOpener;
 use sweepline::motor::roboclaw::driver::RoboClawDriver;
-use sweepline::motor::{BaseKind, DiffDriveBase, MotorParams, SafetyEvent, WheelSpeeds};
+use sweepline::motor::{
+    base_driver, BaseKind, DiffDriveBase, MotorParams, SafetyEvent, WheelSpeeds,
+};
 use sweepline::serial::DeviceConnector;
 use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig, EmulatorHandle, Fault};
 use sweepline::sim::kinematics::KinematicsParams;
@@ -89,20 +91,8 @@ fn rig_on(
     let emu = spawn_on_pty(ecfg, link, clock.clone()).unwrap();
     let path = emu.path().unwrap();
     let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(path))));
-    let base: Box<dyn DiffDriveBase> = match kind {
-        BaseKind::Roboclaw => Box::new(RoboClawDriver::new(
-            &cfg.motor,
-            &cfg.robot,
-            opener,
-            clock.clone(),
-        )),
-        BaseKind::Create2 => Box::new(Create2Driver::new(
-            &cfg.motor,
-            &cfg.robot,
-            opener,
-            clock.clone(),
-        )),
-    };
+    let base: Box<dyn DiffDriveBase> =
+        base_driver(kind, &cfg.motor, &cfg.robot, opener, clock.clone());
     let mut r = Rig {
         clock,
         emu,

@@ -118,6 +118,34 @@ impl Hooks for Coverage {
     }
 }
 
+/// The daemon's four stages as stand-ins: a 10 Hz scanner sending `scans`
+/// scans through a drop-oldest queue to `localise` (doing `localise_work`
+/// units of work per scan), then newest-wins edges to `control` and `motor`.
+fn four_stage_pipeline(params: &PipelineParams, scans: u32, localise_work: u32) -> Pipeline {
+    let mut p = Pipeline::new(params);
+    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
+    let (pose_tx, pose_rx) = latest::<Msg>("pose");
+    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
+    p.register_edge(&scan_tx);
+    p.register_edge(&pose_tx);
+    p.register_edge(&cmd_tx);
+    p.spawn(
+        "scanner",
+        Scanner {
+            next: Instant::now(),
+            left: scans,
+            out: scan_tx,
+        },
+    )
+    .unwrap();
+    p.spawn("localise", worker(scan_rx, Some(pose_tx), localise_work))
+        .unwrap();
+    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
+        .unwrap();
+    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    p
+}
+
 fn out_dir() -> (PathBuf, bool) {
     match std::env::var_os("SWEEPLINE_KEEP_REPORT") {
         Some(d) => (PathBuf::from(d), true),
@@ -131,28 +159,8 @@ fn out_dir() -> (PathBuf, bool) {
 #[test]
 fn a_real_time_run_writes_metrics_and_a_budget_report() {
     let params = PipelineParams::default();
-    let mut p = Pipeline::new(&params);
-    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
-    let (pose_tx, pose_rx) = latest::<Msg>("pose");
-    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
-    p.register_edge(&scan_tx);
-    p.register_edge(&pose_tx);
-    p.register_edge(&cmd_tx);
     let scans = 30;
-    p.spawn(
-        "scanner",
-        Scanner {
-            next: Instant::now(),
-            left: scans,
-            out: scan_tx,
-        },
-    )
-    .unwrap();
-    p.spawn("localise", worker(scan_rx, Some(pose_tx), 8))
-        .unwrap();
-    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
-        .unwrap();
-    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let p = four_stage_pipeline(&params, scans, 8);
     let (dir, keep) = out_dir();
     let _ = std::fs::remove_dir_all(&dir);
     let sup = Supervisor::new(&params);
@@ -260,30 +268,10 @@ fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() 
             .collect(),
     );
     let params = PipelineParams::default();
-    let mut p = Pipeline::new(&params);
-    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
-    let (pose_tx, pose_rx) = latest::<Msg>("pose");
-    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
-    p.register_edge(&scan_tx);
-    p.register_edge(&pose_tx);
-    p.register_edge(&cmd_tx);
     let scans = 40;
-    p.spawn(
-        "scanner",
-        Scanner {
-            next: Instant::now(),
-            left: scans,
-            out: scan_tx,
-        },
-    )
-    .unwrap();
     // ~1 ms of work at full quality against the 2 ms budget: under load some
     // items overrun and the stage degrades.
-    p.spawn("localise", worker(scan_rx, Some(pose_tx), 160))
-        .unwrap();
-    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
-        .unwrap();
-    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let p = four_stage_pipeline(&params, scans, 160);
     let out = Supervisor::new(&params).run(p, &mut Coverage(0));
     drop(hogs);
     let snap = out.snapshot;
@@ -338,28 +326,8 @@ fn soak() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(600);
     let params = PipelineParams::default();
-    let mut p = Pipeline::new(&params);
-    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
-    let (pose_tx, pose_rx) = latest::<Msg>("pose");
-    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
-    p.register_edge(&scan_tx);
-    p.register_edge(&pose_tx);
-    p.register_edge(&cmd_tx);
     let scans = secs * 10;
-    p.spawn(
-        "scanner",
-        Scanner {
-            next: Instant::now(),
-            left: scans,
-            out: scan_tx,
-        },
-    )
-    .unwrap();
-    p.spawn("localise", worker(scan_rx, Some(pose_tx), 8))
-        .unwrap();
-    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
-        .unwrap();
-    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let p = four_stage_pipeline(&params, scans, 8);
     let (dir, _) = out_dir();
     let mut hooks = RunFolderHooks::new(Coverage(0), &dir, &params);
     let out = Supervisor::new(&params).run(p, &mut hooks);

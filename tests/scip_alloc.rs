@@ -2,9 +2,7 @@
 //! allocator watches 200 MD scans go from bytes (in awkward read() chunks)
 //! through the decoder, the typed reply and into a `LaserScan`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod alloc_support;
 
 use sweepline::scan::LaserScan;
 use sweepline::scip::{
@@ -12,41 +10,7 @@ use sweepline::scip::{
     StatusCode, StreamRequest, TaggedCommand, Width,
 };
 
-struct Counting;
-
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-thread_local! {
-    /// Counting is per thread, so the test harness's own threads cannot
-    /// disturb (or hide) a measurement.
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-fn counting() -> bool {
-    COUNTING.with(Cell::get)
-}
-
-fn set_counting(on: bool) {
-    COUNTING.with(|c| c.set(on));
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if counting() {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if counting() {
-            ALLOCS.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use alloc_support::{allocs, set_counting, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -136,11 +100,11 @@ fn decoding_md_scans_allocates_nothing_in_steady_state() {
     let (warm, _) = decode_all(&mut dec, &bytes, &params, &mut scan);
     assert_eq!(warm, 200);
 
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = allocs();
     set_counting(true);
     let (scans, valid) = decode_all(&mut dec, &bytes, &params, &mut scan);
     set_counting(false);
-    let allocs = ALLOCS.load(Ordering::SeqCst) - before;
+    let allocs = allocs() - before;
 
     assert_eq!(scans, 200);
     assert_eq!(valid, 200 * (682 - 98), "every 7th step is error code 7");
@@ -150,10 +114,10 @@ fn decoding_md_scans_allocates_nothing_in_steady_state() {
 /// The counter really counts (so the zero above means something).
 #[test]
 fn the_counting_allocator_sees_allocations() {
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = allocs();
     set_counting(true);
     let v: Vec<u64> = std::hint::black_box(Vec::with_capacity(16));
     set_counting(false);
     drop(v);
-    assert!(ALLOCS.load(Ordering::SeqCst) > before);
+    assert!(allocs() > before);
 }

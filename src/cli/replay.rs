@@ -18,6 +18,8 @@ use crate::config::Config;
 use crate::geom::{IPoint, Pose};
 use crate::icp::eval::{format_trajectory, Stamped};
 use crate::icp::{IcpParams, Outcome, Tracker};
+use crate::pipeline::clock::thread_cpu_time;
+use crate::pipeline::metrics::quantile_sorted;
 use crate::sim::carmen::{self, NO_RETURN_RANGE};
 
 /// Arguments of `sweepline replay`.
@@ -75,11 +77,11 @@ pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayR
     for (i, l) in log.lasers().enumerate() {
         let scan = l.to_scan(i as u64, NO_RETURN_RANGE);
         scan.points_into(&mut pts);
-        let c0 = thread_cpu_seconds();
+        let c0 = thread_cpu_time().as_secs_f64();
         let t0 = Instant::now();
         let step = tracker.step(&pts, Some(&l.odom_pose));
         let dt = t0.elapsed().as_secs_f64();
-        let dc = thread_cpu_seconds() - c0;
+        let dc = thread_cpu_time().as_secs_f64() - c0;
         let line = match step.outcome {
             Outcome::First => format!("{:.6} first", l.stamp),
             Outcome::Matched(q) | Outcome::Rejected(_, q) => format!(
@@ -137,29 +139,6 @@ pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayR
     Ok(res)
 }
 
-/// CPU time consumed by the calling thread (s), from `CLOCK_THREAD_CPUTIME_ID`.
-fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
-
-/// Quantile `q` in [0, 1] of sorted values.
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
-    sorted[i.min(sorted.len() - 1)]
-}
-
 /// The text summary of a replay.
 pub fn summary(res: &ReplayResult) -> String {
     let mut t = res.step_times.clone();
@@ -187,8 +166,8 @@ pub fn summary(res: &ReplayResult) -> String {
         let _ = writeln!(
             s,
             "{name} time per scan (match incl. keyframe updates): median {:.3} ms  p99 {:.3} ms  max {:.3} ms  mean {:.3} ms",
-            quantile(v, 0.5) * 1e3,
-            quantile(v, 0.99) * 1e3,
+            quantile_sorted(v, 0.5) * 1e3,
+            quantile_sorted(v, 0.99) * 1e3,
             v.last().copied().unwrap_or(f64::NAN) * 1e3,
             v.iter().sum::<f64>() / v.len().max(1) as f64 * 1e3
         );

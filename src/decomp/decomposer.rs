@@ -217,20 +217,9 @@ impl Decomposer {
             return wrap_angle(a);
         }
         // The explored part of the grid.
-        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-        for y in 0..grid.height() {
-            for x in 0..grid.width() {
-                if grid.evidence((x, y)) != 0 {
-                    x0 = x0.min(x);
-                    y0 = y0.min(y);
-                    x1 = x1.max(x);
-                    y1 = y1.max(y);
-                }
-            }
-        }
-        if x0 == usize::MAX {
+        let Some(((x0, y0), (x1, y1))) = grid.explored_cells() else {
             return 0.0;
-        }
+        };
         let window = (x0.saturating_sub(1), y0.saturating_sub(1), x1 + 2, y1 + 2);
         let est = direction::from_segments(segments)
             .or_else(|| direction::from_grid_window(grid, window));

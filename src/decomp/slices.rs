@@ -199,20 +199,7 @@ impl Slices {
         input: &SliceInput<'_>,
     ) -> Option<(usize, usize, usize, usize)> {
         let g = input.grid;
-        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0usize, 0usize);
-        for y in 0..g.height() {
-            for x in 0..g.width() {
-                if g.evidence((x, y)) != 0 {
-                    x0 = x0.min(x);
-                    x1 = x1.max(x);
-                    y0 = y0.min(y);
-                    y1 = y1.max(y);
-                }
-            }
-        }
-        if x0 == usize::MAX {
-            return None;
-        }
+        let ((x0, y0), (x1, y1)) = g.explored_cells()?;
         self.grid_box = (x0, y0, x1 + 1, y1 + 1);
         let (o, r) = (g.origin(), g.resolution());
         let margin = input.radius + 2.0 * f.h;
@@ -458,6 +445,15 @@ impl Slices {
     fn cut_pieces(&mut self, f: &SweepFrame, frozen: &[FrozenSpan], min_beside: f64) {
         let (i0, i1, k0, k1) = self.window;
         let min_len = f.h * 0.5;
+        // The shortest piece kept: beside a frozen cell, shorter ones are left
+        // to that cell's tool overlap.
+        let need = |beside_frozen: bool| {
+            if beside_frozen {
+                min_beside.max(min_len)
+            } else {
+                min_len
+            }
+        };
         let mut fz = 0usize;
         for k in 0..f.nv {
             self.piece_rows[k] = self.pieces.len() as u32;
@@ -511,12 +507,7 @@ impl Slices {
                     if el > cur {
                         let beside =
                             matches!(ek, End::Frozen(_)) || matches!(cur_end, End::Frozen(_));
-                        let need = if beside {
-                            min_beside.max(min_len)
-                        } else {
-                            min_len
-                        };
-                        if el - cur >= need {
+                        if el - cur >= need(beside) {
                             self.pieces.push(Piece {
                                 row: k as u32,
                                 l: cur,
@@ -535,12 +526,7 @@ impl Slices {
                         break;
                     }
                 }
-                let need = if matches!(cur_end, End::Frozen(_)) {
-                    min_beside.max(min_len)
-                } else {
-                    min_len
-                };
-                if ru - cur >= need {
+                if ru - cur >= need(matches!(cur_end, End::Frozen(_))) {
                     self.pieces.push(Piece {
                         row: k as u32,
                         l: cur,

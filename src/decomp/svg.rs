@@ -3,11 +3,12 @@
 //! coloured by state with their ids; virtual edges dashed; frontiers red.
 
 use nalgebra::Point2;
-use svg::node::element::{Circle, Line, Polygon, Rectangle, Text};
+use svg::node::element::{Circle, Line, Polygon, Rectangle};
 use svg::Document;
 
 use crate::geom::Segment;
 use crate::grid::{CellState, Grid};
+use crate::svg_canvas::{canvas, label};
 
 use super::cell::{CellStatus, Decomposition};
 
@@ -35,20 +36,9 @@ fn status_colour(s: CellStatus) -> &'static str {
 /// of `grid`, with a half-metre margin (the whole grid when nothing is explored).
 pub fn explored_bounds(grid: &Grid) -> (Point2<f64>, Point2<f64>) {
     let (o, r) = (grid.origin(), grid.resolution());
-    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-    for y in 0..grid.height() {
-        for x in 0..grid.width() {
-            if grid.evidence((x, y)) != 0 {
-                x0 = x0.min(x);
-                y0 = y0.min(y);
-                x1 = x1.max(x);
-                y1 = y1.max(y);
-            }
-        }
-    }
-    if x0 == usize::MAX {
-        (x0, y0, x1, y1) = (0, 0, grid.width().max(1) - 1, grid.height().max(1) - 1);
-    }
+    let ((x0, y0), (x1, y1)) = grid
+        .explored_cells()
+        .unwrap_or(((0, 0), (grid.width().max(1) - 1, grid.height().max(1) - 1)));
     (
         Point2::new(o.x + x0 as f64 * r - 0.5, o.y + y0 as f64 * r - 0.5),
         Point2::new(
@@ -92,25 +82,10 @@ pub fn render_view(
     let sx = |x: f64| (x - wx0) * SCALE;
     let sy = |y: f64| (wy1 - y) * SCALE;
     let (w, h) = ((wx1 - wx0) * SCALE, (wy1 - wy0) * SCALE + 30.0);
-    let mut doc = Document::new()
-        .set("viewBox", (0.0, 0.0, w, h))
-        .set("width", w)
-        .set("height", h)
-        .add(
-            Rectangle::new()
-                .set("width", w)
-                .set("height", h)
-                .set("fill", "#9a9a9a"),
-        );
+    let mut doc = canvas(w, h, "#9a9a9a");
     // The grid, one rectangle per run of equal state in a row.
     for y in y0..=y1 {
-        let mut x = x0;
-        while x <= x1 {
-            let s = grid.state((x, y));
-            let start = x;
-            while x <= x1 && grid.state((x, y)) == s {
-                x += 1;
-            }
+        for (start, end, s) in grid.state_runs(y, x0..x1 + 1) {
             let fill = match s {
                 CellState::Unknown => continue,
                 CellState::Free => "#ffffff",
@@ -120,7 +95,7 @@ pub fn render_view(
                 Rectangle::new()
                     .set("x", sx(o.x + start as f64 * r))
                     .set("y", sy(o.y + (y + 1) as f64 * r))
-                    .set("width", (x - start) as f64 * r * SCALE)
+                    .set("width", (end - start) as f64 * r * SCALE)
                     .set("height", r * SCALE)
                     .set("fill", fill),
             );
@@ -157,14 +132,8 @@ pub fn render_view(
         let n = c.polygon.len() as f64;
         let cx = c.polygon.iter().map(|p| p.x).sum::<f64>() / n;
         let cy = c.polygon.iter().map(|p| p.y).sum::<f64>() / n;
-        doc = doc.add(
-            Text::new(format!("{}", c.id.0))
-                .set("x", sx(cx))
-                .set("y", sy(cy))
-                .set("font-size", 16)
-                .set("font-family", "sans-serif")
-                .set("text-anchor", "middle"),
-        );
+        doc =
+            doc.add(label(sx(cx), sy(cy), format!("{}", c.id.0), 16).set("text-anchor", "middle"));
     }
     if let Some(p) = robot {
         doc = doc.add(
@@ -177,13 +146,7 @@ pub fn render_view(
                 .set("stroke-width", 3),
         );
     }
-    doc.add(
-        Text::new(caption.to_string())
-            .set("x", 8)
-            .set("y", h - 8.0)
-            .set("font-size", 16)
-            .set("font-family", "sans-serif"),
-    )
+    doc.add(label(8.0, h - 8.0, caption.to_string(), 16))
 }
 
 fn line(
@@ -223,16 +186,9 @@ pub fn panels(docs: Vec<Document>, columns: usize, panel_size: (f64, f64)) -> Do
             (i % columns) as f64 * pw,
             (i / columns) as f64 * (ph + 24.0),
         );
-        let label = format!("({})", (b'a' + (i % 26) as u8) as char);
+        let letter = format!("({})", (b'a' + (i % 26) as u8) as char);
         out = out
-            .add(
-                Text::new(label)
-                    .set("x", cx + pw / 2.0)
-                    .set("y", cy + 18.0)
-                    .set("font-size", 18)
-                    .set("font-family", "sans-serif")
-                    .set("text-anchor", "middle"),
-            )
+            .add(label(cx + pw / 2.0, cy + 18.0, letter, 18).set("text-anchor", "middle"))
             .add(d.set("x", cx).set("y", cy + 24.0));
     }
     out

@@ -5,12 +5,13 @@
 use std::fmt::Write as _;
 
 use nalgebra::Point2;
-use svg::node::element::{Circle, Group, Line, Polyline, Rectangle, Text};
+use svg::node::element::{Circle, Group, Line, Polyline, Rectangle};
 use svg::Document;
 
 use super::snapshot::MapSnapshot;
 use crate::geom::Segment;
 use crate::grid::CellState;
+use crate::svg_canvas::{canvas, label};
 
 /// Pixels per metre at which pictures are drawn.
 const PX_PER_M: f64 = 100.0;
@@ -88,39 +89,23 @@ pub fn render(snap: &MapSnapshot, reference: &[Segment]) -> Document {
         max: max + nalgebra::Vector2::new(0.2, 0.2),
     };
     let (w, h) = view.size();
-    let mut doc = Document::new()
-        .set("viewBox", (0.0, 0.0, w, h))
-        .set("width", w)
-        .set("height", h)
-        .add(
-            Rectangle::new()
-                .set("width", w)
-                .set("height", h)
-                .set("fill", "#f4f4f4"),
-        );
+    let mut doc = canvas(w, h, "#f4f4f4");
     // Explored free space, as runs of free cells per row.
     let g = &snap.grid;
     let r = g.resolution();
     let mut free = Group::new().set("fill", "#ffffff");
     let mut occ = Group::new().set("fill", "#c8c8c8");
     for cy in 0..g.height() {
-        let mut cx = 0;
-        while cx < g.width() {
-            let st = g.state((cx, cy));
+        for (start, end, st) in g.state_runs(cy, 0..g.width()) {
             if st == CellState::Unknown {
-                cx += 1;
                 continue;
-            }
-            let start = cx;
-            while cx < g.width() && g.state((cx, cy)) == st {
-                cx += 1;
             }
             let x0 = g.origin().x + start as f64 * r;
             let y1 = g.origin().y + (cy + 1) as f64 * r;
             let rect = Rectangle::new()
                 .set("x", view.x(x0))
                 .set("y", view.y(y1))
-                .set("width", (cx - start) as f64 * r * PX_PER_M)
+                .set("width", (end - start) as f64 * r * PX_PER_M)
                 .set("height", r * PX_PER_M);
             if st == CellState::Free {
                 free = free.add(rect);
@@ -197,13 +182,7 @@ pub fn render(snap: &MapSnapshot, reference: &[Segment]) -> Document {
             ", reference walls green"
         }
     );
-    doc.add(
-        Text::new(caption)
-            .set("x", MARGIN)
-            .set("y", h - 6.0)
-            .set("font-family", "sans-serif")
-            .set("font-size", 12),
-    )
+    doc.add(label(MARGIN, h - 6.0, caption, 12))
 }
 
 fn line(view: &View, s: &Segment) -> Line {

@@ -82,6 +82,18 @@ impl Link {
         self.port.is_some()
     }
 
+    /// `Ok` when the port is open, else [`crate::motor::MotorError::NotConnected`]
+    /// naming the device.
+    pub fn require_open(&self) -> Result<(), crate::motor::MotorError> {
+        if self.is_open() {
+            Ok(())
+        } else {
+            Err(crate::motor::MotorError::NotConnected {
+                device: self.describe(),
+            })
+        }
+    }
+
     /// Opens the port if it is closed and an attempt is due at `now`; true
     /// when it was opened by this call.
     pub fn ensure_open(&mut self, now: f64) -> bool {

@@ -7,6 +7,8 @@
 //! * [`odometry`]: wrapping counters to pose increments, and
 //!   [`odometry::OdometryTrack`] for the pose at a scan's timestamp;
 //! * [`safety`]: the dead-man and the bumper/wheel-drop gate;
+//! * [`command`]: the requested set-point, dead-man, gate and pending safety
+//!   events every driver holds;
 //! * [`link`]: the port under a driver, re-opened after the device vanished;
 //! * [`params`]: the `[motor]` table.
 //!
@@ -43,6 +45,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod command;
 pub mod crc16;
 pub mod create2;
 pub mod link;
@@ -68,7 +71,20 @@ pub fn open_base(
     let mut dev = crate::serial::DeviceConnector::new(p.device.clone());
     dev.baud = p.baud;
     let opener = Box::new(link::ConnectorOpener(Box::new(dev)));
-    match p.kind {
+    base_driver(p.kind, p, robot, opener, clock)
+}
+
+/// Builds the driver for a base of `kind` over whatever port `opener` opens (a
+/// tty, an emulator's pty, an in-process loopback): [`open_base`] without the
+/// choice of port.
+pub fn base_driver(
+    kind: BaseKind,
+    p: &MotorParams,
+    robot: &crate::config::RobotParams,
+    opener: Box<dyn link::LinkOpener>,
+    clock: crate::clock::SharedClock,
+) -> Box<dyn DiffDriveBase> {
+    match kind {
         BaseKind::Roboclaw => Box::new(roboclaw::driver::RoboClawDriver::new(
             p, robot, opener, clock,
         )),

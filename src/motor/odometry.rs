@@ -25,6 +25,12 @@ impl CounterWidth {
     }
 }
 
+/// Encoder counts per metre of wheel travel for `counts_per_rev` counts per
+/// wheel revolution on wheels of `wheel_radius` metres.
+pub fn counts_per_metre(counts_per_rev: f64, wheel_radius: f64) -> f64 {
+    counts_per_rev / (2.0 * std::f64::consts::PI * wheel_radius)
+}
+
 /// Pose increment of a differential drive whose left and right wheels travelled
 /// `dl` and `dr` metres on an axle of `wheel_base` metres, assuming a
 /// constant-curvature arc; expressed in the starting base frame.

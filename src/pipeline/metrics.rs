@@ -14,6 +14,17 @@ pub const HIGHEST_NS: u64 = 10_000_000_000;
 /// Significant decimal digits kept (0.1 % value resolution).
 const SIGFIG: u8 = 3;
 
+/// Quantile `q` in [0, 1] of ascending-sorted samples by the nearest rank
+/// (index `round((n - 1) q)`); NaN for no samples. The one rule the benches
+/// and the replay summary print their p50/p99 with.
+pub fn quantile_sorted(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
 /// A latency histogram in nanoseconds (HdrHistogram, 1 ns .. 10 s, 3 digits).
 /// Its bounds are fixed at construction, so [`LatencyHistogram::record`] never
 /// allocates.
@@ -357,6 +368,17 @@ impl MetricsSnapshot {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sorted_quantile_takes_the_nearest_rank() {
+        let v = [1.0, 2.0, 3.0, 4.0, 10.0];
+        assert_eq!(quantile_sorted(&v, 0.0), 1.0);
+        assert_eq!(quantile_sorted(&v, 0.5), 3.0);
+        assert_eq!(quantile_sorted(&v, 0.99), 10.0);
+        assert_eq!(quantile_sorted(&v, 0.6), 3.0);
+        assert_eq!(quantile_sorted(&v, 2.0), 10.0);
+        assert!(quantile_sorted(&[], 0.5).is_nan());
+    }
 
     #[test]
     fn quantiles_follow_the_data() {

@@ -7,6 +7,7 @@ use svg::node::element::{Group, Line, Rectangle, Text};
 use svg::Document;
 
 use crate::pipeline::metrics::LatencyHistogram;
+use crate::svg_canvas::{canvas, label};
 
 const W: f64 = 720.0;
 const H: f64 = 340.0;
@@ -33,12 +34,7 @@ pub fn fmt_duration(secs: f64) -> String {
 }
 
 fn text(x: f64, y: f64, s: &str, size: u32, anchor: &str) -> Text {
-    Text::new(s)
-        .set("x", x)
-        .set("y", y)
-        .set("font-family", "sans-serif")
-        .set("font-size", size)
-        .set("text-anchor", anchor)
+    label(x, y, s, size).set("text-anchor", anchor)
 }
 
 /// Histogram of `hist` titled `title`, with a limit (a stage budget, a
@@ -49,17 +45,7 @@ pub fn latency_svg(
     limit: Option<(&str, Duration)>,
 ) -> Document {
     let budget = limit.map(|l| l.1);
-    let mut doc = Document::new()
-        .set("viewBox", (0, 0, W, H))
-        .set("width", W)
-        .set("height", H)
-        .add(
-            Rectangle::new()
-                .set("width", W)
-                .set("height", H)
-                .set("fill", "white"),
-        )
-        .add(text(W / 2.0, 22.0, title, 16, "middle"));
+    let mut doc = canvas(W, H, "white").add(text(W / 2.0, 22.0, title, 16, "middle"));
     let pw = W - LEFT - RIGHT;
     let ph = H - TOP - BOTTOM;
     if hist.count() == 0 {

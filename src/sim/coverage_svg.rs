@@ -6,13 +6,14 @@
 
 use std::path::Path;
 
-use svg::node::element::{Circle, Group, Line, Polygon, Polyline, Rectangle, Text};
+use svg::node::element::{Circle, Group, Line, Polygon, Polyline, Rectangle};
 use svg::Document;
 
 use crate::decomp::{CellStatus, Decomposition};
 use crate::geom::Pose;
 use crate::sim::coverage_metrics::CoverageMetrics;
 use crate::sim::world::{FreeRaster, World};
+use crate::svg_canvas::{canvas, label};
 
 /// Pixels per metre.
 const SCALE: f64 = 100.0;
@@ -44,16 +45,7 @@ impl View {
         (self.y1 - y) * SCALE
     }
     fn doc(&self, extra_h: f64) -> Document {
-        Document::new()
-            .set("viewBox", (0.0, 0.0, self.w, self.h + extra_h))
-            .set("width", self.w)
-            .set("height", self.h + extra_h)
-            .add(
-                Rectangle::new()
-                    .set("width", self.w)
-                    .set("height", self.h + extra_h)
-                    .set("fill", "#ffffff"),
-            )
+        canvas(self.w, self.h + extra_h, "#ffffff")
     }
 }
 
@@ -131,12 +123,7 @@ pub fn cells_svg(
             let cx = c.polygon.iter().map(|p| p.x).sum::<f64>() / n;
             let cy = c.polygon.iter().map(|p| p.y).sum::<f64>() / n;
             doc = doc.add(
-                Text::new(format!("{}", c.id.0))
-                    .set("x", v.x(cx))
-                    .set("y", v.y(cy))
-                    .set("font-size", 16)
-                    .set("font-family", "sans-serif")
-                    .set("text-anchor", "middle"),
+                label(v.x(cx), v.y(cy), format!("{}", c.id.0), 16).set("text-anchor", "middle"),
             );
         }
     }
@@ -146,13 +133,7 @@ pub fn cells_svg(
             .add(track(track_so_far, &v, "#3182bd", 1.5))
             .add(robot(last, robot_radius, &v));
     }
-    doc.add(
-        Text::new(caption)
-            .set("x", 8)
-            .set("y", v.h + 22.0)
-            .set("font-size", 16)
-            .set("font-family", "sans-serif"),
-    )
+    doc.add(label(8.0, v.h + 22.0, caption, 16))
 }
 
 /// The final path over the world, with pass counts per ground-truth cell.
@@ -226,13 +207,7 @@ pub fn path_svg(
         m.time,
         m.collisions
     );
-    doc.add(
-        Text::new(caption)
-            .set("x", 8)
-            .set("y", v.h + 22.0)
-            .set("font-size", 14)
-            .set("font-family", "sans-serif"),
-    )
+    doc.add(label(8.0, v.h + 22.0, caption, 14))
 }
 
 /// Writes `doc` to `path`.

@@ -224,13 +224,7 @@ impl Room {
 /// boundary cells) from any non-free cell; ties go to the first in row order.
 pub fn farthest_from_obstacles(raster: &FreeRaster) -> Point2<f64> {
     let (w, h) = (raster.width, raster.height);
-    let free = |x: i64, y: i64| {
-        x >= 0
-            && y >= 0
-            && (x as usize) < w
-            && (y as usize) < h
-            && raster.free[y as usize * w + x as usize]
-    };
+    let free = |x: i64, y: i64| raster.free_at(x, y);
     let mut boundary = Vec::new();
     for y in 0..h as i64 {
         for x in 0..w as i64 {

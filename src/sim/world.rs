@@ -67,23 +67,24 @@ impl FreeRaster {
         }
     }
 
+    /// Whether cell (`x`, `y`) is free; false outside the raster (negative
+    /// coordinates included), so neighbour scans need no bounds checks.
+    pub fn free_at(&self, x: i64, y: i64) -> bool {
+        x >= 0
+            && y >= 0
+            && (x as usize) < self.width
+            && (y as usize) < self.height
+            && self.free[y as usize * self.width + x as usize]
+    }
+
     /// The cell containing `p`, if inside.
     pub fn cell_of(&self, p: &Point2<f64>) -> Option<(usize, usize)> {
-        let fx = (p.x - self.origin.x) / self.resolution;
-        let fy = (p.y - self.origin.y) / self.resolution;
-        if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
-            return None;
-        }
-        let (cx, cy) = (fx as usize, fy as usize);
-        (cx < self.width && cy < self.height).then_some((cx, cy))
+        crate::grid::cell_containing(self.origin, self.resolution, (self.width, self.height), p)
     }
 
     /// Centre of cell (`cx`, `cy`).
     pub fn centre_of(&self, cx: usize, cy: usize) -> Point2<f64> {
-        Point2::new(
-            self.origin.x + (cx as f64 + 0.5) * self.resolution,
-            self.origin.y + (cy as f64 + 0.5) * self.resolution,
-        )
+        crate::grid::cell_centre(self.origin, self.resolution, (cx, cy))
     }
 
     /// Free area in m².
@@ -317,13 +318,7 @@ impl World {
     pub fn from_raster(name: &str, raster: FreeRaster, reflectivity: f64, start: Pose) -> World {
         let (w, h, r) = (raster.width, raster.height, raster.resolution);
         let o = raster.origin;
-        let at = |x: i64, y: i64| -> bool {
-            x >= 0
-                && y >= 0
-                && (x as usize) < w
-                && (y as usize) < h
-                && raster.free[y as usize * w + x as usize]
-        };
+        let at = |x: i64, y: i64| raster.free_at(x, y);
         let mut walls = Vec::new();
         // Horizontal edges: between row y-1 and row y, for y in 0..=h.
         for y in 0..=h as i64 {
@@ -698,6 +693,9 @@ mod tests {
             height: 10,
             free,
         };
+        assert!(raster.free_at(2, 7) && raster.free_at(7, 2));
+        assert!(!raster.free_at(1, 5) && !raster.free_at(8, 5));
+        assert!(!raster.free_at(-1, 5) && !raster.free_at(5, 10) && !raster.free_at(10, 0));
         let w = World::from_raster("sq", raster, 0.5, pose(0.5, 0.5, 0.0));
         assert_eq!(w.walls.len(), 4);
         let h = w.cast_ray(&Point2::new(0.5, 0.5), 0.0, 5.0).unwrap();

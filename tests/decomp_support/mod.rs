@@ -142,7 +142,7 @@ pub fn percentile(v: &[f64], q: f64) -> f64 {
     if s.is_empty() {
         return 0.0;
     }
-    s[((s.len() - 1) as f64 * q).round() as usize]
+    sweepline::pipeline::metrics::quantile_sorted(&s, q)
 }
 
 /// Like [`scan`], with Gaussian-ish range noise (`range_sd`, m) and the scan

@@ -12,11 +12,11 @@ use std::time::Duration;
 
 use crate::clock::SharedClock;
 use crate::config::RobotParams;
+use crate::motor::command::WheelCommand;
 use crate::motor::create2::codec::{encode, pkt, OiCommand, OiMode, SensorFrame, StreamParser};
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
-use crate::motor::odometry::{CounterWidth, Odometer};
+use crate::motor::odometry::{counts_per_metre, CounterWidth, Odometer};
 use crate::motor::params::MotorParams;
-use crate::motor::safety::{DeadMan, SafetyGate};
 use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
 };
@@ -38,16 +38,12 @@ pub struct Create2Driver {
     link: Link,
     clock: SharedClock,
     mode: OiMode,
-    max_wheel_speed: f64,
     link_timeout: f64,
     probe_interval: f64,
     parser: StreamParser,
     odo: Odometer,
-    deadman: DeadMan,
-    deadman_time: f64,
-    gate: SafetyGate,
+    cmd: WheelCommand,
     health: LinkHealth,
-    requested: WheelSpeeds,
     up: bool,
     ever_up: bool,
     last_frame: f64,
@@ -56,7 +52,6 @@ pub struct Create2Driver {
     paused: bool,
     battery: Option<f64>,
     silent_warned: bool,
-    pending: heapless::Vec<SafetyEvent, 8>,
     acc: Option<Odometry>,
 }
 
@@ -71,8 +66,7 @@ impl Create2Driver {
         clock: SharedClock,
     ) -> Self {
         let read_timeout = clock.to_wall(0.01).max(Duration::from_millis(5));
-        let counts_per_metre =
-            p.create2.counts_per_rev / (2.0 * std::f64::consts::PI * robot.wheel_radius);
+        let counts_per_metre = counts_per_metre(p.create2.counts_per_rev, robot.wheel_radius);
         let payload = StreamParser::payload_len(&STREAM_IDS).unwrap_or(0);
         Self {
             link: Link::new(opener, read_timeout, p.reconnect_interval),
@@ -82,7 +76,6 @@ impl Create2Driver {
             } else {
                 OiMode::Safe
             },
-            max_wheel_speed: p.max_wheel_speed.min(0.5),
             link_timeout: p.link_timeout,
             probe_interval: p.reconnect_interval,
             parser: StreamParser::with_payload_len(payload),
@@ -92,11 +85,8 @@ impl Create2Driver {
                 robot.wheel_base,
                 p.max_wheel_speed,
             ),
-            deadman: DeadMan::new(p.deadman),
-            deadman_time: p.deadman,
-            gate: SafetyGate::new(),
+            cmd: WheelCommand::new(p.max_wheel_speed.min(0.5), p.deadman),
             health: LinkHealth::default(),
-            requested: WheelSpeeds::STOP,
             up: false,
             ever_up: false,
             last_frame: 0.0,
@@ -105,7 +95,6 @@ impl Create2Driver {
             paused: false,
             battery: None,
             silent_warned: false,
-            pending: heapless::Vec::new(),
             acc: None,
         }
     }
@@ -150,7 +139,7 @@ impl Create2Driver {
     /// Silence is expected until [`Create2Driver::resume_stream`].
     pub fn pause_stream(&mut self) -> bool {
         self.paused = true;
-        self.requested = WheelSpeeds::STOP;
+        self.cmd.requested = WheelSpeeds::STOP;
         self.send(&OiCommand::drive_direct(0.0, 0.0)) && self.send(&OiCommand::StreamEnable(false))
     }
 
@@ -169,21 +158,9 @@ impl Create2Driver {
         self.paused
     }
 
-    fn effective(&self) -> WheelSpeeds {
-        if self.deadman.tripped() {
-            WheelSpeeds::STOP
-        } else {
-            self.gate.filter(self.requested)
-        }
-    }
-
     fn send_wheels(&mut self) {
-        let w = self.effective();
+        let w = self.cmd.effective();
         self.send(&OiCommand::drive_direct(w.left, w.right));
-    }
-
-    fn push(&mut self, e: SafetyEvent) {
-        let _ = self.pending.push(e);
     }
 
     fn on_frame(&mut self, f: SensorFrame, now: f64) {
@@ -197,7 +174,7 @@ impl Create2Driver {
                     "wheel base {}: sensor stream back; link restored",
                     self.link.describe()
                 );
-                self.push(SafetyEvent::LinkRestored);
+                self.cmd.push(SafetyEvent::LinkRestored);
             } else {
                 log::info!(
                     "wheel base {}: Create 2 streaming sensors",
@@ -208,24 +185,10 @@ impl Create2Driver {
         }
         let mut stop_now = false;
         if let Some(s) = f.wheel_drops() {
-            if let Some(e) = self.gate.set_wheel_drop(s) {
-                if matches!(e, SafetyEvent::WheelDrop(_)) {
-                    log::warn!("wheel base: wheel drop ({s:?}); wheels stopped");
-                    self.health.safety_stops += 1;
-                    stop_now = true;
-                }
-                self.push(e);
-            }
+            stop_now |= self.cmd.set_wheel_drop(s, &mut self.health);
         }
         if let Some(s) = f.bumps() {
-            if let Some(e) = self.gate.set_bumper(s) {
-                if matches!(e, SafetyEvent::Bumper(_)) {
-                    log::warn!("wheel base: bumper closed ({s:?}); wheels stopped");
-                    self.health.safety_stops += 1;
-                    stop_now = true;
-                }
-                self.push(e);
-            }
+            stop_now |= self.cmd.set_bumper(s, &mut self.health);
         }
         if stop_now {
             self.send_wheels();
@@ -233,7 +196,7 @@ impl Create2Driver {
         if let Some(m) = f.oi_mode.and_then(OiMode::from_byte) {
             // Safe mode falls back to Passive on a wheel drop or cliff: ask for
             // the wanted mode again once the wheels are down.
-            if m != self.mode && !self.gate.active() {
+            if m != self.mode && !self.cmd.gate.active() {
                 if !self.mode_warned {
                     log::warn!(
                         "wheel base: OI is in {m:?} mode, want {:?}; re-entering",
@@ -276,20 +239,9 @@ impl Create2Driver {
 
 impl DiffDriveBase for Create2Driver {
     fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError> {
-        if !cmd.is_finite() {
-            return Err(MotorError::BadCommand {
-                left: cmd.left,
-                right: cmd.right,
-            });
-        }
-        let m = self.max_wheel_speed;
-        self.requested = WheelSpeeds {
-            left: cmd.left.clamp(-m, m),
-            right: cmd.right.clamp(-m, m),
-        };
-        self.deadman.feed(self.clock.now());
+        self.cmd.accept(cmd, self.clock.now())?;
         if self.paused {
-            self.requested = WheelSpeeds::STOP;
+            self.cmd.requested = WheelSpeeds::STOP;
         } else if self.up {
             self.send_wheels();
         }
@@ -298,12 +250,7 @@ impl DiffDriveBase for Create2Driver {
 
     fn poll(&mut self) -> Result<BaseFeedback, MotorError> {
         let now = self.clock.now();
-        if self.deadman.check(now) {
-            self.health.deadman_stops += 1;
-            log::warn!(
-                "wheel base: no wheel command for more than the dead-man time; wheels stopped"
-            );
-            self.push(SafetyEvent::DeadMan);
+        if self.cmd.check_deadman(now, &mut self.health) {
             self.send_wheels();
         }
         if !self.link.is_open() && self.link.ensure_open(now) {
@@ -356,7 +303,7 @@ impl DiffDriveBase for Create2Driver {
                 now - self.last_frame
             );
             self.send(&OiCommand::drive_direct(0.0, 0.0));
-            self.push(SafetyEvent::LinkLost);
+            self.cmd.push(SafetyEvent::LinkLost);
             self.odo.rebase();
             self.next_probe = now;
         }
@@ -376,27 +323,12 @@ impl DiffDriveBase for Create2Driver {
         if self.up && !self.paused {
             self.send_wheels();
         }
-        let mut fb = BaseFeedback {
-            odometry: self.acc.take(),
-            events: heapless::Vec::new(),
-            link_up: self.up,
-            battery: self.battery,
-        };
-        for e in self.pending.iter() {
-            fb.push_event(*e);
-        }
-        self.pending.clear();
-        Ok(fb)
+        Ok(self.cmd.feedback(self.acc.take(), self.up, self.battery))
     }
 
     fn stop(&mut self) -> Result<(), MotorError> {
-        self.requested = WheelSpeeds::STOP;
-        self.deadman = DeadMan::new(self.deadman_time);
-        if !self.link.is_open() {
-            return Err(MotorError::NotConnected {
-                device: self.link.describe(),
-            });
-        }
+        self.cmd.halt();
+        self.link.require_open()?;
         let ok = self.send(&OiCommand::drive_direct(0.0, 0.0))
             && self.send(&OiCommand::StreamEnable(false))
             && self.send(&OiCommand::Stop);

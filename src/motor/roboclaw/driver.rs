@@ -11,13 +11,13 @@ use std::time::Duration;
 
 use crate::clock::SharedClock;
 use crate::config::RobotParams;
+use crate::motor::command::WheelCommand;
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
-use crate::motor::odometry::{CounterWidth, Odometer};
+use crate::motor::odometry::{counts_per_metre, CounterWidth, Odometer};
 use crate::motor::params::MotorParams;
 use crate::motor::roboclaw::codec::{
     encode_command, Command, Reply, ReplyDecoder, ReplyError, STATUS_ESTOP,
 };
-use crate::motor::safety::{DeadMan, SafetyGate};
 use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
@@ -45,16 +45,12 @@ pub struct RoboClawDriver {
     retries: u32,
     m1_is_left: bool,
     counts_per_metre: f64,
-    max_wheel_speed: f64,
     reply_timeout: f64,
     link_timeout: f64,
     probe_interval: f64,
     odo: Odometer,
-    deadman: DeadMan,
-    deadman_time: f64,
-    gate: SafetyGate,
+    cmd: WheelCommand,
     health: LinkHealth,
-    requested: WheelSpeeds,
     up: bool,
     ever_up: bool,
     last_ok: f64,
@@ -65,7 +61,6 @@ pub struct RoboClawDriver {
     accel_counts: u32,
     stopping: bool,
     next_probe: f64,
-    pending: heapless::Vec<SafetyEvent, 8>,
 }
 
 impl RoboClawDriver {
@@ -81,8 +76,7 @@ impl RoboClawDriver {
         let read_timeout = clock
             .to_wall(p.roboclaw.reply_timeout)
             .max(Duration::from_millis(10));
-        let counts_per_metre =
-            p.roboclaw.counts_per_rev / (2.0 * std::f64::consts::PI * robot.wheel_radius);
+        let counts_per_metre = counts_per_metre(p.roboclaw.counts_per_rev, robot.wheel_radius);
         Self {
             link: Link::new(opener, read_timeout, p.reconnect_interval),
             clock,
@@ -91,7 +85,6 @@ impl RoboClawDriver {
             retries: p.roboclaw.retries,
             m1_is_left: p.roboclaw.m1_is_left,
             counts_per_metre,
-            max_wheel_speed: p.max_wheel_speed,
             reply_timeout: p.roboclaw.reply_timeout,
             link_timeout: p.link_timeout,
             probe_interval: p.reconnect_interval,
@@ -101,11 +94,8 @@ impl RoboClawDriver {
                 robot.wheel_base,
                 p.max_wheel_speed,
             ),
-            deadman: DeadMan::new(p.deadman),
-            deadman_time: p.deadman,
-            gate: SafetyGate::new(),
+            cmd: WheelCommand::new(p.max_wheel_speed, p.deadman),
             health: LinkHealth::default(),
-            requested: WheelSpeeds::STOP,
             up: false,
             ever_up: false,
             last_ok: 0.0,
@@ -118,7 +108,6 @@ impl RoboClawDriver {
                 .clamp(0.0, u32::MAX as f64) as u32,
             stopping: false,
             next_probe: f64::NEG_INFINITY,
-            pending: heapless::Vec::new(),
         }
     }
 
@@ -199,22 +188,13 @@ impl RoboClawDriver {
         }
     }
 
-    /// The set-point that may be sent now.
-    fn effective(&self) -> WheelSpeeds {
-        if self.deadman.tripped() {
-            WheelSpeeds::STOP
-        } else {
-            self.gate.filter(self.requested)
-        }
-    }
-
     /// Sends set-points: ramped at the configured acceleration (command 40)
     /// in normal driving; at once (command 37, the PID's full authority) for
     /// safety stops and when no acceleration is configured.
     fn send_speeds(&mut self, w: WheelSpeeds) -> Result<(), TxError> {
         let (m1, m2) = self.counts(w);
         let retries = self.retries + 1;
-        let urgent = self.deadman.tripped() || self.gate.active() || self.stopping;
+        let urgent = self.cmd.deadman.tripped() || self.cmd.gate.active() || self.stopping;
         let cmd = if self.accel_counts > 0 && !urgent {
             Command::DriveSpeedsAccel {
                 accel: self.accel_counts,
@@ -231,13 +211,9 @@ impl RoboClawDriver {
     fn initialise(&mut self) -> Result<(), TxError> {
         let tenths = self.timeout_tenths;
         self.transact(&Command::SetSerialTimeout { tenths }, 2)?;
-        self.send_speeds(self.effective())?;
+        self.send_speeds(self.cmd.effective())?;
         self.odo.rebase();
         Ok(())
-    }
-
-    fn push(&mut self, e: SafetyEvent) {
-        let _ = self.pending.push(e);
     }
 
     fn declare_lost(&mut self, why: &str) {
@@ -253,7 +229,7 @@ impl RoboClawDriver {
         );
         // Best effort: if the link is only garbled, a stop may still get through.
         let _ = self.transact(&Command::DriveSpeeds { m1: 0, m2: 0 }, 1);
-        self.push(SafetyEvent::LinkLost);
+        self.cmd.push(SafetyEvent::LinkLost);
     }
 
     /// Tries to bring the link (back) up.
@@ -284,7 +260,7 @@ impl RoboClawDriver {
             self.last_ok = self.clock.now();
             if self.ever_up {
                 log::info!("wheel base {}: link restored", self.link.describe());
-                self.push(SafetyEvent::LinkRestored);
+                self.cmd.push(SafetyEvent::LinkRestored);
             } else {
                 let version = match self.transact(&Command::ReadVersion, 2) {
                     Ok(Reply::Version(v)) => String::from_utf8_lossy(&v).into_owned(),
@@ -302,34 +278,18 @@ impl RoboClawDriver {
     }
 
     fn apply_bumper(&mut self, s: Sides) {
-        if let Some(e) = self.gate.set_bumper(s) {
-            if matches!(e, SafetyEvent::Bumper(_)) {
-                self.health.safety_stops += 1;
-                log::warn!("wheel base: bumper closed ({s:?}); wheels stopped");
-                let w = self.effective();
-                let _ = self.send_speeds(w);
-            }
-            self.push(e);
+        if self.cmd.set_bumper(s, &mut self.health) {
+            let w = self.cmd.effective();
+            let _ = self.send_speeds(w);
         }
     }
 }
 
 impl DiffDriveBase for RoboClawDriver {
     fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError> {
-        if !cmd.is_finite() {
-            return Err(MotorError::BadCommand {
-                left: cmd.left,
-                right: cmd.right,
-            });
-        }
-        let m = self.max_wheel_speed;
-        self.requested = WheelSpeeds {
-            left: cmd.left.clamp(-m, m),
-            right: cmd.right.clamp(-m, m),
-        };
-        self.deadman.feed(self.clock.now());
+        self.cmd.accept(cmd, self.clock.now())?;
         if self.up {
-            let w = self.effective();
+            let w = self.cmd.effective();
             if self.send_speeds(w) == Err(TxError::Closed) {
                 self.declare_lost("device went away");
             }
@@ -339,19 +299,13 @@ impl DiffDriveBase for RoboClawDriver {
 
     fn poll(&mut self) -> Result<BaseFeedback, MotorError> {
         let now = self.clock.now();
-        if self.deadman.check(now) {
-            self.health.deadman_stops += 1;
-            log::warn!(
-                "wheel base: no wheel command for more than the dead-man time; wheels stopped"
-            );
-            self.push(SafetyEvent::DeadMan);
-        }
+        self.cmd.check_deadman(now, &mut self.health);
         let mut odometry: Option<Odometry> = None;
         if !self.up {
             self.try_restore(now);
         }
         if self.up {
-            let w = self.effective();
+            let w = self.cmd.effective();
             let mut closed = self.send_speeds(w) == Err(TxError::Closed);
             let asked = self.clock.now();
             match self.transact(&Command::ReadEncoders, self.retries + 1) {
@@ -402,27 +356,12 @@ impl DiffDriveBase for RoboClawDriver {
                 self.declare_lost("no valid reply");
             }
         }
-        let mut fb = BaseFeedback {
-            odometry,
-            events: heapless::Vec::new(),
-            link_up: self.up,
-            battery: self.battery,
-        };
-        for e in self.pending.iter() {
-            fb.push_event(*e);
-        }
-        self.pending.clear();
-        Ok(fb)
+        Ok(self.cmd.feedback(odometry, self.up, self.battery))
     }
 
     fn stop(&mut self) -> Result<(), MotorError> {
-        self.requested = WheelSpeeds::STOP;
-        self.deadman = DeadMan::new(self.deadman_time);
-        if !self.link.is_open() {
-            return Err(MotorError::NotConnected {
-                device: self.link.describe(),
-            });
-        }
+        self.cmd.halt();
+        self.link.require_open()?;
         self.stopping = true;
         let r = self.send_speeds(WheelSpeeds::STOP);
         self.stopping = false;

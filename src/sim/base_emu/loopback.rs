@@ -11,10 +11,8 @@ use std::time::Duration;
 
 use crate::clock::{Clock, SharedClock};
 use crate::geom::Pose;
-use crate::motor::create2::driver::Create2Driver;
 use crate::motor::link::{ByteLink, LinkOpener};
-use crate::motor::roboclaw::driver::RoboClawDriver;
-use crate::motor::{BaseKind, DiffDriveBase, WheelSpeeds};
+use crate::motor::{base_driver, DiffDriveBase, WheelSpeeds};
 use crate::sim::base_emu::{BaseDevice, BodyState, EmulatorConfig};
 use crate::sim::kinematics::DiffDriveSim;
 
@@ -195,10 +193,7 @@ pub fn loopback_base(
         state: state.clone(),
     });
     let shared: SharedClock = clock;
-    let base: Box<dyn DiffDriveBase> = match cfg.kind {
-        BaseKind::Roboclaw => Box::new(RoboClawDriver::new(&cfg.motor, robot, opener, shared)),
-        BaseKind::Create2 => Box::new(Create2Driver::new(&cfg.motor, robot, opener, shared)),
-    };
+    let base = base_driver(cfg.kind, &cfg.motor, robot, opener, shared);
     (base, LoopbackTruth { state })
 }
 
@@ -207,7 +202,7 @@ mod tests {
     use super::*;
     use crate::config::Config;
     use crate::geom::{heading, pose};
-    use crate::motor::SafetyEvent;
+    use crate::motor::{BaseKind, SafetyEvent};
 
     fn drive(kind: BaseKind, seed: u64) -> (Vec<Pose>, Pose, Vec<SafetyEvent>) {
         let cfg = Config::default();

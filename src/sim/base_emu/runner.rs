@@ -15,6 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::clock::SharedClock;
 use crate::config::Config;
 use crate::geom::Pose;
+use crate::motor::odometry::counts_per_metre;
 use crate::motor::{BaseKind, MotorParams, Sides, WheelSpeeds};
 use crate::sim::base_emu::create2::Create2Device;
 use crate::sim::base_emu::roboclaw::RoboClawDevice;
@@ -170,15 +171,15 @@ impl EmulatorConfig {
 
     /// The device core this configuration describes.
     pub(crate) fn device(&self) -> Box<dyn BaseDevice> {
-        let circ = 2.0 * std::f64::consts::PI * self.wheel_radius;
+        let per_metre = |counts_per_rev| counts_per_metre(counts_per_rev, self.wheel_radius);
         match self.kind {
             BaseKind::Roboclaw => Box::new(RoboClawDevice::new(
                 self.motor.roboclaw.address,
-                self.motor.roboclaw.counts_per_rev / circ,
+                per_metre(self.motor.roboclaw.counts_per_rev),
                 self.motor.roboclaw.m1_is_left,
             )),
             BaseKind::Create2 => Box::new(Create2Device::new(
-                self.motor.create2.counts_per_rev / circ,
+                per_metre(self.motor.create2.counts_per_rev),
                 self.kinematics.wheel_base,
             )),
         }
