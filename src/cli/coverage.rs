@@ -1,17 +1,296 @@
 //! `sweepline coverage`: runs the online decomposition and coverage planner in a deterministic lock-step simulation (ideal localisation) and writes metrics and pictures.
+//!
+//! ```text
+//! sweepline coverage --world hw/worlds/paper.world --out out/paper --offline
+//! sweepline coverage --room office_f:3 --out out/office_f_3
+//! sweepline coverage --list-rooms lab_c_scan
+//! ```
+//!
+//! Writes `metrics.md` and `metrics.csv` (one row per run: online, and with
+//! `--offline` the reference run with the room known in advance), `path.svg`
+//! (the final path over the world with pass counts) and `cells_NN.svg` (the
+//! cells as they evolve) into `--out`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 use super::CliResult;
+use crate::config::Config;
+use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker};
+use crate::sim::coverage_svg;
+use crate::sim::floorplan;
+use crate::sim::lockstep::{self, LockstepOptions, Mode, RunResult};
+use crate::sim::world::World;
 
 /// Arguments of `sweepline coverage`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// World file (hw/worlds/*.world) or floor-plan PNG.
+    /// World file (hw/worlds/*.world).
+    #[arg(long, conflicts_with = "room")]
+    pub world: Option<PathBuf>,
+    /// A room of a benchmark floor plan, MAP:N (e.g. office_f:3).
     #[arg(long)]
-    pub world: Option<std::path::PathBuf>,
+    pub room: Option<String>,
+    /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
+    #[arg(long)]
+    pub maps: Option<PathBuf>,
+    /// Lists the rooms of a floor plan (MAP) with their areas, then exits.
+    #[arg(long, value_name = "MAP")]
+    pub list_rooms: Option<String>,
+    /// Output folder for metrics and pictures.
+    #[arg(long, default_value = "coverage-out")]
+    pub out: PathBuf,
+    /// Also run the offline reference (room known in advance) and compare.
+    #[arg(long)]
+    pub offline: bool,
+    /// Configuration file (robot, decomposition, planner, control tables).
+    #[arg(long, default_value = "hw/robot.toml")]
+    pub config: PathBuf,
+    /// Simulated time cap (s).
+    #[arg(long, default_value_t = 3600.0)]
+    pub time_cap: f64,
+    /// Scan / decomposition / planning period (s).
+    #[arg(long, default_value_t = 0.2)]
+    pub scan_period: f64,
+    /// Simulated seconds between cell pictures.
+    #[arg(long, default_value_t = 60.0)]
+    pub picture_every: f64,
+}
+
+fn maps_dir(args: &Args) -> PathBuf {
+    args.maps
+        .clone()
+        .unwrap_or_else(|| crate::testdata::shared_dir().join(floorplan::MAPS_DIR))
 }
 
 /// Runs `sweepline coverage`.
 pub fn run(args: Args) -> CliResult {
-    let _ = args;
-    super::not_yet("coverage")
+    if let Some(map) = &args.list_rooms {
+        let rooms = floorplan::rooms(&maps_dir(&args), map, floorplan::MIN_ROOM_PIXELS)?;
+        println!("room\tfree m2\tbox m");
+        for r in rooms {
+            println!(
+                "{}:{}\t{:.1}\t{:.1} x {:.1}",
+                r.map,
+                r.index,
+                r.free_area(),
+                r.width as f64 * floorplan::PIXEL_SIZE,
+                r.height as f64 * floorplan::PIXEL_SIZE
+            );
+        }
+        return Ok(());
+    }
+    let world = match (&args.world, &args.room) {
+        (Some(w), _) => World::load(w)?,
+        (None, Some(spec)) => floorplan::load_room(&maps_dir(&args), spec)?.world(),
+        (None, None) => {
+            return Err("give --world FILE or --room MAP:N (or --list-rooms MAP)".into())
+        }
+    };
+    let config = if args.config.exists() {
+        Config::load(&args.config)?
+    } else {
+        return Err(format!("config {} not found", args.config.display()).into());
+    };
+    let opts = LockstepOptions {
+        time_cap: args.time_cap,
+        scan_period: args.scan_period,
+        snapshot_every: args.picture_every,
+        ..LockstepOptions::default()
+    };
+    std::fs::create_dir_all(&args.out)?;
+    let online = lockstep::run(&world, &config, &opts, Mode::Online)?;
+    let offline = if args.offline {
+        Some(lockstep::run(&world, &config, &opts, Mode::Offline)?)
+    } else {
+        None
+    };
+    write_pictures(&args.out, &world, &config, &online, "online")?;
+    if let Some(off) = &offline {
+        write_pictures(&args.out, &world, &config, off, "offline")?;
+    }
+    let md = markdown(&world.name, &online, offline.as_ref());
+    std::fs::write(args.out.join("metrics.md"), &md)?;
+    std::fs::write(
+        args.out.join("metrics.csv"),
+        csv(&world.name, &online, offline.as_ref()),
+    )?;
+    print!("{md}");
+    Ok(())
+}
+
+fn write_pictures(
+    out: &Path,
+    world: &World,
+    config: &Config,
+    r: &RunResult,
+    tag: &str,
+) -> std::io::Result<()> {
+    let tracker = CoverageTracker::new(
+        world,
+        config.robot.radius,
+        config.robot.tool_width,
+        &world.start,
+    )
+    .map_err(std::io::Error::other)?;
+    let doc = coverage_svg::path_svg(
+        world,
+        &r.passes,
+        tracker.reachable(),
+        &r.trajectory,
+        &r.metrics,
+        &format!("{} ({tag})", world.name),
+    );
+    coverage_svg::save(&out.join(format!("path_{tag}.svg")), &doc)?;
+    if tag == "online" {
+        for (k, s) in r.snapshots.iter().enumerate() {
+            let n = r.trajectory.len().min((s.time / 0.05).round() as usize + 1);
+            let doc = coverage_svg::cells_svg(
+                world,
+                &s.decomposition,
+                &r.trajectory[..n],
+                config.robot.radius,
+                &format!(
+                    "{}: t = {:.0} s, {} cells",
+                    world.name,
+                    s.time,
+                    s.decomposition.cells.len()
+                ),
+            );
+            coverage_svg::save(&out.join(format!("cells_{k:02}.svg")), &doc)?;
+        }
+    }
+    Ok(())
+}
+
+fn p99(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[((s.len() as f64 * 0.99).ceil() as usize).clamp(1, s.len()) - 1]
+}
+
+/// One table row: label and how to format it from the metrics.
+type Row = (&'static str, fn(&CoverageMetrics) -> String);
+
+/// The metrics of a run (and its offline reference) as a Markdown table.
+pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Coverage: {name}\n");
+    let _ = writeln!(
+        s,
+        "| figure | online | {} |",
+        if offline.is_some() {
+            "offline reference"
+        } else {
+            ""
+        }
+    );
+    let _ = writeln!(s, "|---|---|---|");
+    let rows: [Row; 13] = [
+        ("coverage of reachable area", |m| {
+            format!("{:.2} %", m.coverage * 100.0)
+        }),
+        ("coverage of footprint-reachable area", |m| {
+            format!("{:.2} %", m.footprint_coverage * 100.0)
+        }),
+        ("reachable area", |m| format!("{:.2} m²", m.reachable_area)),
+        ("free area", |m| format!("{:.2} m²", m.free_area)),
+        ("unreachable area", |m| {
+            format!("{:.2} m²", m.unreachable_area)
+        }),
+        ("covered area", |m| format!("{:.2} m²", m.covered_area)),
+        ("overlap", |m| format!("{:.1} %", m.overlap * 100.0)),
+        ("path length", |m| format!("{:.1} m", m.path_length)),
+        ("turns (> 30°)", |m| format!("{}", m.turns)),
+        ("rotation", |m| format!("{:.0} rad", m.rotation)),
+        ("time", |m| format!("{:.0} s", m.time)),
+        ("collisions", |m| format!("{}", m.collisions)),
+        ("finished", |_| String::new()),
+    ];
+    for (label, f) in rows.iter() {
+        if *label == "finished" {
+            let _ = writeln!(
+                s,
+                "| finished before the time cap | {} | {} |",
+                online.finished,
+                offline.map(|o| o.finished.to_string()).unwrap_or_default()
+            );
+            continue;
+        }
+        let _ = writeln!(
+            s,
+            "| {label} | {} | {} |",
+            f(&online.metrics),
+            offline.map(|o| f(&o.metrics)).unwrap_or_default()
+        );
+    }
+    let _ = writeln!(
+        s,
+        "| cells covered / patches / explorations | {} / {} / {} | {} |",
+        online.stats.cells,
+        online.stats.patches,
+        online.stats.explores,
+        offline
+            .map(|o| format!(
+                "{} / {} / {}",
+                o.stats.cells, o.stats.patches, o.stats.explores
+            ))
+            .unwrap_or_default()
+    );
+    let _ = writeln!(
+        s,
+        "| decomposition update p99 (wall clock) | {:.2} ms | |",
+        p99(&online.decomp_seconds) * 1e3
+    );
+    let _ = writeln!(
+        s,
+        "| planner update p99 (wall clock) | {:.2} ms | |",
+        p99(&online.plan_seconds) * 1e3
+    );
+    if let Some(o) = offline {
+        let ratio = online.metrics.path_length / o.metrics.path_length.max(1e-9);
+        let _ = writeln!(
+            s,
+            "\nOnline path length / offline reference: **{ratio:.3}**"
+        );
+    }
+    if let Some(r) = online.report {
+        let _ = writeln!(
+            s,
+            "\nPlanner report: unreachable seen floor {:.2} m², floor given up {:.2} m².",
+            r.unreachable_area, r.abandoned_area
+        );
+    }
+    s
+}
+
+/// The metrics as CSV, one row per run.
+pub fn csv(name: &str, online: &RunResult, offline: Option<&RunResult>) -> String {
+    let mut s = String::from(
+        "world,mode,coverage,footprint_coverage,reachable_m2,free_m2,unreachable_m2,covered_m2,overlap,path_m,turns,rotation_rad,time_s,collisions,finished\n",
+    );
+    for (mode, r) in std::iter::once(("online", online)).chain(offline.map(|o| ("offline", o))) {
+        let m = &r.metrics;
+        let _ = writeln!(
+            s,
+            "{name},{mode},{:.5},{:.5},{:.3},{:.3},{:.3},{:.3},{:.5},{:.3},{},{:.2},{:.1},{},{}",
+            m.coverage,
+            m.footprint_coverage,
+            m.reachable_area,
+            m.free_area,
+            m.unreachable_area,
+            m.covered_area,
+            m.overlap,
+            m.path_length,
+            m.turns,
+            m.rotation,
+            m.time,
+            m.collisions,
+            r.finished
+        );
+    }
+    s
 }

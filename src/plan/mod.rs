@@ -1,9 +1,134 @@
 //! Coverage planning: lanes inside a cell, the order of cells, and transit
-//! paths between them.
+//! paths between them, online, over the map explored so far.
+//!
+//! * [`cspace`]: where the robot centre may be (walls inflated by the robot
+//!   radius plus a margin), travel distances, A* transit paths;
+//! * [`lanes`]: back-and-forth lanes inside one region and their order;
+//! * [`planner`]: the event-driven [`CoveragePlanner`]: which final cell next
+//!   (travel cost with look-ahead), exploration toward the frontier when no
+//!   final cell is left, a clean-up of leftover patches, and the report of
+//!   unreachable area.
+pub mod cspace;
+pub mod lanes;
+pub mod planner;
+
+pub use planner::{CoveragePlanner, PlanError, PlanStatus, Task};
 
 /// Coverage planner settings.
 /// Loaded from the `[plan]` table of the config file; every field is documented
 /// in `hw/robot.toml`.
-#[derive(Clone, Debug, Default, PartialEq, serde::Deserialize, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct PlanParams {}
+pub struct PlanParams {
+    /// Clearance kept from seen walls and unexplored space beyond the robot radius (m).
+    pub safety_margin: f64,
+    /// How much neighbouring lanes overlap at least (m); lane spacing is
+    /// `robot.tool_width - lane_overlap`.
+    pub lane_overlap: f64,
+    /// Part of the tool half-width not counted on when deciding what a lane
+    /// reaches (m), against tracking error.
+    pub reach_margin: f64,
+    /// Weight of the look-ahead term (straight-line length of a greedy tour
+    /// through the other candidate cells after this one) in the choice of
+    /// the next cell; 0 = nearest cell first.
+    pub lookahead_weight: f64,
+    /// Uncovered patches smaller than this are left alone (m²).
+    pub min_patch_area: f64,
+    /// A frontier within this distance of a reachable place counts as
+    /// explorable from there (m).
+    pub explore_view_distance: f64,
+    /// Frontier clusters with fewer cells than this are ignored (ray speckle).
+    pub min_frontier_cells: usize,
+    /// Turn in place once at the start to see all around.
+    pub look_around: bool,
+    /// When no cell is final, cover closed cells whose size still settles
+    /// (what they gain later is covered then) before exploring.
+    pub cover_settling_cells: bool,
+}
+
+impl Default for PlanParams {
+    fn default() -> Self {
+        Self {
+            safety_margin: 0.01,
+            lane_overlap: 0.01,
+            reach_margin: 0.01,
+            lookahead_weight: 1.0,
+            min_patch_area: 0.01,
+            explore_view_distance: 1.0,
+            min_frontier_cells: 4,
+            look_around: true,
+            cover_settling_cells: true,
+        }
+    }
+}
+
+impl PlanParams {
+    /// Checks every value range, naming the key that is wrong.
+    pub fn validate(&self) -> Result<(), PlanError> {
+        for (key, v) in [
+            ("safety_margin", self.safety_margin),
+            ("lane_overlap", self.lane_overlap),
+            ("reach_margin", self.reach_margin),
+            ("lookahead_weight", self.lookahead_weight),
+            ("min_patch_area", self.min_patch_area),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(PlanError::BadParam {
+                    key,
+                    message: format!("must be a finite number >= 0, got {v}"),
+                });
+            }
+        }
+        if !(self.explore_view_distance.is_finite() && self.explore_view_distance > 0.0) {
+            return Err(PlanError::BadParam {
+                key: "explore_view_distance",
+                message: format!(
+                    "must be a finite number > 0, got {}",
+                    self.explore_view_distance
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_tables_are_the_defaults() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = crate::config::Config::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(cfg.plan, PlanParams::default());
+        assert_eq!(cfg.control, crate::control::ControlParams::default());
+    }
+
+    #[test]
+    fn bad_values_name_the_key() {
+        let p = PlanParams {
+            lane_overlap: -1.0,
+            ..PlanParams::default()
+        };
+        assert!(p
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("lane_overlap"));
+        let p = PlanParams {
+            explore_view_distance: 0.0,
+            ..PlanParams::default()
+        };
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("explore_view_distance"), "{e}");
+        let robot = crate::config::RobotParams {
+            tool_width: 0.01,
+            ..Default::default()
+        };
+        let e = CoveragePlanner::new(&PlanParams::default(), &robot)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("tool width"), "{e}");
+    }
+}

@@ -3,6 +3,10 @@
 pub mod base_emu;
 pub mod kinematics;
 pub mod urg_emu;
+pub mod coverage_metrics;
+pub mod coverage_svg;
+pub mod floorplan;
+pub mod lockstep;
 pub mod world;
 
 pub mod carmen;

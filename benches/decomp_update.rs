@@ -1,0 +1,122 @@
+//! Decomposition update time (issue 5 target: ≤ 5 ms p99 per map update in
+//! the largest room).
+//!
+//! Rooms cut from the IPA floor plans (shared data) are explored scan by scan
+//! along a lattice tour; every scan is one map update. Before the criterion
+//! groups run, the per-update latency over the whole tour is printed (wall
+//! clock and thread CPU time, p50/p99/max): the CPU time is what the update
+//! costs, the wall time also holds whatever the scheduler did to us.
+//! Criterion then times a steady-state update (fully explored room) and an
+//! update after one more scan.
+
+#[path = "../tests/decomp_support/mod.rs"]
+mod decomp_support;
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use decomp_support::*;
+use sweepline::decomp::{DecompParams, Decomposer};
+use sweepline::grid::Grid;
+use sweepline::sim::floorplan::{load_room, MAPS_DIR};
+use sweepline::sim::world::World;
+
+/// Floor-plan rooms besides the paper's workspace: the largest planner-sized
+/// room we use (lab_f_scan:19, 12.5 × 11.3 m) and a large hall
+/// (lab_a_scan:0, 35 × 29 m).
+const ROOMS: &[&str] = &["lab_f_scan:19", "lab_a_scan:0"];
+
+fn thread_cpu() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the timespec we own.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+fn worlds() -> Vec<(String, World)> {
+    let mut out = vec![("paper".to_string(), paper_world())];
+    match sweepline::testdata::shared_file(MAPS_DIR) {
+        Some(dir) => {
+            for spec in ROOMS {
+                match load_room(&dir, spec) {
+                    Ok(room) => out.push((spec.to_string(), room.world())),
+                    Err(e) => eprintln!("skipping {spec}: {e}"),
+                }
+            }
+        }
+        None => eprintln!("shared maps missing: benching the paper workspace only"),
+    }
+    out
+}
+
+/// Explores `world` along the tour, one update per scan; returns the
+/// decomposer and grid at the end and the per-update (wall, cpu) seconds.
+fn tour_run(world: &World) -> (Decomposer, Grid, Vec<(f64, f64)>) {
+    let mut grid = grid_for(world, 0.05);
+    let mut dec = Decomposer::new(&DecompParams::default(), 0.17).unwrap();
+    let mut times = Vec::new();
+    for p in tour(world, 1.0) {
+        scan(world, &mut grid, &p);
+        let (w0, c0) = (Instant::now(), thread_cpu());
+        black_box(dec.update(&grid, &[]));
+        times.push((w0.elapsed().as_secs_f64(), thread_cpu() - c0));
+    }
+    (dec, grid, times)
+}
+
+fn report(name: &str, times: &[(f64, f64)], cells: usize) {
+    let wall: Vec<f64> = times.iter().map(|t| t.0).collect();
+    let cpu: Vec<f64> = times.iter().map(|t| t.1).collect();
+    let ms = |v: f64| v * 1e3;
+    eprintln!(
+        "decomp_update {name}: {} updates, {cells} cells at the end; cpu p50 {:.3} ms p99 {:.3} ms max {:.3} ms; wall p50 {:.3} ms p99 {:.3} ms max {:.3} ms",
+        times.len(),
+        ms(percentile(&cpu, 0.5)),
+        ms(percentile(&cpu, 0.99)),
+        ms(percentile(&cpu, 1.0)),
+        ms(percentile(&wall, 0.5)),
+        ms(percentile(&wall, 0.99)),
+        ms(percentile(&wall, 1.0)),
+    );
+}
+
+fn bench(c: &mut Criterion) {
+    for (name, world) in worlds() {
+        // Three tours: the latency distribution over all their updates.
+        let mut all = Vec::new();
+        let mut last = None;
+        for _ in 0..3 {
+            let (dec, grid, times) = tour_run(&world);
+            all.extend(times);
+            last = Some((dec, grid));
+        }
+        let (dec, grid) = last.unwrap();
+        report(&name, &all, dec.decomposition().cells.len());
+        let mut g = c.benchmark_group(format!("decomp_update/{name}"));
+        g.bench_function("steady", |b| {
+            let mut d = dec.clone();
+            b.iter(|| black_box(d.update(&grid, &[]).cells.len()))
+        });
+        // One more scan from the middle of the room, then the update.
+        let mid = world.start;
+        g.bench_function("after_scan", |b| {
+            b.iter_batched(
+                || {
+                    let mut gr = grid.clone();
+                    scan(&world, &mut gr, &mid);
+                    (dec.clone(), gr)
+                },
+                |(mut d, gr)| black_box(d.update(&gr, &[]).cells.len()),
+                BatchSize::LargeInput,
+            )
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

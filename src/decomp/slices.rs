@@ -1,0 +1,632 @@
+//! Slices of the explored configuration space: the evidence grid resampled
+//! into the sweep frame, every seen wall point inflated into a disk, and, per
+//! slice (row), the intervals where the robot's centre may be ("pieces").
+//!
+//! Buffers are kept between updates and reused; only the window around the
+//! explored part of the grid is touched.
+
+use crate::geom::Segment;
+use crate::grid::{CellState, Grid};
+
+use super::frame::SweepFrame;
+
+/// Pixel class: never observed.
+pub const UNK: u8 = 0;
+/// Pixel class: observed free.
+pub const FREE: u8 = 1;
+/// Pixel class: observed occupied.
+pub const OCC: u8 = 2;
+/// Flag: the pixel centre lies within the inflation radius of a wall point.
+pub const BLOCKED: u8 = 4;
+/// Mask of the class bits.
+pub const CLASS: u8 = 3;
+
+/// What ends a piece on one side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum End {
+    /// An inflated wall (or the grid's occupied cells).
+    Wall,
+    /// Unexplored space (or the edge of the grid).
+    Frontier,
+    /// A frozen (final) cell, by its index in the frozen list.
+    Frozen(u32),
+}
+
+/// One free interval of one slice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Piece {
+    /// Row (slice) index.
+    pub row: u32,
+    /// Lower `u` end (m).
+    pub l: f64,
+    /// Upper `u` end (m).
+    pub r: f64,
+    /// What bounds it at `l`.
+    pub left: End,
+    /// What bounds it at `r`.
+    pub right: End,
+}
+
+/// A seen wall point with the disk (around a point of a segment) or rounded
+/// square (around an occupied grid cell) it blocks for the robot's centre.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WallPoint {
+    /// Lane coordinate along the lanes (m).
+    pub u: f64,
+    /// Lane coordinate across the lanes (m).
+    pub v: f64,
+    /// Half side of the square it stands for (0 for a point) (m).
+    pub e: f64,
+    /// Inflation radius around it (m).
+    pub r: f64,
+}
+
+impl WallPoint {
+    /// Half length of the blocked interval on the slice at `v`, if any.
+    pub fn half_width_at(&self, v: f64) -> Option<f64> {
+        let dv = ((v - self.v).abs() - self.e).max(0.0);
+        let d2 = self.r * self.r - dv * dv;
+        (d2 > 0.0).then(|| self.e + d2.sqrt())
+    }
+
+    /// How far across the lanes (from `v`) it blocks a slice interval
+    /// `[l, r]`: the blocked region's extent toward the interval, if it
+    /// reaches the interval's `u` range at all.
+    pub fn reach_across(&self, l: f64, r: f64) -> Option<f64> {
+        let du = ((l - self.u).max(self.u - r).max(0.0) - self.e).max(0.0);
+        let d2 = self.r * self.r - du * du;
+        (d2 > 0.0).then(|| self.e + d2.sqrt())
+    }
+}
+
+/// An interval of a frozen cell in one row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrozenSpan {
+    /// Row.
+    pub row: u32,
+    /// Lower `u` (m).
+    pub l: f64,
+    /// Upper `u` (m).
+    pub r: f64,
+    /// Index of the frozen cell.
+    pub cell: u32,
+}
+
+/// The per-update slice buffers.
+#[derive(Clone, Debug, Default)]
+pub struct Slices {
+    /// Pixel classes and flags, `nu × nv`, row-major.
+    pub px: Vec<u8>,
+    /// Wall points sorted by row of `v`.
+    pub points: Vec<WallPoint>,
+    /// Largest `e + r` of any wall point: how far a point blocks (m).
+    pub max_extent: f64,
+    /// `points[point_rows[k]..point_rows[k+1]]` lie in row `k`.
+    pub point_rows: Vec<u32>,
+    /// Merged blocked intervals, sorted by row then `l`.
+    pub blocked: Vec<(f64, f64)>,
+    /// Row offsets into `blocked`.
+    pub blocked_rows: Vec<u32>,
+    /// Pieces, sorted by row then `l`.
+    pub pieces: Vec<Piece>,
+    /// Row offsets into `pieces`.
+    pub piece_rows: Vec<u32>,
+    /// Processed window: columns `i0..i1`, rows `k0..k1`.
+    pub window: (usize, usize, usize, usize),
+    raw_points: Vec<WallPoint>,
+    raw_intervals: Vec<(u32, f64, f64)>,
+    sorted_intervals: Vec<(f64, f64)>,
+    counts: Vec<u32>,
+    seg_mask: Vec<bool>,
+    excl: Vec<(f64, f64, End)>,
+    grid_box: (usize, usize, usize, usize),
+}
+
+/// Inputs of one slicing pass.
+pub struct SliceInput<'a> {
+    /// The evidence grid.
+    pub grid: &'a Grid,
+    /// Wall segments seen (may be empty).
+    pub segments: &'a [Segment],
+    /// Inflation radius (m).
+    pub radius: f64,
+    /// Unknown gaps up to this many pixels between free pixels are filled.
+    pub gap_pixels: usize,
+    /// Frozen cells' spans, sorted by row then `l`.
+    pub frozen: &'a [FrozenSpan],
+    /// Pieces shorter than this beside a frozen cell are left to that cell's
+    /// tool overlap and dropped (m).
+    pub min_beside_frozen: f64,
+}
+
+impl Slices {
+    /// Pixel at column `i`, row `k`.
+    pub fn at(&self, f: &SweepFrame, i: usize, k: usize) -> u8 {
+        self.px[k * f.nu + i]
+    }
+
+    /// Whether pixel `(i, k)` is unexplored and not within a wall's inflation
+    /// (outside the raster counts as unexplored).
+    pub fn is_frontier(&self, f: &SweepFrame, i: isize, k: isize) -> bool {
+        if i < 0 || k < 0 || i as usize >= f.nu || k as usize >= f.nv {
+            return true;
+        }
+        let p = self.at(f, i as usize, k as usize);
+        p & CLASS == UNK && p & BLOCKED == 0
+    }
+
+    /// The pieces of row `k`.
+    pub fn row_pieces(&self, k: usize) -> std::ops::Range<usize> {
+        self.piece_rows[k] as usize..self.piece_rows[k + 1] as usize
+    }
+
+    /// The obstacle points of row `k`.
+    pub fn row_points(&self, k: usize) -> &[WallPoint] {
+        &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize]
+    }
+
+    /// Runs the whole slicing pass for `input` in frame `f`. Returns false when
+    /// nothing of the grid is explored (no pieces).
+    pub fn compute(&mut self, f: &SweepFrame, input: &SliceInput<'_>) -> bool {
+        let n = f.nu * f.nv;
+        self.px.clear();
+        self.px.resize(n, UNK);
+        self.piece_rows.clear();
+        self.piece_rows.resize(f.nv + 1, 0);
+        self.pieces.clear();
+        self.point_rows.clear();
+        self.point_rows.resize(f.nv + 1, 0);
+        self.blocked_rows.clear();
+        self.blocked_rows.resize(f.nv + 1, 0);
+        self.points.clear();
+        self.blocked.clear();
+        let Some(window) = self.explored_window(f, input) else {
+            self.window = (0, 0, 0, 0);
+            return false;
+        };
+        self.window = window;
+        self.resample(f, input.grid);
+        self.fill_gaps(f, input.gap_pixels);
+        self.collect_points(f, input);
+        self.inflate(f);
+        self.cut_pieces(f, input.frozen, input.min_beside_frozen);
+        !self.pieces.is_empty()
+    }
+
+    fn explored_window(
+        &mut self,
+        f: &SweepFrame,
+        input: &SliceInput<'_>,
+    ) -> Option<(usize, usize, usize, usize)> {
+        let g = input.grid;
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0usize, 0usize);
+        for y in 0..g.height() {
+            for x in 0..g.width() {
+                if g.evidence((x, y)) != 0 {
+                    x0 = x0.min(x);
+                    x1 = x1.max(x);
+                    y0 = y0.min(y);
+                    y1 = y1.max(y);
+                }
+            }
+        }
+        if x0 == usize::MAX {
+            return None;
+        }
+        self.grid_box = (x0, y0, x1 + 1, y1 + 1);
+        let (o, r) = (g.origin(), g.resolution());
+        let margin = input.radius + 2.0 * f.h;
+        let (mut lo_u, mut lo_v, mut hi_u, mut hi_v) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for (x, y) in [(x0, y0), (x1 + 1, y0), (x0, y1 + 1), (x1 + 1, y1 + 1)] {
+            let p = nalgebra::Point2::new(o.x + x as f64 * r, o.y + y as f64 * r);
+            let (u, v) = f.to_uv(&p);
+            lo_u = lo_u.min(u);
+            lo_v = lo_v.min(v);
+            hi_u = hi_u.max(u);
+            hi_v = hi_v.max(v);
+        }
+        for s in input.segments {
+            for p in [s.a, s.b] {
+                let (u, v) = f.to_uv(&p);
+                if u.is_finite() && v.is_finite() {
+                    lo_u = lo_u.min(u);
+                    lo_v = lo_v.min(v);
+                    hi_u = hi_u.max(u);
+                    hi_v = hi_v.max(v);
+                }
+            }
+        }
+        let i0 = f.col_of(lo_u - margin);
+        let i1 = f.col_of(hi_u + margin) + 1;
+        let k0 = f.row_of(lo_v - margin);
+        let k1 = f.row_of(hi_v + margin) + 1;
+        Some((i0, i1, k0, k1))
+    }
+
+    fn resample(&mut self, f: &SweepFrame, g: &Grid) {
+        let (i0, i1, k0, k1) = self.window;
+        let class = |st: CellState| match st {
+            CellState::Free => FREE,
+            CellState::Occupied => OCC,
+            CellState::Unknown => UNK,
+        };
+        // Fast path: the pixel lattice is the grid lattice, maybe rotated by
+        // a multiple of 90° (axis-aligned rooms): integer index arithmetic.
+        if let Some(m) = lattice_map(f, g) {
+            let (gw, gh) = (g.width() as i64, g.height() as i64);
+            for k in k0..k1 {
+                for i in i0..i1 {
+                    let (x, y) = m.apply(i as i64, k as i64);
+                    self.px[k * f.nu + i] = if x >= 0 && y >= 0 && x < gw && y < gh {
+                        class(g.state((x as usize, y as usize)))
+                    } else {
+                        UNK
+                    };
+                }
+            }
+            return;
+        }
+        for k in k0..k1 {
+            let v = f.row_v(k);
+            for i in i0..i1 {
+                let p = f.to_world(f.col_u(i), v);
+                self.px[k * f.nu + i] = g.cell_of(&p).map(|c| class(g.state(c))).unwrap_or(UNK);
+            }
+        }
+    }
+
+    /// Unknown runs of at most `max` pixels with free pixels on both ends
+    /// become free, along rows and then along columns.
+    fn fill_gaps(&mut self, f: &SweepFrame, max: usize) {
+        if max == 0 {
+            return;
+        }
+        let (i0, i1, k0, k1) = self.window;
+        let nu = f.nu;
+        for k in k0..k1 {
+            fill_line(&mut self.px, k * nu + i0, 1, i1 - i0, max);
+        }
+        for i in i0..i1 {
+            fill_line(&mut self.px, k0 * nu + i, nu, k1 - k0, max);
+        }
+    }
+
+    fn collect_points(&mut self, f: &SweepFrame, input: &SliceInput<'_>) {
+        let g = input.grid;
+        let (gw, gh) = (g.width(), g.height());
+        self.seg_mask.clear();
+        self.seg_mask.resize(gw * gh, false);
+        self.raw_points.clear();
+        let step = (f.h * 0.5).min(g.resolution() * 0.5);
+        for s in input.segments {
+            let len = s.length();
+            if !len.is_finite() {
+                continue;
+            }
+            let n = ((len / step).ceil() as usize).clamp(1, 1_000_000);
+            for j in 0..=n {
+                let p = s.a + (s.b - s.a) * (j as f64 / n as f64);
+                let (u, v) = f.to_uv(&p);
+                self.raw_points.push(WallPoint {
+                    u,
+                    v,
+                    e: 0.0,
+                    r: input.radius,
+                });
+                if let Some((cx, cy)) = g.cell_of(&p) {
+                    for yy in cy.saturating_sub(1)..(cy + 2).min(gh) {
+                        for xx in cx.saturating_sub(1)..(cx + 2).min(gw) {
+                            self.seg_mask[yy * gw + xx] = true;
+                        }
+                    }
+                }
+            }
+        }
+        let occ = |x: usize, y: usize| g.state((x, y)) == CellState::Occupied;
+        let (bx0, by0, bx1, by1) = self.grid_box;
+        // An occupied cell blocks its whole square: exactly (a rounded square)
+        // when the frame is aligned with the grid, else by the disk around
+        // the square.
+        let (e, r) = if lattice_map(f, g).is_some() {
+            (g.resolution() * 0.5, input.radius)
+        } else {
+            (
+                0.0,
+                input.radius + g.resolution() * std::f64::consts::FRAC_1_SQRT_2,
+            )
+        };
+        for y in by0..by1 {
+            for x in bx0..bx1 {
+                if g.evidence((x, y)) == 0 || !occ(x, y) || self.seg_mask[y * gw + x] {
+                    continue;
+                }
+                let interior = x > 0
+                    && y > 0
+                    && x + 1 < gw
+                    && y + 1 < gh
+                    && occ(x - 1, y)
+                    && occ(x + 1, y)
+                    && occ(x, y - 1)
+                    && occ(x, y + 1);
+                if !interior {
+                    let (u, v) = f.to_uv(&g.centre_of((x, y)));
+                    self.raw_points.push(WallPoint { u, v, e, r });
+                }
+            }
+        }
+        // Counting sort by row.
+        self.counts.clear();
+        self.counts.resize(f.nv + 1, 0);
+        for p in &self.raw_points {
+            if p.v.is_finite() {
+                self.counts[f.row_of(p.v) + 1] += 1;
+            }
+        }
+        for k in 0..f.nv {
+            self.counts[k + 1] += self.counts[k];
+        }
+        self.point_rows.copy_from_slice(&self.counts);
+        self.points.clear();
+        self.points
+            .resize(self.raw_points.len(), WallPoint::default());
+        let mut fill = self.counts.clone();
+        let mut used = 0;
+        for &p in &self.raw_points {
+            if !(p.u.is_finite() && p.v.is_finite()) {
+                continue;
+            }
+            let k = f.row_of(p.v);
+            self.points[fill[k] as usize] = p;
+            fill[k] += 1;
+            used += 1;
+        }
+        self.points.truncate(used);
+        self.max_extent = self.points.iter().map(|p| p.e + p.r).fold(0.0, f64::max);
+    }
+
+    fn inflate(&mut self, f: &SweepFrame) {
+        let (i0, i1, k0, k1) = self.window;
+        self.raw_intervals.clear();
+        for k in 0..f.nv {
+            for p in &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize] {
+                let reach = ((p.r + p.e) / f.h).ceil() as usize + 1;
+                for kk in k.saturating_sub(reach)..(k + reach + 1).min(f.nv) {
+                    if kk < k0 || kk >= k1 {
+                        continue;
+                    }
+                    if let Some(d) = p.half_width_at(f.row_v(kk)) {
+                        self.raw_intervals.push((kk as u32, p.u - d, p.u + d));
+                    }
+                }
+            }
+        }
+        // Counting sort by row, then sort each row by l and merge.
+        self.counts.clear();
+        self.counts.resize(f.nv + 1, 0);
+        for &(k, _, _) in &self.raw_intervals {
+            self.counts[k as usize + 1] += 1;
+        }
+        for k in 0..f.nv {
+            self.counts[k + 1] += self.counts[k];
+        }
+        self.sorted_intervals.clear();
+        self.sorted_intervals
+            .resize(self.raw_intervals.len(), (0.0, 0.0));
+        let mut fill = self.counts.clone();
+        for &(k, l, r) in &self.raw_intervals {
+            self.sorted_intervals[fill[k as usize] as usize] = (l, r);
+            fill[k as usize] += 1;
+        }
+        self.blocked.clear();
+        for k in 0..f.nv {
+            self.blocked_rows[k] = self.blocked.len() as u32;
+            let row =
+                &mut self.sorted_intervals[self.counts[k] as usize..self.counts[k + 1] as usize];
+            row.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            let start = self.blocked.len();
+            for &(l, r) in row.iter() {
+                let len = self.blocked.len();
+                if len > start && l <= self.blocked[len - 1].1 {
+                    self.blocked[len - 1].1 = self.blocked[len - 1].1.max(r);
+                } else {
+                    self.blocked.push((l, r));
+                }
+            }
+            // Flag blocked pixels.
+            if k >= k0 && k < k1 {
+                for &(l, r) in &self.blocked[start..] {
+                    let a = ((l - f.u0) / f.h - 0.5).ceil().max(i0 as f64) as usize;
+                    let b = ((r - f.u0) / f.h - 0.5).floor();
+                    if b < a as f64 {
+                        continue;
+                    }
+                    let b = (b as usize).min(i1 - 1);
+                    for i in a..=b {
+                        self.px[k * f.nu + i] |= BLOCKED;
+                    }
+                }
+            }
+        }
+        self.blocked_rows[f.nv] = self.blocked.len() as u32;
+    }
+
+    fn cut_pieces(&mut self, f: &SweepFrame, frozen: &[FrozenSpan], min_beside: f64) {
+        let (i0, i1, k0, k1) = self.window;
+        let min_len = f.h * 0.5;
+        let mut fz = 0usize;
+        for k in 0..f.nv {
+            self.piece_rows[k] = self.pieces.len() as u32;
+            while fz < frozen.len() && (frozen[fz].row as usize) < k {
+                fz += 1;
+            }
+            if k < k0 || k >= k1 {
+                continue;
+            }
+            self.excl.clear();
+            for &(l, r) in
+                &self.blocked[self.blocked_rows[k] as usize..self.blocked_rows[k + 1] as usize]
+            {
+                self.excl.push((l, r, End::Wall));
+            }
+            let mut j = fz;
+            while j < frozen.len() && frozen[j].row as usize == k {
+                let s = frozen[j];
+                self.excl.push((s.l, s.r, End::Frozen(s.cell)));
+                j += 1;
+            }
+            self.excl.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            let row = k * f.nu;
+            let mut i = i0;
+            while i < i1 {
+                if self.px[row + i] & CLASS != FREE {
+                    i += 1;
+                    continue;
+                }
+                let a = i;
+                while i < i1 && self.px[row + i] & CLASS == FREE {
+                    i += 1;
+                }
+                let b = i - 1;
+                let left = if self.is_frontier(f, a as isize - 1, k as isize) {
+                    End::Frontier
+                } else {
+                    End::Wall
+                };
+                let right = if self.is_frontier(f, b as isize + 1, k as isize) {
+                    End::Frontier
+                } else {
+                    End::Wall
+                };
+                let (lu, ru) = (f.u0 + a as f64 * f.h, f.u0 + (b + 1) as f64 * f.h);
+                let (mut cur, mut cur_end) = (lu, left);
+                for &(el, er, ek) in &self.excl {
+                    if er <= cur || el >= ru {
+                        continue;
+                    }
+                    if el > cur {
+                        let beside =
+                            matches!(ek, End::Frozen(_)) || matches!(cur_end, End::Frozen(_));
+                        let need = if beside {
+                            min_beside.max(min_len)
+                        } else {
+                            min_len
+                        };
+                        if el - cur >= need {
+                            self.pieces.push(Piece {
+                                row: k as u32,
+                                l: cur,
+                                r: el,
+                                left: cur_end,
+                                right: ek,
+                            });
+                        }
+                        cur = er;
+                        cur_end = ek;
+                    } else if er > cur {
+                        cur = er;
+                        cur_end = ek;
+                    }
+                    if cur >= ru {
+                        break;
+                    }
+                }
+                let need = if matches!(cur_end, End::Frozen(_)) {
+                    min_beside.max(min_len)
+                } else {
+                    min_len
+                };
+                if ru - cur >= need {
+                    self.pieces.push(Piece {
+                        row: k as u32,
+                        l: cur,
+                        r: ru,
+                        left: cur_end,
+                        right,
+                    });
+                }
+            }
+        }
+        self.piece_rows[f.nv] = self.pieces.len() as u32;
+    }
+}
+
+/// Integer map from pixel `(i, k)` to grid cell `(x, y)`:
+/// `x = x0 + xi·i + xk·k`, `y = y0 + yi·i + yk·k`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct LatticeMap {
+    x0: i64,
+    xi: i64,
+    xk: i64,
+    y0: i64,
+    yi: i64,
+    yk: i64,
+}
+
+impl LatticeMap {
+    fn apply(&self, i: i64, k: i64) -> (i64, i64) {
+        (
+            self.x0 + self.xi * i + self.xk * k,
+            self.y0 + self.yi * i + self.yk * k,
+        )
+    }
+}
+
+/// The integer map when pixel centres fall on grid cell centres (same cell
+/// size, frame rotated by a multiple of 90°, lattices aligned), else `None`.
+fn lattice_map(f: &SweepFrame, g: &Grid) -> Option<LatticeMap> {
+    let r = g.resolution();
+    if (f.h - r).abs() > 1e-9 * r {
+        return None;
+    }
+    let o = g.origin();
+    let at = |i: usize, k: usize| {
+        let p = f.to_world(f.col_u(i), f.row_v(k));
+        ((p.x - o.x) / r - 0.5, (p.y - o.y) / r - 0.5)
+    };
+    let (a, b, c) = (at(0, 0), at(1, 0), at(0, 1));
+    let near_int = |v: f64| (v - v.round()).abs() < 1e-6;
+    let all = [a.0, a.1, b.0 - a.0, b.1 - a.1, c.0 - a.0, c.1 - a.1];
+    if !all.iter().all(|&v| v.is_finite() && near_int(v)) {
+        return None;
+    }
+    Some(LatticeMap {
+        x0: a.0.round() as i64,
+        xi: (b.0 - a.0).round() as i64,
+        xk: (c.0 - a.0).round() as i64,
+        y0: a.1.round() as i64,
+        yi: (b.1 - a.1).round() as i64,
+        yk: (c.1 - a.1).round() as i64,
+    })
+}
+
+/// Fills unknown runs of at most `max` pixels bounded by free pixels along one
+/// line of `n` pixels starting at `start` with stride `stride`.
+fn fill_line(px: &mut [u8], start: usize, stride: usize, n: usize, max: usize) {
+    let mut last_free: Option<usize> = None;
+    let mut j = 0;
+    while j < n {
+        let c = px[start + j * stride] & CLASS;
+        if c == FREE {
+            if let Some(lf) = last_free {
+                let gap = j - lf - 1;
+                if gap > 0
+                    && gap <= max
+                    && (lf + 1..j).all(|t| px[start + t * stride] & CLASS == UNK)
+                {
+                    for t in lf + 1..j {
+                        px[start + t * stride] = FREE;
+                    }
+                }
+            }
+            last_free = Some(j);
+        } else if c == OCC {
+            last_free = None;
+        }
+        j += 1;
+    }
+}

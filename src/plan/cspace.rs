@@ -1,0 +1,541 @@
+//! The planner's view of the explored map: which grid cells the robot's
+//! centre may occupy (known free, farther than the inflation distance from
+//! every seen obstacle and every unexplored cell), travel distances over them
+//! (Dijkstra), point-to-point paths (A*) shortened by line of sight, and
+//! frontier cells where explored free space meets unexplored space.
+//!
+//! Buffers are allocated once per grid size and reused on every update.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use nalgebra::Point2;
+
+use crate::grid::{CellState, Grid};
+
+/// Cell state as the planner stores it.
+pub const UNKNOWN: u8 = 0;
+/// Seen free.
+pub const FREE: u8 = 1;
+/// Seen occupied.
+pub const OCCUPIED: u8 = 2;
+
+/// Grid geometry shared by every planner raster.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// World position of the lower-left corner of cell (0, 0).
+    pub origin: Point2<f64>,
+    /// Cell size (m).
+    pub res: f64,
+    /// Columns.
+    pub w: usize,
+    /// Rows.
+    pub h: usize,
+}
+
+impl Frame {
+    /// Linear index of the cell containing `p`, if inside.
+    pub fn index_of(&self, p: &Point2<f64>) -> Option<usize> {
+        let fx = (p.x - self.origin.x) / self.res;
+        let fy = (p.y - self.origin.y) / self.res;
+        if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {
+            return None;
+        }
+        let (x, y) = (fx as usize, fy as usize);
+        (x < self.w && y < self.h).then_some(y * self.w + x)
+    }
+
+    /// Centre of cell `i`.
+    pub fn centre(&self, i: usize) -> Point2<f64> {
+        Point2::new(
+            self.origin.x + ((i % self.w) as f64 + 0.5) * self.res,
+            self.origin.y + ((i / self.w) as f64 + 0.5) * self.res,
+        )
+    }
+
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.w * self.h
+    }
+
+    /// Whether the frame has no cells.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Cell offsets whose centre distance is at most `radius`.
+pub fn disk(radius: f64, res: f64) -> Vec<(i64, i64)> {
+    let n = (radius / res).ceil() as i64 + 1;
+    let mut v = Vec::new();
+    for dy in -n..=n {
+        for dx in -n..=n {
+            if ((dx * dx + dy * dy) as f64).sqrt() * res <= radius + 1e-9 {
+                v.push((dx, dy));
+            }
+        }
+    }
+    v
+}
+
+/// Configuration space and travel distances over the explored grid.
+#[derive(Clone, Debug)]
+pub struct CSpace {
+    /// Geometry.
+    pub frame: Frame,
+    /// Per-cell [`UNKNOWN`]/[`FREE`]/[`OCCUPIED`].
+    pub state: Vec<u8>,
+    /// Where the robot centre may be.
+    pub traversable: Vec<bool>,
+    /// Where the robot body touches no seen obstacle (clearance of the bare
+    /// robot radius, no margin): a path leaving it is blocked.
+    pub collision_free: Vec<bool>,
+    /// Travel distance from the last [`CSpace::distances_from`] source (m; ∞ unreachable).
+    pub dist: Vec<f64>,
+    prev: Vec<u32>,
+    inflate: Vec<(i64, i64)>,
+    hard: Vec<(i64, i64)>,
+    radius: f64,
+    inflation: f64,
+    heap: BinaryHeap<Entry>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Entry {
+    cost: f64,
+    idx: u32,
+}
+
+impl Eq for Entry {}
+
+impl Ord for Entry {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.cost
+            .partial_cmp(&self.cost)
+            .unwrap_or(Ordering::Equal)
+            .then_with(|| o.idx.cmp(&self.idx))
+    }
+}
+
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+const NEIGHBOURS: [(i64, i64, f64); 8] = [
+    (1, 0, 1.0),
+    (-1, 0, 1.0),
+    (0, 1, 1.0),
+    (0, -1, 1.0),
+    (1, 1, std::f64::consts::SQRT_2),
+    (1, -1, std::f64::consts::SQRT_2),
+    (-1, 1, std::f64::consts::SQRT_2),
+    (-1, -1, std::f64::consts::SQRT_2),
+];
+
+/// Cell offsets whose square lies closer than `radius` to a cell centre.
+fn square_offsets(radius: f64, r: f64) -> Vec<(i64, i64)> {
+    let k = (radius / r).ceil() as i64 + 1;
+    let mut v = Vec::new();
+    for dy in -k..=k {
+        for dx in -k..=k {
+            let gx = (dx.abs() as f64 - 0.5).max(0.0) * r;
+            let gy = (dy.abs() as f64 - 0.5).max(0.0) * r;
+            if (gx * gx + gy * gy).sqrt() < radius {
+                v.push((dx, dy));
+            }
+        }
+    }
+    v
+}
+
+impl CSpace {
+    /// An empty configuration space; `inflation` is the clearance (m) the
+    /// robot centre keeps from obstacle and unexplored cells, `radius` the
+    /// robot radius (a path closer than that to a seen obstacle is blocked).
+    pub fn new(inflation: f64, radius: f64) -> Self {
+        Self {
+            frame: Frame {
+                origin: Point2::origin(),
+                res: 1.0,
+                w: 0,
+                h: 0,
+            },
+            state: Vec::new(),
+            traversable: Vec::new(),
+            collision_free: Vec::new(),
+            hard: Vec::new(),
+            radius,
+            dist: Vec::new(),
+            prev: Vec::new(),
+            inflate: Vec::new(),
+            inflation,
+            heap: BinaryHeap::new(),
+        }
+    }
+
+    /// The clearance in use (m).
+    pub fn inflation(&self) -> f64 {
+        self.inflation
+    }
+
+    /// Rebuilds states and the traversable mask from `grid`.
+    pub fn rebuild(&mut self, grid: &Grid) {
+        let frame = Frame {
+            origin: grid.origin(),
+            res: grid.resolution(),
+            w: grid.width(),
+            h: grid.height(),
+        };
+        if frame != self.frame {
+            self.frame = frame;
+            let n = frame.len();
+            self.state = vec![UNKNOWN; n];
+            self.traversable = vec![false; n];
+            self.collision_free = vec![true; n];
+            self.dist = vec![f64::INFINITY; n];
+            self.prev = vec![u32::MAX; n];
+            // Offsets whose obstacle square lies closer than the inflation.
+            self.inflate = square_offsets(self.inflation, frame.res);
+            self.hard = square_offsets(self.radius, frame.res);
+        }
+        let (w, h) = (frame.w, frame.h);
+        for y in 0..h {
+            for x in 0..w {
+                self.state[y * w + x] = match grid.state((x, y)) {
+                    CellState::Unknown => UNKNOWN,
+                    CellState::Free => FREE,
+                    CellState::Occupied => OCCUPIED,
+                };
+            }
+        }
+        for (t, s) in self.traversable.iter_mut().zip(&self.state) {
+            *t = *s == FREE;
+        }
+        self.collision_free.iter_mut().for_each(|c| *c = true);
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let i = y as usize * w + x as usize;
+                if self.state[i] == FREE {
+                    continue;
+                }
+                // Only obstacle/unknown cells that border free space matter.
+                let mut borders = false;
+                for &(dx, dy, _) in &NEIGHBOURS {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx >= 0
+                        && ny >= 0
+                        && (nx as usize) < w
+                        && (ny as usize) < h
+                        && self.state[ny as usize * w + nx as usize] == FREE
+                    {
+                        borders = true;
+                        break;
+                    }
+                }
+                if !borders {
+                    continue;
+                }
+                for &(dx, dy) in &self.inflate {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                        self.traversable[ny as usize * w + nx as usize] = false;
+                    }
+                }
+                if self.state[i] == OCCUPIED {
+                    for &(dx, dy) in &self.hard {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                            self.collision_free[ny as usize * w + nx as usize] = false;
+                        }
+                    }
+                }
+            }
+        }
+        // The grid's border counts as unexplored.
+        for y in 0..h {
+            for x in 0..w {
+                let near_edge = x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * frame.res;
+                if near_edge < self.inflation {
+                    self.traversable[y * w + x] = false;
+                }
+            }
+        }
+    }
+
+    /// Dijkstra travel distances (8-connected, m) over traversable cells from
+    /// `source` (which may itself be non-traversable: the robot may start in
+    /// an inflation zone). Fills [`CSpace::dist`].
+    pub fn distances_from(&mut self, source: usize) {
+        self.dist.iter_mut().for_each(|d| *d = f64::INFINITY);
+        self.prev.iter_mut().for_each(|p| *p = u32::MAX);
+        self.heap.clear();
+        if source >= self.frame.len() {
+            return;
+        }
+        let (w, h, r) = (self.frame.w as i64, self.frame.h as i64, self.frame.res);
+        self.dist[source] = 0.0;
+        self.heap.push(Entry {
+            cost: 0.0,
+            idx: source as u32,
+        });
+        while let Some(Entry { cost, idx }) = self.heap.pop() {
+            let i = idx as usize;
+            if cost > self.dist[i] {
+                continue;
+            }
+            let (x, y) = ((i as i64) % w, (i as i64) / w);
+            for &(dx, dy, c) in &NEIGHBOURS {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                    continue;
+                }
+                let j = (ny * w + nx) as usize;
+                if !self.traversable[j] {
+                    continue;
+                }
+                // No corner cutting past a blocked cell.
+                if dx != 0
+                    && dy != 0
+                    && (!self.traversable[(y * w + nx) as usize]
+                        || !self.traversable[(ny * w + x) as usize])
+                {
+                    continue;
+                }
+                let nc = cost + c * r;
+                if nc < self.dist[j] {
+                    self.dist[j] = nc;
+                    self.prev[j] = idx;
+                    self.heap.push(Entry {
+                        cost: nc,
+                        idx: j as u32,
+                    });
+                }
+            }
+        }
+    }
+
+    /// The cell path from the last Dijkstra source to `goal`, as cell centres,
+    /// shortened by line of sight; `None` when `goal` is unreachable.
+    pub fn path_to(&self, goal: usize) -> Option<Vec<Point2<f64>>> {
+        if goal >= self.dist.len() || !self.dist[goal].is_finite() {
+            return None;
+        }
+        let mut cells = vec![goal];
+        let mut i = goal;
+        while self.prev[i] != u32::MAX {
+            i = self.prev[i] as usize;
+            cells.push(i);
+        }
+        cells.reverse();
+        Some(self.shorten(&cells))
+    }
+
+    /// A* path (cell centres, shortened) between two cells over traversable
+    /// cells, `None` when there is none. Does not touch [`CSpace::dist`].
+    pub fn astar(&self, from: usize, to: usize) -> Option<Vec<Point2<f64>>> {
+        let n = self.frame.len();
+        if from >= n || to >= n || !self.traversable[to] {
+            return None;
+        }
+        let (w, h, r) = (self.frame.w as i64, self.frame.h as i64, self.frame.res);
+        let goal = ((to as i64) % w, (to as i64) / w);
+        let hfn = |i: usize| {
+            let (x, y) = ((i as i64) % w, (i as i64) / w);
+            let (dx, dy) = ((x - goal.0).abs() as f64, (y - goal.1).abs() as f64);
+            (dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy)) * r
+        };
+        let mut g = std::collections::HashMap::<usize, (f64, usize)>::new();
+        let mut heap = BinaryHeap::new();
+        g.insert(from, (0.0, usize::MAX));
+        heap.push(Entry {
+            cost: hfn(from),
+            idx: from as u32,
+        });
+        while let Some(Entry { idx, .. }) = heap.pop() {
+            let i = idx as usize;
+            if i == to {
+                let mut cells = vec![to];
+                let mut k = to;
+                while let Some(&(_, p)) = g.get(&k) {
+                    if p == usize::MAX {
+                        break;
+                    }
+                    cells.push(p);
+                    k = p;
+                }
+                cells.reverse();
+                return Some(self.shorten(&cells));
+            }
+            let gi = g[&i].0;
+            let (x, y) = ((i as i64) % w, (i as i64) / w);
+            for &(dx, dy, c) in &NEIGHBOURS {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                    continue;
+                }
+                let j = (ny * w + nx) as usize;
+                if !self.traversable[j] {
+                    continue;
+                }
+                if dx != 0
+                    && dy != 0
+                    && (!self.traversable[(y * w + nx) as usize]
+                        || !self.traversable[(ny * w + x) as usize])
+                {
+                    continue;
+                }
+                let ng = gi + c * r;
+                if g.get(&j).is_none_or(|&(old, _)| ng < old) {
+                    g.insert(j, (ng, i));
+                    heap.push(Entry {
+                        cost: ng + hfn(j),
+                        idx: j as u32,
+                    });
+                }
+            }
+        }
+        None
+    }
+
+    /// Whether the straight segment `a`–`b` keeps the robot body off every
+    /// seen obstacle (sampled every quarter cell).
+    pub fn segment_safe(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
+        let d = b - a;
+        let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
+        (0..=n).all(|k| {
+            let p = a + d * (k as f64 / n as f64);
+            self.frame
+                .index_of(&p)
+                .is_some_and(|i| self.collision_free[i])
+        })
+    }
+
+    /// Whether the straight segment `a`–`b` stays on traversable cells
+    /// (sampled every quarter cell).
+    pub fn segment_clear(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
+        let d = b - a;
+        let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
+        (0..=n).all(|k| {
+            let p = a + d * (k as f64 / n as f64);
+            self.frame.index_of(&p).is_some_and(|i| self.traversable[i])
+        })
+    }
+
+    /// String-pulls a cell path: keeps only the points where line of sight breaks.
+    fn shorten(&self, cells: &[usize]) -> Vec<Point2<f64>> {
+        let pts: Vec<Point2<f64>> = cells.iter().map(|&i| self.frame.centre(i)).collect();
+        if pts.len() <= 2 {
+            return pts;
+        }
+        let mut out = vec![pts[0]];
+        let mut anchor = 0;
+        let mut k = 1;
+        while k < pts.len() {
+            // Farthest point visible from the anchor.
+            let mut far = k;
+            let mut j = k;
+            while j < pts.len() {
+                if self.segment_clear(&pts[anchor], &pts[j]) {
+                    far = j;
+                }
+                j += 1;
+                if j - far > 24 {
+                    break;
+                }
+            }
+            out.push(pts[far]);
+            anchor = far;
+            k = far + 1;
+        }
+        out
+    }
+
+    /// Known-free cells with at least one unexplored 4-neighbour.
+    pub fn frontier(&self, out: &mut Vec<usize>) {
+        out.clear();
+        let (w, h) = (self.frame.w, self.frame.h);
+        for y in 1..h.saturating_sub(1) {
+            for x in 1..w.saturating_sub(1) {
+                let i = y * w + x;
+                if self.state[i] == FREE
+                    && [i - 1, i + 1, i - w, i + w]
+                        .iter()
+                        .any(|&j| self.state[j] == UNKNOWN)
+                {
+                    out.push(i);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn room_grid() -> Grid {
+        // 4 m x 3 m room with a wall from (2, 0) to (2, 2): free except walls.
+        let mut g = Grid::new(Point2::new(-0.5, -0.5), 0.05, 100, 80);
+        for y in 0..80 {
+            for x in 0..100 {
+                let p = g.centre_of((x, y));
+                let wall = p.x < 0.0 || p.y < 0.0 || p.x > 4.0 || p.y > 3.0;
+                let inner = (p.x - 2.0).abs() < 0.05 && p.y < 2.0;
+                let s = if wall || inner {
+                    CellState::Occupied
+                } else {
+                    CellState::Free
+                };
+                let outside = p.x < -0.1 || p.y < -0.1 || p.x > 4.1 || p.y > 3.1;
+                g.set_state((x, y), if outside { CellState::Unknown } else { s });
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn inflation_keeps_the_centre_off_walls() {
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&room_grid());
+        let f = c.frame;
+        assert!(c.traversable[f.index_of(&Point2::new(1.0, 1.0)).unwrap()]);
+        assert!(!c.traversable[f.index_of(&Point2::new(0.12, 1.0)).unwrap()]);
+        assert!(!c.traversable[f.index_of(&Point2::new(1.85, 1.0)).unwrap()]);
+        assert!(c.traversable[f.index_of(&Point2::new(1.7, 1.0)).unwrap()]);
+    }
+
+    #[test]
+    fn paths_go_around_the_wall_never_through() {
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&room_grid());
+        let f = c.frame;
+        let a = f.index_of(&Point2::new(1.0, 0.5)).unwrap();
+        let b = f.index_of(&Point2::new(3.0, 0.5)).unwrap();
+        c.distances_from(a);
+        let d = c.dist[b];
+        // Up past the wall end at y = 2 (+0.2 clearance) and down again.
+        assert!(d > 4.0 && d < 5.0, "{d}");
+        let p = c.path_to(b).unwrap();
+        for s in p.windows(2) {
+            assert!(c.segment_clear(&s[0], &s[1]));
+        }
+        assert!(p.iter().any(|q| q.y > 2.1));
+        let q = c.astar(a, b).unwrap();
+        let len: f64 = q.windows(2).map(|s| (s[1] - s[0]).norm()).sum();
+        // Line of sight shortens the 8-connected detour, never below the taut string.
+        assert!(len <= d + 1e-9 && len > 4.0, "{len} vs {d}");
+        assert!(q.len() < 8, "{q:?}");
+    }
+
+    #[test]
+    fn unexplored_grid_has_no_traversable_cell() {
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&Grid::new(Point2::new(0.0, 0.0), 0.05, 20, 20));
+        assert!(c.traversable.iter().all(|t| !t));
+        c.distances_from(0);
+        assert!(c.path_to(5).is_none());
+        assert!(c.astar(0, 5).is_none());
+    }
+}

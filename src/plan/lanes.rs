@@ -1,0 +1,440 @@
+//! Back-and-forth lanes inside one region (a decomposition cell, or a
+//! leftover patch): parallel to the sweep direction, at most one lane
+//! spacing apart, the first and last lanes placed so the tool reaches the
+//! region's first and last uncovered rows (so along walls nothing is
+//! dropped), each lane trimmed to the stretch that still has uncovered floor
+//! within the tool's reach, and chained in the order with the fewest and
+//! shortest connections.
+
+use nalgebra::Point2;
+
+use super::cspace::Frame;
+
+/// Lane direction on the grid (the world is rectilinear: lanes run along x or y).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Axis {
+    /// Lanes parallel to x, stacked in y.
+    X,
+    /// Lanes parallel to y, stacked in x.
+    Y,
+}
+
+impl Axis {
+    /// The axis closest to the direction `angle` (rad).
+    pub fn from_angle(angle: f64) -> Self {
+        let a = angle.rem_euclid(std::f64::consts::PI);
+        if (std::f64::consts::FRAC_PI_4..3.0 * std::f64::consts::FRAC_PI_4).contains(&a) {
+            Axis::Y
+        } else {
+            Axis::X
+        }
+    }
+}
+
+/// One straight lane, driven from `a` to `b`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lane {
+    /// Start (m).
+    pub a: Point2<f64>,
+    /// End (m).
+    pub b: Point2<f64>,
+}
+
+impl Lane {
+    /// The lane driven the other way.
+    pub fn reversed(&self) -> Lane {
+        Lane {
+            a: self.b,
+            b: self.a,
+        }
+    }
+
+    /// Length (m).
+    pub fn length(&self) -> f64 {
+        (self.b - self.a).norm()
+    }
+}
+
+/// What the lane generator needs: the region's admissible centres, the
+/// uncovered floor to reach, and the tool.
+pub struct LaneInput<'a> {
+    /// Grid geometry.
+    pub frame: Frame,
+    /// Cells where the robot centre may drive in this region.
+    pub admissible: &'a [bool],
+    /// Uncovered floor cells this region must reach.
+    pub targets: &'a [bool],
+    /// Bounding box (x0, y0, x1, y1) inclusive of admissible and target cells.
+    pub bbox: (usize, usize, usize, usize),
+    /// Lane direction.
+    pub axis: Axis,
+    /// Largest distance between neighbouring lanes (m).
+    pub spacing: f64,
+    /// How far across a lane the tool surely reaches (m).
+    pub reach: f64,
+}
+
+/// (u, v) of cell (x, y) for the axis: u along lanes, v across.
+fn uv(axis: Axis, x: usize, y: usize) -> (usize, usize) {
+    match axis {
+        Axis::X => (x, y),
+        Axis::Y => (y, x),
+    }
+}
+
+fn xy(axis: Axis, u: usize, v: usize) -> (usize, usize) {
+    match axis {
+        Axis::X => (u, v),
+        Axis::Y => (v, u),
+    }
+}
+
+/// World point of the along-lane coordinate `u_m` on the lane at `v_m` (m).
+fn point(axis: Axis, u_m: f64, v_m: f64) -> Point2<f64> {
+    match axis {
+        Axis::X => Point2::new(u_m, v_m),
+        Axis::Y => Point2::new(v_m, u_m),
+    }
+}
+
+/// The lanes covering the region's targets (unordered, each from low u to high u).
+pub fn lanes(input: &LaneInput) -> Vec<Lane> {
+    let f = &input.frame;
+    let axis = input.axis;
+    let (x0, y0, x1, y1) = input.bbox;
+    let (u_lo, v_lo) = uv(axis, x0, y0);
+    let (u_hi, v_hi) = uv(axis, x1, y1);
+    let (ou, ov) = match axis {
+        Axis::X => (f.origin.x, f.origin.y),
+        Axis::Y => (f.origin.y, f.origin.x),
+    };
+    let res = f.res;
+    let coord = |k: usize, o: f64| o + (k as f64 + 0.5) * res;
+    let at = |mask: &[bool], u: usize, v: usize| {
+        let (x, y) = xy(axis, u, v);
+        mask[y * f.w + x]
+    };
+    // Ranges across the lanes.
+    let (mut a_min, mut a_max, mut t_min, mut t_max) = (usize::MAX, 0, usize::MAX, 0);
+    for v in v_lo..=v_hi {
+        for u in u_lo..=u_hi {
+            if at(input.admissible, u, v) {
+                a_min = a_min.min(v);
+                a_max = a_max.max(v);
+            }
+            if at(input.targets, u, v) {
+                t_min = t_min.min(v);
+                t_max = t_max.max(v);
+            }
+        }
+    }
+    if a_min == usize::MAX || t_min == usize::MAX {
+        return Vec::new();
+    }
+    let (a_lo, a_hi) = (coord(a_min, ov), coord(a_max, ov));
+    let (t_lo, t_hi) = (coord(t_min, ov), coord(t_max, ov));
+    let reach = input.reach.max(res);
+    // The tool must reach the outer edge of the extreme target rows.
+    let c_lo = (t_lo - res / 2.0 + reach).clamp(a_lo, a_hi);
+    let c_hi = (t_hi + res / 2.0 - reach).clamp(a_lo, a_hi);
+    // Lanes exactly one spacing apart from the low side; the last one is
+    // pulled back to hug the far side, and only keeps what the others left.
+    let mut positions = vec![c_lo];
+    while let Some(&last) = positions.last() {
+        if last >= c_hi - 1e-9 {
+            break;
+        }
+        positions.push((last + input.spacing).min(c_hi));
+    }
+    let (nu, nv) = (u_hi - u_lo + 1, v_hi - v_lo + 1);
+    let mut served = vec![false; nu * nv];
+    let mut out = Vec::new();
+    for &pos in &positions {
+        // Rows bracketing the lane position: the centre passes between them.
+        let fv = (pos - ov) / res - 0.5;
+        let r1 = fv.floor().max(0.0) as usize;
+        let r2 = if fv - fv.floor() < 1e-6 { r1 } else { r1 + 1 };
+        if r2 > v_hi.max(a_max) {
+            continue;
+        }
+        let needs = |u: usize, v: usize, served: &[bool]| {
+            (coord(v, ov) - pos).abs() <= reach
+                && at(input.targets, u, v)
+                && !served[(v - v_lo) * nu + (u - u_lo)]
+        };
+        // Runs of admissible u.
+        let mut u = u_lo;
+        while u <= u_hi {
+            let ok = |u: usize| at(input.admissible, u, r1) && at(input.admissible, u, r2);
+            if !ok(u) {
+                u += 1;
+                continue;
+            }
+            let start = u;
+            while u <= u_hi && ok(u) {
+                u += 1;
+            }
+            let end = u - 1;
+            let (s_m, e_m) = (coord(start, ou), coord(end, ou));
+            // Columns with targets still unserved in reach of this stretch,
+            // grouped into pieces: a lane does not drive past long gaps.
+            let mut cols: Vec<f64> = Vec::new();
+            for uu in u_lo..=u_hi {
+                let c = coord(uu, ou);
+                if c < s_m - reach || c > e_m + reach {
+                    continue;
+                }
+                if (v_lo..=v_hi).any(|v| needs(uu, v, &served)) {
+                    cols.push(c);
+                }
+            }
+            let mut pieces: Vec<(f64, f64)> = Vec::new();
+            for c in cols {
+                match pieces.last_mut() {
+                    Some((_, hi)) if c - *hi <= 2.0 * input.spacing => *hi = c,
+                    _ => pieces.push((c, c)),
+                }
+            }
+            for (lo_t, hi_t) in pieces {
+                let a = lo_t.clamp(s_m, e_m);
+                let b = hi_t.clamp(s_m, e_m);
+                // Mark what the tool reaches along this piece.
+                for v in v_lo..=v_hi {
+                    let dv = (coord(v, ov) - pos).abs();
+                    if dv > reach {
+                        continue;
+                    }
+                    let half = (reach * reach - dv * dv).max(0.0).sqrt();
+                    for uu in u_lo..=u_hi {
+                        let c = coord(uu, ou);
+                        if c >= a - half && c <= b + half {
+                            served[(v - v_lo) * nu + (uu - u_lo)] = true;
+                        }
+                    }
+                }
+                out.push(Lane {
+                    a: point(axis, a, pos),
+                    b: point(axis, b, pos),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// One way to drive a region's lanes: the lanes in order and the length
+/// driven inside the region (lanes plus connections, straight-line).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variant {
+    /// Lanes in driving order.
+    pub lanes: Vec<Lane>,
+    /// Length of lanes and connections (m).
+    pub length: f64,
+}
+
+impl Variant {
+    /// Where the variant starts.
+    pub fn entry(&self) -> Point2<f64> {
+        self.lanes
+            .first()
+            .map(|l| l.a)
+            .unwrap_or_else(Point2::origin)
+    }
+
+    /// Where the variant ends.
+    pub fn exit(&self) -> Point2<f64> {
+        self.lanes
+            .last()
+            .map(|l| l.b)
+            .unwrap_or_else(Point2::origin)
+    }
+}
+
+/// The ways to drive `lanes`: starting with the first or the last lane
+/// (across), from either end, the rest chained greedily by the nearest lane
+/// end (a zig-zag in a simple cell). Up to four variants.
+pub fn variants(lanes: &[Lane]) -> Vec<Variant> {
+    if lanes.is_empty() {
+        return Vec::new();
+    }
+    let across = |l: &Lane| {
+        let d = l.b - l.a;
+        if d.x.abs() >= d.y.abs() {
+            l.a.y
+        } else {
+            l.a.x
+        }
+    };
+    let (mut first, mut last) = (0, 0);
+    for (i, l) in lanes.iter().enumerate() {
+        if across(l) < across(&lanes[first]) {
+            first = i;
+        }
+        if across(l) > across(&lanes[last]) {
+            last = i;
+        }
+    }
+    let starts: &[usize] = if first == last {
+        &[first][..]
+    } else {
+        &[first, last][..]
+    };
+    let mut out = Vec::new();
+    for &s in starts {
+        for rev in [false, true] {
+            let l0 = if rev { lanes[s].reversed() } else { lanes[s] };
+            let mut used = vec![false; lanes.len()];
+            used[s] = true;
+            let mut seq = vec![l0];
+            let mut length = l0.length();
+            let mut at = l0.b;
+            let mut at_across = across(&l0);
+            for _ in 1..lanes.len() {
+                let mut pick: Option<(f64, usize, bool)> = None;
+                for (i, l) in lanes.iter().enumerate() {
+                    if used[i] {
+                        continue;
+                    }
+                    let jump = (across(l) - at_across).abs() * 0.01;
+                    for (r, end) in [(false, l.a), (true, l.b)] {
+                        let d = (end - at).norm() + jump;
+                        if pick.is_none_or(|(bd, _, _)| d < bd) {
+                            pick = Some((d, i, r));
+                        }
+                    }
+                }
+                let Some((_, i, r)) = pick else { break };
+                used[i] = true;
+                let l = if r { lanes[i].reversed() } else { lanes[i] };
+                length += (l.a - at).norm() + l.length();
+                at = l.b;
+                at_across = across(&l);
+                seq.push(l);
+            }
+            out.push(Variant { lanes: seq, length });
+        }
+    }
+    out
+}
+
+/// The variant (see [`variants`]) with the least `start_cost(entry) +
+/// length`, and that cost; empty when no entry has a finite cost.
+pub fn order(lanes: &[Lane], start_cost: impl Fn(&Point2<f64>) -> f64) -> (Vec<Lane>, f64) {
+    let mut best: Option<(Vec<Lane>, f64)> = None;
+    for v in variants(lanes) {
+        let c = start_cost(&v.entry()) + v.length;
+        if c.is_finite() && best.as_ref().is_none_or(|(_, b)| c < *b) {
+            best = Some((v.lanes, c));
+        }
+    }
+    best.unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame() -> Frame {
+        Frame {
+            origin: Point2::new(0.0, 0.0),
+            res: 0.05,
+            w: 60,
+            h: 40,
+        }
+    }
+
+    /// Admissible: x in 0.2..2.8, y in 0.2..1.8 (a 3 m x 2 m room inflated by 0.2).
+    fn rect_masks(f: &Frame) -> (Vec<bool>, Vec<bool>) {
+        let mut adm = vec![false; f.len()];
+        let mut tgt = vec![false; f.len()];
+        for i in 0..f.len() {
+            let c = f.centre(i);
+            adm[i] = c.x > 0.2 && c.x < 2.8 && c.y > 0.2 && c.y < 1.8;
+            tgt[i] = c.x > 0.05 && c.x < 2.95 && c.y > 0.05 && c.y < 1.95;
+        }
+        (adm, tgt)
+    }
+
+    #[test]
+    fn lanes_span_the_cell_and_hug_both_walls() {
+        let f = frame();
+        let (adm, tgt) = rect_masks(&f);
+        let input = LaneInput {
+            frame: f,
+            admissible: &adm,
+            targets: &tgt,
+            bbox: (0, 0, 59, 39),
+            axis: Axis::X,
+            spacing: 0.29,
+            reach: 0.13,
+        };
+        let ls = lanes(&input);
+        // Targets 0.075..1.925 → centres 0.205..1.795 → ceil(1.59/0.29)+1 = 7 lanes.
+        assert_eq!(ls.len(), 7, "{ls:?}");
+        let ys: Vec<f64> = ls.iter().map(|l| l.a.y).collect();
+        assert!(
+            (ys[0] - 0.225).abs() < 0.03 && (ys[6] - 1.775).abs() < 0.03,
+            "{ys:?}"
+        );
+        for w in ys.windows(2) {
+            assert!(w[1] - w[0] <= 0.29 + 1e-9);
+        }
+        for l in &ls {
+            assert!(l.a.x < 0.26 && l.b.x > 2.74, "{l:?}");
+        }
+        let (ord, cost) = order(&ls, |p| (p - Point2::new(0.3, 0.3)).norm());
+        assert_eq!(ord.len(), 7);
+        // Zig-zag: consecutive lanes alternate direction.
+        for w in ord.windows(2) {
+            assert!((w[0].b.x - w[1].a.x).abs() < 1e-9);
+            assert!((w[1].b.x - w[1].a.x).signum() != (w[0].b.x - w[0].a.x).signum());
+        }
+        assert!(cost < 7.0 * 2.6 + 6.0 * 0.3 + 0.2);
+    }
+
+    #[test]
+    fn covered_rows_get_no_lane_and_lanes_are_trimmed() {
+        let f = frame();
+        let (adm, mut tgt) = rect_masks(&f);
+        // Only a 0.5 m x 0.3 m patch is still uncovered.
+        for (i, t) in tgt.iter_mut().enumerate() {
+            let c = f.centre(i);
+            *t &= c.x > 1.0 && c.x < 1.5 && c.y > 1.0 && c.y < 1.3;
+        }
+        let input = LaneInput {
+            frame: f,
+            admissible: &adm,
+            targets: &tgt,
+            bbox: (0, 0, 59, 39),
+            axis: Axis::Y,
+            spacing: 0.29,
+            reach: 0.13,
+        };
+        let ls = lanes(&input);
+        assert!(!ls.is_empty() && ls.len() <= 3, "{ls:?}");
+        for l in &ls {
+            assert!((l.a.x - l.b.x).abs() < 1e-9, "along y");
+            assert!(l.a.y >= 0.95 && l.b.y <= 1.35, "{l:?}");
+        }
+    }
+
+    #[test]
+    fn nothing_to_do_gives_no_lanes() {
+        let f = frame();
+        let (adm, _) = rect_masks(&f);
+        let none = vec![false; f.len()];
+        let input = LaneInput {
+            frame: f,
+            admissible: &adm,
+            targets: &none,
+            bbox: (0, 0, 59, 39),
+            axis: Axis::X,
+            spacing: 0.29,
+            reach: 0.13,
+        };
+        assert!(lanes(&input).is_empty());
+        assert!(order(&[], |_| 0.0).0.is_empty());
+        assert_eq!(Axis::from_angle(1.5), Axis::Y);
+        assert_eq!(Axis::from_angle(-3.1), Axis::X);
+    }
+}

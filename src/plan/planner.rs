@@ -1,0 +1,1043 @@
+//! The online coverage planner: event-driven, over the map explored so far.
+//!
+//! On every map update it rebuilds the configuration space; it plans a new
+//! task only when the current one is finished, blocked by a newly seen
+//! obstacle, or (while exploring) when a cell became final. Tasks, in order
+//! of preference:
+//!
+//! 1. **look around** once at the start (turn in place by half a turn, so the
+//!    240° scanner sees all around);
+//! 2. **escape** when the robot stands inside the inflation zone of a seen
+//!    obstacle: drive to the nearest place with full clearance;
+//! 3. **cover a final cell**: among the decomposition's final cells with
+//!    uncovered floor, the one with the least travel cost (Dijkstra over the
+//!    configuration space to its best lane entry) plus a look-ahead term (the
+//!    distance from its exit to the nearest other candidate), reached by the
+//!    shortest transit path and covered by back-and-forth lanes;
+//! 4. **explore**: when no final cell has work left, go to the nearest
+//!    reachable place from which unexplored space is within view and face it;
+//! 5. **clean up**: when nothing is left to explore, cover the remaining
+//!    uncovered patches (floor between cells, cells that never became final,
+//!    strips the lanes missed) the same way;
+//! 6. **done**: nothing reachable is left; the floor seen but not reachable
+//!    is reported.
+//!
+//! The planner keeps its own record of what the tool has swept (from the
+//! poses it is given), so a cell that was partly swept by transits or by
+//! neighbouring lanes only gets the lanes it still needs.
+
+use nalgebra::Point2;
+
+use super::cspace::{disk, CSpace, Frame, FREE};
+use super::lanes::{lanes, variants, Axis, Lane, LaneInput, Variant};
+use super::PlanParams;
+use crate::config::RobotParams;
+use crate::decomp::{CellId, CellStatus, Decomposition};
+use crate::geom::{heading, wrap_angle, Pose};
+use crate::grid::Grid;
+
+/// Why the planner cannot work.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    /// A setting is out of its allowed range.
+    #[error("plan.{key}: {message}")]
+    BadParam {
+        /// The key in the `[plan]` table (or `robot.*`).
+        key: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The robot is outside the map grid.
+    #[error("robot at ({x:.2}, {y:.2}) m is outside the map grid")]
+    OutsideMap {
+        /// x (m).
+        x: f64,
+        /// y (m).
+        y: f64,
+    },
+    /// The robot stands on or inside a seen obstacle and no free place is near.
+    #[error("robot at ({x:.2}, {y:.2}) m is inside an obstacle's inflation zone with no way out")]
+    Trapped {
+        /// x (m).
+        x: f64,
+        /// y (m).
+        y: f64,
+    },
+}
+
+/// What the planner is doing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Task {
+    /// Nothing planned yet.
+    Idle,
+    /// Turning in place at the start to see all around.
+    LookAround,
+    /// Leaving an obstacle's inflation zone.
+    Escape,
+    /// Covering a final cell (`Some`) or a leftover patch (`None`).
+    Cover(Option<CellId>),
+    /// Driving toward unexplored space.
+    Explore,
+    /// Nothing reachable is left.
+    Done,
+}
+
+/// The planner's answer to one update.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PlanStatus {
+    /// Working on a task; `new_path` is true when the path changed.
+    Working {
+        /// The current task.
+        task: Task,
+        /// Whether [`CoveragePlanner::path`] changed in this update.
+        new_path: bool,
+    },
+    /// Coverage finished.
+    Done(DoneReport),
+}
+
+/// What the planner knows when it is done.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DoneReport {
+    /// Seen free floor the robot cannot reach with its tool (m²).
+    pub unreachable_area: f64,
+    /// Floor it could reach but gave up on (lanes could not reach it) (m²).
+    pub abandoned_area: f64,
+    /// Floor its own record shows as swept (m²).
+    pub covered_area: f64,
+}
+
+/// Counters of what the planner did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlanStats {
+    /// Tasks planned.
+    pub tasks: usize,
+    /// Final cells covered.
+    pub cells: usize,
+    /// Exploration moves.
+    pub explores: usize,
+    /// Clean-up patches covered.
+    pub patches: usize,
+    /// Lanes planned.
+    pub lanes: usize,
+}
+
+/// One planned task, for reports and pictures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TaskRecord {
+    /// The task.
+    pub task: Task,
+    /// Number of lanes (cover tasks).
+    pub lanes: usize,
+    /// The planned path.
+    pub path: Vec<Point2<f64>>,
+}
+
+struct Candidate {
+    cell: Option<CellId>,
+    variants: Vec<Variant>,
+    /// Travel distance from the robot to each variant's entry (m).
+    entry_cost: Vec<f64>,
+    targets: Vec<usize>,
+}
+
+impl Candidate {
+    fn cost(&self) -> f64 {
+        self.entry_cost
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Interruptions after which a target or frontier is given up.
+const MAX_TRIES: u8 = 3;
+
+/// Candidates considered jointly when ordering (the nearest ones).
+const TOUR_CANDIDATES: usize = 9;
+
+/// The online coverage planner (see the module docs).
+pub struct CoveragePlanner {
+    params: PlanParams,
+    spacing: f64,
+    reach: f64,
+    cspace: CSpace,
+    covered: Vec<bool>,
+    abandoned: Vec<bool>,
+    given_up: Vec<bool>,
+    stamp: Vec<(i64, i64)>,
+    reach_disk: Vec<(i64, i64)>,
+    task: Task,
+    path: Vec<Point2<f64>>,
+    final_heading: Option<f64>,
+    task_targets: Vec<usize>,
+    explore_goal: Option<Point2<f64>>,
+    updates_in_task: usize,
+    started: bool,
+    stats: PlanStats,
+    frontier: Vec<usize>,
+    reachable_mask: Vec<bool>,
+    targets: Vec<bool>,
+    scratch_a: Vec<bool>,
+    scratch_t: Vec<bool>,
+    report: Option<DoneReport>,
+    stamp_radius: f64,
+    history: Vec<TaskRecord>,
+    planned_lanes: usize,
+    owner: Vec<u32>,
+    tries: Vec<u8>,
+}
+
+/// Updates between re-evaluations while exploring (a cell may have become final).
+const EXPLORE_RECHECK: usize = 5;
+
+impl CoveragePlanner {
+    /// A planner for the robot `robot` (radius, tool width) with `params`.
+    pub fn new(params: &PlanParams, robot: &RobotParams) -> Result<Self, PlanError> {
+        params.validate()?;
+        for (key, v) in [
+            ("robot.radius", robot.radius),
+            ("robot.tool_width", robot.tool_width),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(PlanError::BadParam {
+                    key,
+                    message: format!("must be a finite number > 0, got {v}"),
+                });
+            }
+        }
+        let spacing = robot.tool_width - params.lane_overlap;
+        let reach = robot.tool_width / 2.0 - params.reach_margin;
+        if spacing <= 0.0 || reach <= 0.0 {
+            return Err(PlanError::BadParam {
+                key: "lane_overlap",
+                message: format!(
+                    "lane_overlap ({}) and reach_margin ({}) must stay below the tool width {}",
+                    params.lane_overlap, params.reach_margin, robot.tool_width
+                ),
+            });
+        }
+        Ok(Self {
+            params: params.clone(),
+            spacing,
+            reach,
+            cspace: CSpace::new(robot.radius + params.safety_margin, robot.radius),
+            covered: Vec::new(),
+            abandoned: Vec::new(),
+            given_up: Vec::new(),
+            stamp: Vec::new(),
+            reach_disk: Vec::new(),
+            task: Task::Idle,
+            path: Vec::new(),
+            final_heading: None,
+            task_targets: Vec::new(),
+            explore_goal: None,
+            updates_in_task: 0,
+            started: !params.look_around,
+            stats: PlanStats::default(),
+            frontier: Vec::new(),
+            reachable_mask: Vec::new(),
+            targets: Vec::new(),
+            scratch_a: Vec::new(),
+            scratch_t: Vec::new(),
+            report: None,
+            stamp_radius: (robot.tool_width / 2.0 - 0.01).max(robot.tool_width / 4.0),
+            history: Vec::new(),
+            planned_lanes: 0,
+            owner: Vec::new(),
+            tries: Vec::new(),
+        })
+    }
+
+    /// The configuration space of the last update.
+    pub fn cspace(&self) -> &CSpace {
+        &self.cspace
+    }
+
+    /// The planner's record of swept floor (same geometry as the grid).
+    pub fn covered(&self) -> &[bool] {
+        &self.covered
+    }
+
+    /// The path to follow now and the heading to turn to at its end.
+    pub fn path(&self) -> (&[Point2<f64>], Option<f64>) {
+        (&self.path, self.final_heading)
+    }
+
+    /// The current task.
+    pub fn task(&self) -> Task {
+        self.task
+    }
+
+    /// What the planner did so far.
+    pub fn stats(&self) -> PlanStats {
+        self.stats
+    }
+
+    /// Every task planned so far, in order.
+    pub fn history(&self) -> &[TaskRecord] {
+        &self.history
+    }
+
+    /// The report once coverage is finished.
+    pub fn report(&self) -> Option<DoneReport> {
+        self.report
+    }
+
+    fn ensure_frame(&mut self) {
+        let n = self.cspace.frame.len();
+        if self.covered.len() != n {
+            self.covered = vec![false; n];
+            self.abandoned = vec![false; n];
+            self.given_up = vec![false; n];
+            self.reachable_mask = vec![false; n];
+            self.targets = vec![false; n];
+            self.scratch_a = vec![false; n];
+            self.scratch_t = vec![false; n];
+            self.owner = vec![u32::MAX; n];
+            self.tries = vec![0; n];
+            let res = self.cspace.frame.res;
+            self.stamp = disk(self.stamp_radius + res, res);
+            self.reach_disk = disk(self.reach, res);
+        }
+    }
+
+    /// Records that the robot was at `pose`: the tool swept the floor around it.
+    pub fn record_pose(&mut self, pose: &Pose) {
+        let f = self.cspace.frame;
+        if self.covered.len() != f.len() || f.is_empty() {
+            return;
+        }
+        let p: Point2<f64> = pose.translation.vector.into();
+        let Some(i) = f.index_of(&p) else { return };
+        let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+        let r2 = self.stamp_radius * self.stamp_radius;
+        for &(dx, dy) in &self.stamp {
+            let (nx, ny) = (x + dx, y + dy);
+            if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
+                let j = ny as usize * f.w + nx as usize;
+                // Exact distance from the pose, not from its cell's centre.
+                if (f.centre(j) - p).norm_squared() <= r2 {
+                    self.covered[j] = true;
+                }
+            }
+        }
+    }
+
+    /// One planning step after a map update. `grid` is the explored map,
+    /// `decomp` the current decomposition, `pose` the robot's pose, and
+    /// `progress` the index of the waypoint the follower drives to (`None`
+    /// when it has finished the path).
+    pub fn update(
+        &mut self,
+        grid: &Grid,
+        decomp: &Decomposition,
+        pose: &Pose,
+        progress: Option<usize>,
+    ) -> Result<PlanStatus, PlanError> {
+        self.cspace.rebuild(grid);
+        self.ensure_frame();
+        if let Some(r) = self.report {
+            return Ok(PlanStatus::Done(r));
+        }
+        let p: Point2<f64> = pose.translation.vector.into();
+        let f = self.cspace.frame;
+        let robot = f
+            .index_of(&p)
+            .ok_or(PlanError::OutsideMap { x: p.x, y: p.y })?;
+        self.updates_in_task += 1;
+        let mut replan = progress.is_none() || self.task == Task::Idle;
+        if progress.is_none() && self.task == Task::Explore {
+            // Arrived: whatever frontier is still in view from here cannot be seen.
+            if let Some(g) = self.explore_goal.take() {
+                self.give_up_frontier_near(&g, 0);
+            }
+        }
+        if progress.is_none() && matches!(self.task, Task::Cover(_)) {
+            // Targets the finished lanes did not reach are given up.
+            for &i in &self.task_targets {
+                if !self.covered[i] {
+                    self.abandoned[i] = true;
+                }
+            }
+            self.task_targets.clear();
+        }
+        if let Some(next) = progress {
+            // Blocked by something seen since?
+            let from = next.min(self.path.len());
+            if self.path[from..]
+                .windows(2)
+                .any(|s| !self.cspace.segment_safe(&s[0], &s[1]))
+            {
+                replan = true;
+            }
+            if self.task == Task::Explore {
+                let resolved = match self.explore_goal {
+                    Some(g) => !self.frontier_in_view(&g),
+                    None => true,
+                };
+                if resolved || self.updates_in_task.is_multiple_of(EXPLORE_RECHECK) {
+                    replan = true;
+                }
+            }
+        }
+        if !replan {
+            return Ok(PlanStatus::Working {
+                task: self.task,
+                new_path: false,
+            });
+        }
+        let keep_exploring = progress.is_some() && self.task == Task::Explore;
+        self.choose(decomp, pose, robot, keep_exploring)
+    }
+
+    fn set_task(&mut self, task: Task, path: Vec<Point2<f64>>, final_heading: Option<f64>) {
+        // An interrupted task: what it was after counts one more try; after
+        // MAX_TRIES tries it is given up (no endless back and forth).
+        let old_targets = std::mem::take(&mut self.task_targets);
+        for i in old_targets {
+            if !self.covered[i] {
+                self.tries[i] = self.tries[i].saturating_add(1);
+                if self.tries[i] >= MAX_TRIES {
+                    self.abandoned[i] = true;
+                }
+            }
+        }
+        if self.task == Task::Explore {
+            if let Some(g) = self.explore_goal.take() {
+                self.give_up_frontier_near(&g, MAX_TRIES);
+            }
+        }
+        self.task = task;
+        self.path = path;
+        self.final_heading = final_heading;
+        self.updates_in_task = 0;
+        self.stats.tasks += 1;
+        let lanes = self.planned_lanes;
+        self.history.push(TaskRecord {
+            task,
+            lanes,
+            path: self.path.clone(),
+        });
+        self.planned_lanes = 0;
+    }
+
+    fn choose(
+        &mut self,
+        decomp: &Decomposition,
+        pose: &Pose,
+        robot: usize,
+        keep_exploring: bool,
+    ) -> Result<PlanStatus, PlanError> {
+        let p: Point2<f64> = pose.translation.vector.into();
+        let working = |task| {
+            Ok(PlanStatus::Working {
+                task,
+                new_path: true,
+            })
+        };
+        if !self.started {
+            self.started = true;
+            self.set_task(
+                Task::LookAround,
+                Vec::new(),
+                Some(wrap_angle(heading(pose) + std::f64::consts::PI)),
+            );
+            return working(Task::LookAround);
+        }
+        if !self.cspace.traversable[robot] {
+            if let Some(goal) = self.escape_target(robot) {
+                self.set_task(Task::Escape, vec![goal], None);
+                return working(Task::Escape);
+            }
+            return Err(PlanError::Trapped { x: p.x, y: p.y });
+        }
+        self.cspace.distances_from(robot);
+        self.compute_targets();
+        let mut cands = self.cell_candidates(decomp, CellStatus::Final);
+        if cands.is_empty() && self.params.cover_settling_cells && !keep_exploring {
+            cands = self.cell_candidates(decomp, CellStatus::Settling);
+        }
+        if cands.is_empty() {
+            if keep_exploring {
+                self.task = Task::Explore;
+                return Ok(PlanStatus::Working {
+                    task: Task::Explore,
+                    new_path: false,
+                });
+            }
+            if let Some((goal, face)) = self.explore_goal_from(robot) {
+                let mut path = self.cspace.path_to(goal).unwrap_or_default();
+                if !path.is_empty() {
+                    path.remove(0);
+                }
+                let g = self.cspace.frame.centre(goal);
+                let final_heading = {
+                    let d = face - g;
+                    (d.norm() > 1e-6).then(|| d.y.atan2(d.x))
+                };
+                self.stats.explores += 1;
+                self.set_task(Task::Explore, path, final_heading);
+                self.explore_goal = Some(g);
+                return working(Task::Explore);
+            }
+            cands = self.patch_candidates(decomp);
+        }
+        if cands.is_empty() {
+            let report = self.done_report();
+            self.report = Some(report);
+            self.set_task(Task::Done, Vec::new(), None);
+            return Ok(PlanStatus::Done(report));
+        }
+        // Look-ahead: the order of the nearest candidates (and the corner
+        // each is entered at) that minimises the whole tour, exhaustively.
+        cands.sort_by(|a, b| a.cost().total_cmp(&b.cost()));
+        cands.truncate(TOUR_CANDIDATES);
+        let (k, v) = best_tour_start(&cands, self.params.lookahead_weight);
+        let chosen = cands.swap_remove(k);
+        let lanes = chosen.variants[v].lanes.clone();
+        let path = self.cover_path(&lanes);
+        match chosen.cell {
+            Some(_) => self.stats.cells += 1,
+            None => self.stats.patches += 1,
+        }
+        self.stats.lanes += lanes.len();
+        self.planned_lanes = lanes.len();
+        let task = Task::Cover(chosen.cell);
+        self.set_task(task, path, None);
+        self.task_targets = chosen.targets;
+        working(task)
+    }
+
+    /// Transit to the first lane, then the lanes joined by straight
+    /// connections where clear, A* elsewhere.
+    fn cover_path(&self, ls: &[Lane]) -> Vec<Point2<f64>> {
+        let f = self.cspace.frame;
+        let mut path = Vec::new();
+        let Some(first) = ls.first() else {
+            return path;
+        };
+        if let Some(entry) = f.index_of(&first.a) {
+            if let Some(mut t) = self.cspace.path_to(entry) {
+                if !t.is_empty() {
+                    t.remove(0);
+                }
+                t.pop();
+                path.extend(t);
+            }
+        }
+        let mut prev: Option<Point2<f64>> = None;
+        for l in ls {
+            if let Some(q) = prev {
+                if !self.cspace.segment_clear(&q, &l.a) {
+                    if let (Some(a), Some(b)) = (f.index_of(&q), f.index_of(&l.a)) {
+                        if let Some(mut t) = self.cspace.astar(a, b) {
+                            if t.len() >= 2 {
+                                t.remove(0);
+                                t.pop();
+                                path.extend(t);
+                            }
+                        }
+                    }
+                }
+            }
+            path.push(l.a);
+            path.push(l.b);
+            prev = Some(l.b);
+        }
+        path.dedup_by(|a, b| (*a - *b).norm() < 1e-9);
+        path
+    }
+
+    /// Marks reachable centres, the uncovered floor they reach, and for every
+    /// floor cell its nearest reachable centre (its owner: the region that
+    /// covers it).
+    fn compute_targets(&mut self) {
+        let f = self.cspace.frame;
+        let mut queue = std::collections::VecDeque::new();
+        for i in 0..f.len() {
+            self.reachable_mask[i] = self.cspace.traversable[i] && self.cspace.dist[i].is_finite();
+            self.targets[i] = false;
+            self.owner[i] = if self.reachable_mask[i] {
+                queue.push_back(i);
+                i as u32
+            } else {
+                u32::MAX
+            };
+        }
+        let limit = self.reach + f.res;
+        while let Some(i) = queue.pop_front() {
+            let o = self.owner[i] as usize;
+            let oc = f.centre(o);
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for (dx, dy) in [
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ] {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                    continue;
+                }
+                let j = ny as usize * f.w + nx as usize;
+                if self.owner[j] == u32::MAX
+                    && self.cspace.state[j] == FREE
+                    && (f.centre(j) - oc).norm() <= limit
+                {
+                    self.owner[j] = o as u32;
+                    queue.push_back(j);
+                }
+            }
+        }
+        for i in 0..f.len() {
+            if !self.reachable_mask[i] {
+                continue;
+            }
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for &(dx, dy) in &self.reach_disk {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
+                    let j = ny as usize * f.w + nx as usize;
+                    if self.cspace.state[j] == FREE && !self.covered[j] && !self.abandoned[j] {
+                        self.targets[j] = true;
+                    }
+                }
+            }
+        }
+    }
+
+    fn min_patch_cells(&self) -> usize {
+        let a = self.cspace.frame.res * self.cspace.frame.res;
+        ((self.params.min_patch_area / a).ceil() as usize).max(1)
+    }
+
+    /// Lanes and cost for a region given by its admissible mask (in
+    /// `scratch_a`) over `bbox`; targets are those within reach.
+    fn region_candidate(
+        &mut self,
+        cell: Option<CellId>,
+        bbox: (usize, usize, usize, usize),
+        axis: Axis,
+    ) -> Option<Candidate> {
+        let f = self.cspace.frame;
+        let r = (self.reach / f.res).ceil() as usize + 1;
+        let (x0, y0) = (bbox.0.saturating_sub(r), bbox.1.saturating_sub(r));
+        let (x1, y1) = ((bbox.2 + r).min(f.w - 1), (bbox.3 + r).min(f.h - 1));
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                self.scratch_t[y * f.w + x] = false;
+            }
+        }
+        let mut targets = Vec::new();
+        for y in bbox.1..=bbox.3 {
+            for x in bbox.0..=bbox.2 {
+                if !self.scratch_a[y * f.w + x] {
+                    continue;
+                }
+                for &(dx, dy) in &self.reach_disk {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                        continue;
+                    }
+                    let j = ny as usize * f.w + nx as usize;
+                    // Across a virtual edge the floor belongs to the
+                    // neighbouring region: only walls get hugged.
+                    let o = self.owner[j] as usize;
+                    let own = cell.is_none() || (o < f.len() && self.scratch_a[o]);
+                    if self.targets[j] && own && !self.scratch_t[j] {
+                        self.scratch_t[j] = true;
+                        targets.push(j);
+                    }
+                }
+            }
+        }
+        if targets.len() < self.min_patch_cells() {
+            return None;
+        }
+        let input = LaneInput {
+            frame: f,
+            admissible: &self.scratch_a,
+            targets: &self.scratch_t,
+            bbox: (x0, y0, x1, y1),
+            axis,
+            spacing: self.spacing,
+            reach: self.reach,
+        };
+        let ls = lanes(&input);
+        let dist = &self.cspace.dist;
+        let mut vars = Vec::new();
+        let mut entry_cost = Vec::new();
+        for var in variants(&ls) {
+            let c = f
+                .index_of(&var.entry())
+                .map(|i| dist[i])
+                .unwrap_or(f64::INFINITY);
+            if c.is_finite() {
+                vars.push(var);
+                entry_cost.push(c);
+            }
+        }
+        if vars.is_empty() {
+            // Nothing the lanes can reach from here: give these up.
+            for &i in &targets {
+                self.abandoned[i] = true;
+            }
+            return None;
+        }
+        Some(Candidate {
+            cell,
+            variants: vars,
+            entry_cost,
+            targets,
+        })
+    }
+
+    fn cell_candidates(&mut self, decomp: &Decomposition, status: CellStatus) -> Vec<Candidate> {
+        let f = self.cspace.frame;
+        let mut out = Vec::new();
+        for cell in decomp.cells.iter().filter(|c| c.status == status) {
+            if cell.polygon.len() < 3 {
+                continue;
+            }
+            let (mut lo, mut hi) = (
+                Point2::new(f64::INFINITY, f64::INFINITY),
+                Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+            );
+            for q in &cell.polygon {
+                lo = lo.inf(q);
+                hi = hi.sup(q);
+            }
+            let cx = |v: f64, o: f64, n: usize| {
+                (((v - o) / f.res).floor().max(0.0) as usize).min(n.saturating_sub(1))
+            };
+            let bbox = (
+                cx(lo.x, f.origin.x, f.w),
+                cx(lo.y, f.origin.y, f.h),
+                cx(hi.x, f.origin.x, f.w),
+                cx(hi.y, f.origin.y, f.h),
+            );
+            let mut any = false;
+            for y in bbox.1..=bbox.3 {
+                for x in bbox.0..=bbox.2 {
+                    let i = y * f.w + x;
+                    let inside = self.reachable_mask[i] && cell.contains(&f.centre(i));
+                    self.scratch_a[i] = inside;
+                    any |= inside;
+                }
+            }
+            if any {
+                let axis = Axis::from_angle(cell.sweep_angle);
+                if let Some(c) = self.region_candidate(Some(cell.id), bbox, axis) {
+                    out.push(c);
+                }
+            }
+            for y in bbox.1..=bbox.3 {
+                for x in bbox.0..=bbox.2 {
+                    self.scratch_a[y * f.w + x] = false;
+                }
+            }
+        }
+        out
+    }
+
+    /// Connected patches of uncovered reachable floor, each as a region.
+    fn patch_candidates(&mut self, decomp: &Decomposition) -> Vec<Candidate> {
+        let f = self.cspace.frame;
+        let mut seen = vec![false; f.len()];
+        let mut out = Vec::new();
+        let min = self.min_patch_cells();
+        let mut stack = Vec::new();
+        for s in 0..f.len() {
+            if !self.targets[s] || seen[s] {
+                continue;
+            }
+            let mut comp = Vec::new();
+            seen[s] = true;
+            stack.push(s);
+            while let Some(i) = stack.pop() {
+                comp.push(i);
+                let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+                for dy in -1..=1i64 {
+                    for dx in -1..=1i64 {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                            continue;
+                        }
+                        let j = ny as usize * f.w + nx as usize;
+                        if self.targets[j] && !seen[j] {
+                            seen[j] = true;
+                            stack.push(j);
+                        }
+                    }
+                }
+            }
+            if comp.len() < min {
+                continue;
+            }
+            // Admissible: reachable centres within reach of the patch.
+            let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+            for &i in &comp {
+                let (x, y) = (i % f.w, i / f.w);
+                for &(dx, dy) in &self.reach_disk {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                        continue;
+                    }
+                    let j = ny as usize * f.w + nx as usize;
+                    if self.reachable_mask[j] {
+                        self.scratch_a[j] = true;
+                        x0 = x0.min(nx as usize);
+                        y0 = y0.min(ny as usize);
+                        x1 = x1.max(nx as usize);
+                        y1 = y1.max(ny as usize);
+                    }
+                }
+            }
+            if x0 == usize::MAX {
+                continue;
+            }
+            let axis = if decomp.cells.is_empty() {
+                if x1 - x0 >= y1 - y0 {
+                    Axis::X
+                } else {
+                    Axis::Y
+                }
+            } else {
+                Axis::from_angle(decomp.sweep_angle)
+            };
+            if let Some(c) = self.region_candidate(None, (x0, y0, x1, y1), axis) {
+                out.push(c);
+            }
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    self.scratch_a[y * f.w + x] = false;
+                }
+            }
+        }
+        out
+    }
+
+    /// The nearest reachable place with unexplored space in view, and the
+    /// frontier point to face there.
+    fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
+        let f = self.cspace.frame;
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        list.retain(|&i| !self.given_up[i]);
+        // Drop speckle: frontier clusters smaller than the minimum.
+        let keep = cluster_filter(&list, f, self.params.min_frontier_cells);
+        let view = self.params.explore_view_distance;
+        let vr = (view / f.res).ceil() as i64;
+        let mut best: Option<(f64, usize, Point2<f64>)> = None;
+        for &fi in &keep {
+            let (x, y) = ((fi % f.w) as i64, (fi / f.w) as i64);
+            let fp = f.centre(fi);
+            for dy in (-vr..=vr).step_by(2) {
+                for dx in (-vr..=vr).step_by(2) {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                        continue;
+                    }
+                    let j = ny as usize * f.w + nx as usize;
+                    let d = self.cspace.dist[j];
+                    if !self.reachable_mask[j] || !d.is_finite() {
+                        continue;
+                    }
+                    if ((dx * dx + dy * dy) as f64).sqrt() * f.res > view {
+                        continue;
+                    }
+                    if best.is_none_or(|(b, _, _)| d < b) {
+                        best = Some((d, j, fp));
+                    }
+                }
+            }
+        }
+        if best.is_none() {
+            // Unreachable frontier: never try it again.
+            for &i in &list {
+                self.given_up[i] = true;
+            }
+        }
+        self.frontier = list;
+        best.map(|(_, j, fp)| (j, fp))
+    }
+
+    fn frontier_in_view(&mut self, g: &Point2<f64>) -> bool {
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        let f = self.cspace.frame;
+        let view = self.params.explore_view_distance;
+        let any = list
+            .iter()
+            .any(|&i| !self.given_up[i] && (f.centre(i) - g).norm() <= view);
+        self.frontier = list;
+        any
+    }
+
+    /// Frontier cells in view of `g` get one more try; at `limit` tries (0:
+    /// at once) they are given up.
+    fn give_up_frontier_near(&mut self, g: &Point2<f64>, limit: u8) {
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        let f = self.cspace.frame;
+        let view = self.params.explore_view_distance;
+        for &i in &list {
+            if (f.centre(i) - g).norm() <= view + f.res {
+                self.tries[i] = self.tries[i].saturating_add(1);
+                if self.tries[i] >= limit {
+                    self.given_up[i] = true;
+                }
+            }
+        }
+        self.frontier = list;
+    }
+
+    /// The nearest traversable cell reachable over seen-free cells.
+    fn escape_target(&self, robot: usize) -> Option<Point2<f64>> {
+        let f = self.cspace.frame;
+        let mut seen = vec![false; f.len()];
+        let mut queue = std::collections::VecDeque::new();
+        seen[robot] = true;
+        queue.push_back(robot);
+        while let Some(i) = queue.pop_front() {
+            if self.cspace.traversable[i] {
+                return Some(f.centre(i));
+            }
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                    continue;
+                }
+                let j = ny as usize * f.w + nx as usize;
+                if !seen[j] && self.cspace.state[j] == FREE {
+                    seen[j] = true;
+                    queue.push_back(j);
+                }
+            }
+        }
+        None
+    }
+
+    fn done_report(&self) -> DoneReport {
+        let f = self.cspace.frame;
+        let a = f.res * f.res;
+        // Seen free floor no reachable centre can touch with the body.
+        let body = disk(self.cspace.inflation() + 2.0 * f.res, f.res);
+        let mut touch = vec![false; f.len()];
+        for i in (0..f.len()).filter(|&i| self.reachable_mask[i]) {
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for &(dx, dy) in &body {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
+                    touch[ny as usize * f.w + nx as usize] = true;
+                }
+            }
+        }
+        let mut r = DoneReport::default();
+        for (i, &t) in touch.iter().enumerate() {
+            if self.cspace.state[i] == FREE && !t {
+                r.unreachable_area += a;
+            }
+            if self.abandoned[i] && !self.covered[i] {
+                r.abandoned_area += a;
+            }
+            if self.covered[i] {
+                r.covered_area += a;
+            }
+        }
+        r
+    }
+}
+
+/// The candidate and variant to start with: exhaustive search (dynamic
+/// programming over subsets) of the order of all candidates and the variant
+/// of each, minimising the travel to the first entry plus `weight` times the
+/// rest (straight-line transits between exits and entries, and the lanes).
+fn best_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
+    let n = cands.len();
+    // Flattened (candidate, variant) nodes.
+    let nodes: Vec<(usize, usize)> = (0..n)
+        .flat_map(|i| (0..cands[i].variants.len()).map(move |v| (i, v)))
+        .collect();
+    let m = nodes.len();
+    let full = (1usize << n) - 1;
+    // cost[mask][node], first[mask][node]
+    let mut cost = vec![f64::INFINITY; (full + 1) * m];
+    let mut first = vec![usize::MAX; (full + 1) * m];
+    for (k, &(i, v)) in nodes.iter().enumerate() {
+        let c = cands[i].entry_cost[v] + cands[i].variants[v].length;
+        cost[(1 << i) * m + k] = c;
+        first[(1 << i) * m + k] = k;
+    }
+    for mask in 1..=full {
+        for (k, &(i, v)) in nodes.iter().enumerate() {
+            let c = cost[mask * m + k];
+            if !c.is_finite() || mask & (1 << i) == 0 {
+                continue;
+            }
+            let exit = cands[i].variants[v].exit();
+            for (k2, &(j, w)) in nodes.iter().enumerate() {
+                if mask & (1 << j) != 0 {
+                    continue;
+                }
+                let var = &cands[j].variants[w];
+                let nc = c + weight * ((var.entry() - exit).norm() + var.length);
+                let slot = (mask | (1 << j)) * m + k2;
+                if nc < cost[slot] {
+                    cost[slot] = nc;
+                    first[slot] = first[mask * m + k];
+                }
+            }
+        }
+    }
+    let mut best = (f64::INFINITY, 0usize);
+    for k in 0..m {
+        if cost[full * m + k] < best.0 {
+            best = (cost[full * m + k], first[full * m + k]);
+        }
+    }
+    nodes.get(best.1).copied().unwrap_or((0, 0))
+}
+
+/// Frontier cells in 8-connected clusters of at least `min` cells.
+fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
+    let mut in_list = std::collections::HashSet::with_capacity(list.len());
+    in_list.extend(list.iter().copied());
+    let mut seen = std::collections::HashSet::with_capacity(list.len());
+    let mut out = Vec::new();
+    for &s in list {
+        if seen.contains(&s) {
+            continue;
+        }
+        let mut comp = vec![s];
+        seen.insert(s);
+        let mut k = 0;
+        while k < comp.len() {
+            let i = comp[k];
+            k += 1;
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                        continue;
+                    }
+                    let j = ny as usize * f.w + nx as usize;
+                    if in_list.contains(&j) && seen.insert(j) {
+                        comp.push(j);
+                    }
+                }
+            }
+        }
+        if comp.len() >= min {
+            out.extend(comp);
+        }
+    }
+    out
+}

@@ -1,0 +1,509 @@
+//! Coverage metrics against the world's ground truth (never the robot's own
+//! map): which floor the robot could reach, what its tool actually swept,
+//! how often, how far it drove, how often it turned, and whether its body
+//! ever touched an obstacle.
+//!
+//! Definitions (see also the README section "Coverage metrics"):
+//! * **reachable**: ground-truth cells where a disk of the robot radius centred
+//!   on the cell is free, 8-connected to the start cell: where the robot's
+//!   centre can go. Coverage % is the share of these cells the tool swept.
+//! * **footprint-reachable** (stricter, reported beside it): reachable cells
+//!   dilated by the tool half-width: all floor the tool could touch.
+//! * **unreachable area**: free floor the robot body cannot even touch (free
+//!   cells farther than one robot radius from every reachable cell), e.g. a
+//!   pocket behind furniture; reported, never counted as missed.
+//! * **overlap**: area swept in more than one pass / area swept. A pass over a
+//!   cell starts when the tool disk (exact distance to the cell centre) enters
+//!   it and ends when it has been out of it for more than a second.
+//! * **turns**: heading changes of the direction of travel above 30°, the
+//!   travel direction sampled every 5 cm of path (as the IPA evaluation does on
+//!   its pixel path); rotation is the total absolute heading change.
+//! * **collision**: a recorded pose whose robot disk is not entirely on free
+//!   ground truth; counted once per entry.
+
+use nalgebra::Point2;
+
+use crate::geom::{heading, wrap_angle, Pose};
+use crate::sim::world::{FreeRaster, World};
+
+/// Distance of travel between two samples of the travel direction (m).
+const TURN_SAMPLE: f64 = 0.05;
+/// A cell swept again within this time (s) of last being under the tool
+/// continues its pass: tracking jitter of a millimetre at the tool's edge is
+/// not a second pass, while coming back along the next lane (after two turns
+/// in place) always is.
+const SAME_PASS: f64 = 1.0;
+/// Heading change that counts as a turn (rad), 30° as in the IPA evaluation.
+const TURN_ANGLE: f64 = 0.52;
+
+/// Why metrics cannot be set up.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MetricsError {
+    /// The start pose is in collision with the ground truth.
+    #[error("start ({x:.2}, {y:.2}) m: a robot of radius {radius} m there overlaps an obstacle or lies outside the room")]
+    StartInCollision {
+        /// Start x (m).
+        x: f64,
+        /// Start y (m).
+        y: f64,
+        /// Robot radius (m).
+        radius: f64,
+    },
+}
+
+/// The figures of one run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoverageMetrics {
+    /// Swept share of the reachable cells (0..1).
+    pub coverage: f64,
+    /// Swept share of the footprint-reachable cells (0..1), the stricter figure.
+    pub footprint_coverage: f64,
+    /// Reachable area (m²).
+    pub reachable_area: f64,
+    /// Footprint-reachable area (m²).
+    pub footprint_reachable_area: f64,
+    /// All free floor (m²).
+    pub free_area: f64,
+    /// Free floor the robot body cannot touch (m²).
+    pub unreachable_area: f64,
+    /// Area swept at least once (m²).
+    pub covered_area: f64,
+    /// Area swept in more than one pass / area swept (0..).
+    pub overlap: f64,
+    /// Path length driven (m).
+    pub path_length: f64,
+    /// Number of heading changes above 30°.
+    pub turns: usize,
+    /// Total absolute rotation (rad).
+    pub rotation: f64,
+    /// Number of times the robot disk entered non-free ground truth.
+    pub collisions: usize,
+    /// Simulated time (s).
+    pub time: f64,
+}
+
+/// Accumulates coverage over the executed poses of a run.
+#[derive(Clone, Debug)]
+pub struct CoverageTracker {
+    raster: FreeRaster,
+    reachable: Vec<bool>,
+    footprint: Vec<bool>,
+    unreachable_cells: usize,
+    passes: Vec<u16>,
+    last_seen: Vec<f64>,
+    tool_radius: f64,
+    tool: Vec<(i64, i64)>,
+    robot_radius: f64,
+    last: Option<Pose>,
+    path_length: f64,
+    rotation: f64,
+    turns: usize,
+    dir_anchor: Option<Point2<f64>>,
+    last_dir: Option<f64>,
+    colliding: bool,
+    collisions: usize,
+    time: f64,
+}
+
+/// Cell offsets whose centres lie within `radius` of a cell centre.
+fn disk_offsets(radius: f64, res: f64) -> Vec<(i64, i64)> {
+    let n = (radius / res).ceil() as i64 + 1;
+    let mut v = Vec::new();
+    for dy in -n..=n {
+        for dx in -n..=n {
+            if ((dx * dx + dy * dy) as f64).sqrt() * res <= radius + 1e-9 {
+                v.push((dx, dy));
+            }
+        }
+    }
+    v
+}
+
+/// Cells whose centre lies at least `radius` from every non-free cell (the
+/// obstacle taken as its full square) and inside the raster.
+pub fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
+    let (w, h, r) = (raster.width, raster.height, raster.resolution);
+    let mut ok = raster.free.clone();
+    let n = (radius / r).ceil() as i64 + 1;
+    let is_free = |x: i64, y: i64| {
+        x >= 0
+            && y >= 0
+            && (x as usize) < w
+            && (y as usize) < h
+            && raster.free[y as usize * w + x as usize]
+    };
+    for y in -1..=h as i64 {
+        for x in -1..=w as i64 {
+            if is_free(x, y) {
+                continue;
+            }
+            let boundary =
+                is_free(x + 1, y) || is_free(x - 1, y) || is_free(x, y + 1) || is_free(x, y - 1);
+            if !boundary {
+                continue;
+            }
+            for dy in -n..=n {
+                for dx in -n..=n {
+                    let (cx, cy) = (x + dx, y + dy);
+                    if cx < 0 || cy < 0 || cx >= w as i64 || cy >= h as i64 {
+                        continue;
+                    }
+                    // Distance from the free cell's centre to the obstacle square.
+                    let gx = (dx.abs() as f64 - 0.5).max(0.0) * r;
+                    let gy = (dy.abs() as f64 - 0.5).max(0.0) * r;
+                    if (gx * gx + gy * gy).sqrt() < radius {
+                        ok[cy as usize * w + cx as usize] = false;
+                    }
+                }
+            }
+        }
+    }
+    ok
+}
+
+/// Cells of `mask` 8-connected to `start` (empty when `start` is not in `mask`).
+pub fn connected_from(mask: &[bool], w: usize, h: usize, start: (usize, usize)) -> Vec<bool> {
+    let mut out = vec![false; w * h];
+    let s = start.1 * w + start.0;
+    if start.0 >= w || start.1 >= h || !mask[s] {
+        return out;
+    }
+    out[s] = true;
+    let mut stack = vec![s];
+    while let Some(i) = stack.pop() {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        for dy in -1..=1i64 {
+            for dx in -1..=1i64 {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                    continue;
+                }
+                let j = ny as usize * w + nx as usize;
+                if mask[j] && !out[j] {
+                    out[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `mask` dilated by the cell offsets `disk`, restricted to `within`.
+fn dilate(mask: &[bool], w: usize, h: usize, disk: &[(i64, i64)], within: &[bool]) -> Vec<bool> {
+    let mut out = vec![false; w * h];
+    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+        let (x, y) = ((i % w) as i64, (i / w) as i64);
+        for &(dx, dy) in disk {
+            let (nx, ny) = (x + dx, y + dy);
+            if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                let j = ny as usize * w + nx as usize;
+                out[j] = within[j];
+            }
+        }
+    }
+    out
+}
+
+impl CoverageTracker {
+    /// Sets up the ground truth for `world` and a robot of `robot_radius` with
+    /// a round tool of diameter `tool_width`, starting at `start`.
+    pub fn new(
+        world: &World,
+        robot_radius: f64,
+        tool_width: f64,
+        start: &Pose,
+    ) -> Result<Self, MetricsError> {
+        let raster = world.free.clone();
+        let (w, h, res) = (raster.width, raster.height, raster.resolution);
+        let p: Point2<f64> = start.translation.vector.into();
+        let centre_ok = centre_free(&raster, robot_radius);
+        let start_cell = raster
+            .cell_of(&p)
+            .filter(|&(x, y)| centre_ok[y * w + x] && world.disk_is_free(&p, robot_radius * 0.999));
+        let Some(start_cell) = start_cell else {
+            return Err(MetricsError::StartInCollision {
+                x: p.x,
+                y: p.y,
+                radius: robot_radius,
+            });
+        };
+        let reachable = connected_from(&centre_ok, w, h, start_cell);
+        // One cell more than the tool: membership is decided on exact distance.
+        let tool = disk_offsets(tool_width / 2.0 + res * 1.5, res);
+        let body = disk_offsets(robot_radius, res);
+        let footprint = dilate(
+            &reachable,
+            w,
+            h,
+            &disk_offsets(tool_width / 2.0, res),
+            &raster.free,
+        );
+        let touchable = dilate(&reachable, w, h, &body, &raster.free);
+        let unreachable_cells = raster
+            .free
+            .iter()
+            .zip(&touchable)
+            .filter(|(&f, &t)| f && !t)
+            .count();
+        Ok(Self {
+            passes: vec![0; w * h],
+            last_seen: vec![f64::NEG_INFINITY; w * h],
+            raster,
+            reachable,
+            footprint,
+            unreachable_cells,
+            tool_radius: tool_width / 2.0,
+            tool,
+            robot_radius,
+            last: None,
+            path_length: 0.0,
+            rotation: 0.0,
+            turns: 0,
+            dir_anchor: None,
+            last_dir: None,
+            colliding: false,
+            collisions: 0,
+            time: 0.0,
+        })
+    }
+
+    /// Whether the ground-truth cell under `p` is reachable by the robot centre.
+    pub fn is_reachable(&self, p: &Point2<f64>) -> bool {
+        self.raster
+            .cell_of(p)
+            .is_some_and(|(x, y)| self.reachable[y * self.raster.width + x])
+    }
+
+    /// The ground truth raster the metrics are computed on.
+    pub fn raster(&self) -> &FreeRaster {
+        &self.raster
+    }
+
+    /// Per-cell pass counts (row-major, same geometry as [`Self::raster`]).
+    pub fn passes(&self) -> &[u16] {
+        &self.passes
+    }
+
+    /// Per-cell reachability (row-major).
+    pub fn reachable(&self) -> &[bool] {
+        &self.reachable
+    }
+
+    /// Records the robot at `pose` at simulated time `time` (s): sweeps the
+    /// tool, adds path length and rotation, counts turns and collisions.
+    pub fn record(&mut self, pose: &Pose, time: f64) {
+        let p: Point2<f64> = pose.translation.vector.into();
+        let th = heading(pose);
+        self.time = time;
+        if let Some(prev) = self.last {
+            let q: Point2<f64> = prev.translation.vector.into();
+            self.path_length += (p - q).norm();
+            self.rotation += wrap_angle(th - heading(&prev)).abs();
+        }
+        self.last = Some(*pose);
+        match self.dir_anchor {
+            None => self.dir_anchor = Some(p),
+            Some(a) => {
+                let d = p - a;
+                if d.norm() >= TURN_SAMPLE {
+                    let dir = d.y.atan2(d.x);
+                    if let Some(prev) = self.last_dir {
+                        if wrap_angle(dir - prev).abs() > TURN_ANGLE {
+                            self.turns += 1;
+                        }
+                    }
+                    self.last_dir = Some(dir);
+                    self.dir_anchor = Some(p);
+                }
+            }
+        }
+        let (w, h, res) = (
+            self.raster.width,
+            self.raster.height,
+            self.raster.resolution,
+        );
+        let fx = ((p.x - self.raster.origin.x) / res).floor();
+        let fy = ((p.y - self.raster.origin.y) / res).floor();
+        if !(fx.is_finite() && fy.is_finite()) {
+            return;
+        }
+        let (cx, cy) = (fx as i64, fy as i64);
+        let r2 = self.tool_radius * self.tool_radius;
+        for &(dx, dy) in &self.tool {
+            let (nx, ny) = (cx + dx, cy + dy);
+            if nx < 0 || ny < 0 || nx as usize >= w || ny as usize >= h {
+                continue;
+            }
+            let j = ny as usize * w + nx as usize;
+            if !self.raster.free[j] {
+                continue;
+            }
+            let c = self.raster.centre_of(nx as usize, ny as usize);
+            if (c - p).norm_squared() > r2 {
+                continue;
+            }
+            // (A never-seen cell has last_seen = -inf: always a new pass.)
+            if time - self.last_seen[j] > SAME_PASS {
+                self.passes[j] = self.passes[j].saturating_add(1);
+            }
+            self.last_seen[j] = time;
+        }
+        let hit = !self.disk_free(&p);
+        if hit && !self.colliding {
+            self.collisions += 1;
+        }
+        self.colliding = hit;
+    }
+
+    fn disk_free(&self, p: &Point2<f64>) -> bool {
+        // Exact test against obstacle squares near p.
+        let r = self.raster.resolution;
+        let rad = self.robot_radius * 0.999;
+        let n = (rad / r).ceil() as i64 + 1;
+        let fx = ((p.x - self.raster.origin.x) / r).floor() as i64;
+        let fy = ((p.y - self.raster.origin.y) / r).floor() as i64;
+        for dy in -n..=n {
+            for dx in -n..=n {
+                let (x, y) = (fx + dx, fy + dy);
+                let free = x >= 0
+                    && y >= 0
+                    && (x as usize) < self.raster.width
+                    && (y as usize) < self.raster.height
+                    && self.raster.free[y as usize * self.raster.width + x as usize];
+                if free {
+                    continue;
+                }
+                let x0 = self.raster.origin.x + x as f64 * r;
+                let y0 = self.raster.origin.y + y as f64 * r;
+                let qx = p.x.clamp(x0, x0 + r);
+                let qy = p.y.clamp(y0, y0 + r);
+                if (p.x - qx).powi(2) + (p.y - qy).powi(2) < rad * rad {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// The figures so far.
+    pub fn metrics(&self) -> CoverageMetrics {
+        let a = self.raster.resolution * self.raster.resolution;
+        let (mut reach, mut reach_cov, mut fp, mut fp_cov, mut cov, mut multi) = (0, 0, 0, 0, 0, 0);
+        for i in 0..self.passes.len() {
+            let c = self.passes[i] > 0;
+            if self.reachable[i] {
+                reach += 1;
+                reach_cov += c as usize;
+            }
+            if self.footprint[i] {
+                fp += 1;
+                fp_cov += c as usize;
+            }
+            cov += c as usize;
+            multi += (self.passes[i] > 1) as usize;
+        }
+        let ratio = |n: usize, d: usize| if d == 0 { 0.0 } else { n as f64 / d as f64 };
+        CoverageMetrics {
+            coverage: ratio(reach_cov, reach),
+            footprint_coverage: ratio(fp_cov, fp),
+            reachable_area: reach as f64 * a,
+            footprint_reachable_area: fp as f64 * a,
+            free_area: self.raster.free_area(),
+            unreachable_area: self.unreachable_cells as f64 * a,
+            covered_area: cov as f64 * a,
+            overlap: ratio(multi, cov),
+            path_length: self.path_length,
+            turns: self.turns,
+            rotation: self.rotation,
+            collisions: self.collisions,
+            time: self.time,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    const ROOM: &str = "room 0 0 4 0 4 3 0 3\nbox 1.5 1 2.5 2\nstart 0.5 0.5 0\n";
+
+    #[test]
+    fn one_straight_pass_covers_a_strip_once() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let mut x = 0.5;
+        let mut time = 0.0;
+        while x <= 3.5 {
+            t.record(&pose(x, 0.5, 0.0), time);
+            x += 0.01;
+            time += 0.05;
+        }
+        let m = t.metrics();
+        assert_eq!(m.collisions, 0);
+        assert_eq!(m.turns, 0);
+        assert!((m.path_length - 3.0).abs() < 0.02, "{}", m.path_length);
+        // A 3 m stroke of a 0.3 m disk: 0.9 + π·0.15² ≈ 0.97 m².
+        assert!((m.covered_area - 0.97).abs() < 0.05, "{}", m.covered_area);
+        assert_eq!(m.overlap, 0.0);
+        assert!(m.coverage > 0.05 && m.coverage < 0.2, "{}", m.coverage);
+        // Only the slivers in the room's and the box's concave corners.
+        assert!(m.unreachable_area < 0.06, "{}", m.unreachable_area);
+    }
+
+    #[test]
+    fn driving_back_counts_overlap_and_a_turn() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let mut k = 0.0;
+        for i in 0..=100 {
+            t.record(&pose(0.5 + i as f64 * 0.01, 0.5, 0.0), k);
+            k += 0.1;
+        }
+        for i in 0..=100 {
+            t.record(&pose(1.5 - i as f64 * 0.01, 0.5, std::f64::consts::PI), k);
+            k += 0.1;
+        }
+        let m = t.metrics();
+        // All but the cells the tool never left while turning back at x = 1.5.
+        assert!(m.overlap > 0.75 && m.overlap < 0.9, "{}", m.overlap);
+        assert_eq!(m.turns, 1);
+        assert!((m.rotation - std::f64::consts::PI).abs() < 1e-6);
+    }
+
+    #[test]
+    fn touching_the_box_is_a_collision() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        t.record(&pose(1.2, 1.5, 0.0), 0.0);
+        t.record(&pose(1.4, 1.5, 0.0), 0.1);
+        t.record(&pose(1.45, 1.5, 0.0), 0.2);
+        t.record(&pose(1.1, 1.5, 0.0), 0.3);
+        t.record(&pose(1.4, 1.5, 0.0), 0.4);
+        assert_eq!(t.metrics().collisions, 2);
+    }
+
+    #[test]
+    fn start_in_an_obstacle_is_refused() {
+        let w = World::parse(ROOM).unwrap();
+        let e = CoverageTracker::new(&w, 0.17, 0.3, &pose(1.45, 1.5, 0.0)).unwrap_err();
+        assert!(e.to_string().contains("overlaps"), "{e}");
+        assert!(CoverageTracker::new(&w, 0.17, 0.3, &pose(0.1, 0.5, 0.0)).is_err());
+    }
+
+    #[test]
+    fn a_closed_pocket_is_unreachable_not_missed() {
+        // A walled-off 1 m x 1 m closet in the corner.
+        let text = "room 0 0 4 0 4 3 0 3\nwall 3 0 3 1\nwall 3 1 4 1\nstart 0.5 0.5 0\n";
+        let w = World::parse(text).unwrap();
+        let t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let m = t.metrics();
+        assert!(
+            (m.unreachable_area - 1.0).abs() < 0.1,
+            "{}",
+            m.unreachable_area
+        );
+        assert!(m.reachable_area < m.free_area - 1.0);
+    }
+}

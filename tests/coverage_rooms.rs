@@ -1,0 +1,76 @@
+//! Five furnished rooms cut from the rectilinear benchmark floor plans of
+//! `../shared/maps/` (ipa_coverage_planning test maps, 0.05 m/px), covered
+//! online and offline in the lock-step simulation. Bounds are what this build
+//! reaches, with a small margin; the targets (coverage >= 99 %,
+//! overlap <= 15 %, online <= 1.25 x offline) are not all met yet in these
+//! furnished rooms: see the README's coverage section for the figures.
+
+use sweepline::config::Config;
+use sweepline::sim::floorplan;
+use sweepline::sim::lockstep::{run, LockstepOptions, Mode};
+
+/// Rooms of 14-20 m² from five different floor plans, with furniture.
+const ROOMS: [&str; 5] = [
+    "Freiburg52_scan:0",
+    "lab_a_scan:1",
+    "office_f:0",
+    "lab_c_scan:2",
+    "NLB:0",
+];
+
+#[test]
+fn five_floor_plan_rooms() {
+    let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
+    let cfg = Config::default();
+    let opts = LockstepOptions {
+        scan_period: 0.5,
+        time_cap: 2400.0,
+        ..LockstepOptions::default()
+    };
+    let mut sum_cov = 0.0;
+    for spec in ROOMS {
+        let room = floorplan::load_room(&dir, spec).unwrap();
+        let world = room.world();
+        let on = run(&world, &cfg, &opts, Mode::Online).unwrap();
+        let off = run(&world, &cfg, &opts, Mode::Offline).unwrap();
+        let (m, o) = (&on.metrics, &off.metrics);
+        let ratio = m.path_length / o.path_length;
+        eprintln!(
+            "{spec}: free {:.1} m² reachable {:.1} m² | online coverage {:.4} overlap {:.3} path {:.1} m | offline coverage {:.4} overlap {:.3} path {:.1} m | ratio {ratio:.3}",
+            m.free_area, m.reachable_area, m.coverage, m.overlap, m.path_length, o.coverage, o.overlap, o.path_length
+        );
+        assert!(
+            on.finished && off.finished,
+            "{spec}: finishes before the cap"
+        );
+        assert_eq!(m.collisions, 0, "{spec}: online collisions");
+        assert_eq!(o.collisions, 0, "{spec}: offline collisions");
+        assert!(m.coverage >= 0.94, "{spec}: online coverage {}", m.coverage);
+        assert!(
+            o.coverage >= 0.95,
+            "{spec}: offline coverage {}",
+            o.coverage
+        );
+        assert!(ratio <= 1.6, "{spec}: online/offline path {ratio}");
+        assert!(m.overlap <= 0.70, "{spec}: online overlap {}", m.overlap);
+        sum_cov += m.coverage;
+    }
+    let mean = sum_cov / ROOMS.len() as f64;
+    assert!(mean >= 0.96, "mean online coverage {mean}");
+}
+
+#[test]
+fn rooms_are_cut_as_the_benchmark_does() {
+    let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
+    let rooms = floorplan::rooms(&dir, "office_f", floorplan::MIN_ROOM_PIXELS).unwrap();
+    assert!(rooms.len() > 20, "{}", rooms.len());
+    let r = &rooms[0];
+    // office_f:0 is a furnished 4.0 m x 5.3 m office.
+    assert!((r.free_area() - 18.3).abs() < 0.2, "{}", r.free_area());
+    let w = r.world();
+    assert!(w.disk_is_free(&w.start.translation.vector.into(), 0.17));
+    let e = floorplan::load_room(&dir, "office_f:999").unwrap_err();
+    assert!(e.to_string().contains("room 999 does not exist"), "{e}");
+    let e = floorplan::load_room(&dir, "no_such_map:0").unwrap_err();
+    assert!(e.to_string().contains("no_such_map_furnitures.png"), "{e}");
+}
