@@ -55,8 +55,14 @@ fn worlds() -> Vec<(String, World)> {
 
 /// Explores `world` along the tour, one update per scan; returns the
 /// decomposer and grid at the end and the per-update (wall, cpu) seconds.
-fn tour_run(world: &World) -> (Decomposer, Grid, Vec<(f64, f64)>) {
-    let mut grid = grid_for(world, 0.05);
+fn tour_run(world: &World, daemon_grid: bool) -> (Decomposer, Grid, Vec<(f64, f64)>) {
+    let mut grid = if daemon_grid {
+        // The daemon's map grid: 40 m square centred on the first pose.
+        let s = world.start.translation;
+        Grid::centred(nalgebra::Point2::new(s.x, s.y), 40.0, 0.05)
+    } else {
+        grid_for(world, 0.05)
+    };
     let mut dec = Decomposer::new(&DecompParams::default(), 0.17).unwrap();
     let mut times = Vec::new();
     for p in tour(world, 1.0) {
@@ -85,12 +91,15 @@ fn report(name: &str, times: &[(f64, f64)], cells: usize) {
 }
 
 fn bench(c: &mut Criterion) {
-    for (name, world) in worlds() {
+    let mut cases: Vec<(String, World, bool)> =
+        worlds().into_iter().map(|(n, w)| (n, w, false)).collect();
+    cases.insert(1, ("paper-in-40m-grid".to_string(), paper_world(), true));
+    for (name, world, daemon_grid) in cases {
         // Three tours: the latency distribution over all their updates.
         let mut all = Vec::new();
         let mut last = None;
         for _ in 0..3 {
-            let (dec, grid, times) = tour_run(&world);
+            let (dec, grid, times) = tour_run(&world, daemon_grid);
             all.extend(times);
             last = Some((dec, grid));
         }

@@ -668,3 +668,39 @@ fn slanted_and_round_walls_give_trapezoids_and_polylines() {
         }
     }
 }
+
+#[test]
+fn degenerate_grids_and_segments_do_not_panic() {
+    let mut dec = decomposer();
+    // Zero and non-finite geometry, with something marked explored.
+    for (origin, res) in [
+        (Point2::new(0.0, 0.0), 0.0),
+        (Point2::new(f64::NAN, 0.0), 0.05),
+        (Point2::new(0.0, 0.0), f64::INFINITY),
+        (Point2::new(1e9, -1e9), 0.05),
+    ] {
+        let mut g = Grid::new(origin, res, 20, 10);
+        for x in 2..18 {
+            g.set_state((x, 5), CellState::Free);
+        }
+        g.set_state((1, 5), CellState::Occupied);
+        let d = dec.update(&g, &[]);
+        assert_consistent(d);
+    }
+    // Non-finite segments are ignored (a zero-length one is a point wall,
+    // here outside the explored square).
+    let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 60);
+    for y in 10..50 {
+        for x in 10..50 {
+            g.set_state((x, y), CellState::Free);
+        }
+    }
+    let segs = [
+        Segment::new(Point2::new(f64::NAN, 1.0), Point2::new(2.0, 1.0)),
+        Segment::new(Point2::new(2.9, 2.9), Point2::new(2.9, 2.9)),
+        Segment::new(Point2::new(0.0, f64::INFINITY), Point2::new(2.0, 1.0)),
+    ];
+    let d = dec.update(&g, &segs);
+    assert_consistent(d);
+    assert_eq!(d.cells.len(), 1);
+}

@@ -126,3 +126,81 @@ fn converges_far_from_the_origin() {
         r.quality
     );
 }
+
+#[test]
+fn tracker_follows_a_path_against_an_external_map() {
+    // The map layer's points stand in as the reference: dense points along
+    // every wall of the scene (with their reflectivity).
+    use sweepline::icp::{Outcome, Tracker};
+    let walls = scene();
+    let mut map = Vec::new();
+    for w in &walls {
+        let n = (w.segment.length() / 0.02).ceil() as usize;
+        for k in 0..=n {
+            let t = k as f64 / n as f64;
+            let p = w.segment.a + (w.segment.b - w.segment.a) * t;
+            map.push(IPoint::new(p.x, p.y, w.intensity));
+        }
+    }
+    let params = IcpParams::default();
+    let mut reference = Reference::new();
+    reference.rebuild(&map, &params).unwrap();
+    let start = pose(1.0, 0.8, 0.0);
+    let mut t = Tracker::new(params, start).unwrap();
+    let mut truth = start;
+    let mut odom = pose(0.0, 0.0, 0.0);
+    for k in 0..40 {
+        let step = pose(0.08, 0.0, 0.03);
+        truth *= step;
+        // Odometry that over-reads distance by 10 % and under-reads turns.
+        odom *= pose(0.088, 0.0, 0.025);
+        let scan = cast(
+            &walls,
+            &truth,
+            &ScanSpec {
+                seed: 100 + k,
+                ..ScanSpec::default()
+            },
+        );
+        let s = t.step_with_reference(&scan, Some(&odom), &reference);
+        assert!(
+            matches!(s.outcome, Outcome::Matched(_)),
+            "scan {k}: {:?}",
+            s.outcome
+        );
+        let (et, er) = err(&s.pose, &truth);
+        assert!(et < 0.02 && er < 0.01, "scan {k}: error {et} m {er} rad");
+        assert!(!s.keyframe);
+    }
+    assert!(t.map().is_empty(), "the keyframe map is not used");
+}
+
+#[test]
+fn prior_weight_holds_the_translation_to_the_guess() {
+    let walls = scene();
+    let truth = pose(2.0, 1.5, 0.3);
+    let params = IcpParams::default();
+    let mut reference = Reference::new();
+    reference
+        .rebuild_ordered(&world_points(&walls, &truth, 11), &params)
+        .unwrap();
+    let scan = cast(
+        &walls,
+        &truth,
+        &ScanSpec {
+            seed: 12,
+            ..ScanSpec::default()
+        },
+    );
+    let guess = truth * pose(0.06, -0.04, 0.0);
+    let mut m = Matcher::new(params).unwrap();
+    let free = m.match_prepared_weighted(&reference, &guess, 0.0);
+    assert!(free.is_err(), "nothing prepared yet");
+    m.prepare_points(&scan).unwrap();
+    let free = m.match_prepared_weighted(&reference, &guess, 0.0).unwrap();
+    let held = m.match_prepared_weighted(&reference, &guess, 1e6).unwrap();
+    assert!(err(&free.pose, &truth).0 < 0.01, "{:?}", free.pose);
+    // A huge prior weight keeps the translation at the guess.
+    let d = (held.pose.translation.vector - guess.translation.vector).norm();
+    assert!(d < 0.005, "moved {d} m from the guess");
+}

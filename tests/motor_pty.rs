@@ -25,6 +25,7 @@ struct Rig {
     base: Box<dyn DiffDriveBase>,
     odom: Pose,
     events: Vec<SafetyEvent>,
+    battery: Option<f64>,
     _dir: Option<TempDir>,
 }
 
@@ -108,6 +109,7 @@ fn rig_on(
         base,
         odom: Pose::identity(),
         events: Vec::new(),
+        battery: None,
         _dir: dir,
     };
     // Wait for the link to come up (how long depends on the machine's load).
@@ -139,6 +141,7 @@ impl Rig {
                 self.odom *= o.delta;
             }
             self.events.extend(fb.events.iter().copied());
+            self.battery = fb.battery.or(self.battery);
             let spent = self.clock.now() - tick;
             self.clock.sleep(0.05 - spent);
         }
@@ -206,6 +209,22 @@ fn commands_move_the_robot_and_odometry_follows() {
             e < 0.01 && eh < 0.02,
             "{kind:?}: odometry {} vs truth {t}",
             r.odom
+        );
+        // The emulated RoboClaw reports 12.1 V, the Create 2 14.8 V.
+        let want = if kind == BaseKind::Roboclaw {
+            12.1
+        } else {
+            14.8
+        };
+        assert!(
+            r.battery.is_some_and(|v| (v - want).abs() < 1e-9),
+            "{kind:?}: {:?}",
+            r.battery
+        );
+        let line = r.emu.status_line();
+        assert!(
+            line.contains("pose=(") && line.contains("packets ok="),
+            "{line}"
         );
         let h = r.base.health();
         assert!(h.received > 10, "{kind:?}: {h:?}");
@@ -500,4 +519,125 @@ fn time_scaled_clock_runs_the_same_code_path() {
         });
         assert!(fired, "{kind:?}: {:?}", r.events);
     }
+}
+
+#[test]
+fn create2_stream_pause_is_not_a_lost_link_and_resume_restores_odometry() {
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let cfg = {
+        let mut c = Config::default();
+        c.motor.kind = BaseKind::Create2;
+        tolerant(&mut c.motor);
+        c
+    };
+    let emu = spawn_on_pty(
+        EmulatorConfig::from_config(&cfg, BaseKind::Create2),
+        None,
+        clock.clone(),
+    )
+    .unwrap();
+    let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
+        emu.path().unwrap(),
+    ))));
+    let mut d = Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock.clone());
+    let mut events = Vec::new();
+    let step = |d: &mut Create2Driver, cmd: WheelSpeeds, ev: &mut Vec<SafetyEvent>| {
+        d.set_wheels(cmd).unwrap();
+        let fb = d.poll().unwrap();
+        ev.extend(fb.events.iter().copied());
+        clock.sleep(0.05);
+        fb
+    };
+    let mut up = false;
+    for _ in 0..100 {
+        up = step(&mut d, FWD, &mut events).link_up;
+        if up && emu.wheels().left > 0.1 {
+            break;
+        }
+    }
+    assert!(up && emu.wheels().left > 0.1, "never drove");
+    assert!(d.pause_stream());
+    let frames = emu.stats().device.frames_out;
+    for _ in 0..20 {
+        let fb = step(&mut d, FWD, &mut events);
+        assert!(fb.odometry.is_none() || d.stream_paused());
+    }
+    assert_eq!(
+        emu.motor_targets(),
+        WheelSpeeds::STOP,
+        "moving while paused"
+    );
+    assert!(
+        emu.stats().device.frames_out <= frames + 2,
+        "stream did not pause"
+    );
+    assert!(
+        !events.iter().any(|e| matches!(e, SafetyEvent::LinkLost)),
+        "{events:?}"
+    );
+    assert!(d.resume_stream());
+    let mut odometry = 0;
+    for _ in 0..100 {
+        odometry += usize::from(step(&mut d, FWD, &mut events).odometry.is_some());
+        if odometry > 3 && emu.wheels().left > 0.1 {
+            break;
+        }
+    }
+    assert!(
+        odometry > 3 && emu.wheels().left > 0.1,
+        "no odometry or motion after resume"
+    );
+    assert!(
+        !events.iter().any(|e| matches!(e, SafetyEvent::LinkLost)),
+        "{events:?}"
+    );
+}
+
+#[test]
+fn serve_reports_status_until_stopped() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let world = Arc::new(World::parse("room 0 0 3 0 3 3 0 3\nstart 1 1 0.5\n").unwrap());
+    let cfg = EmulatorConfig::from_config(&Config::default(), BaseKind::Roboclaw).in_world(world);
+    let emu = spawn_on_pty(cfg, None, clock.clone()).unwrap();
+    let stop = AtomicBool::new(false);
+    let mut lines = Vec::new();
+    sweepline::sim::base_emu::serve(&emu, &*clock, &stop, 0.05, |l| {
+        lines.push(l.to_string());
+        if lines.len() == 3 {
+            stop.store(true, Ordering::SeqCst);
+        }
+    });
+    assert_eq!(lines.len(), 3);
+    assert!(
+        lines[0].contains("pose=(1.000 m, 1.000 m, 28.6 deg)"),
+        "{}",
+        lines[0]
+    );
+}
+
+#[test]
+fn roboclaw_at_another_address_never_counts_as_up() {
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let cfg = Config::default();
+    // The emulated controller answers at 0x80; the driver asks 0x81.
+    let emu = spawn_on_pty(
+        EmulatorConfig::from_config(&cfg, BaseKind::Roboclaw),
+        None,
+        clock.clone(),
+    )
+    .unwrap();
+    let mut motor = cfg.motor.clone();
+    motor.roboclaw.address = 0x81;
+    let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
+        emu.path().unwrap(),
+    ))));
+    let mut d = RoboClawDriver::new(&motor, &cfg.robot, opener, clock.clone());
+    for _ in 0..5 {
+        d.set_wheels(FWD).unwrap();
+        assert!(!d.poll().unwrap().link_up);
+        clock.sleep(0.2);
+    }
+    assert!(d.health().timeouts > 0, "{:?}", d.health());
+    assert_eq!(emu.motor_targets(), WheelSpeeds::STOP);
 }

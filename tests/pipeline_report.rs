@@ -234,7 +234,12 @@ struct Hogs(Vec<std::process::Child>);
 impl Drop for Hogs {
     fn drop(&mut self) {
         for c in &mut self.0 {
-            let _ = c.kill();
+            // SIGTERM, which `timeout` forwards to its busy child (SIGKILL
+            // would orphan the child).
+            // SAFETY: kill(2) on the pid of a child we spawned and have not reaped.
+            unsafe {
+                libc::kill(c.id() as i32, libc::SIGTERM);
+            }
             let _ = c.wait();
         }
     }
@@ -246,8 +251,9 @@ fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() 
     let hogs = Hogs(
         (0..2)
             .map(|_| {
-                Command::new("sh")
-                    .args(["-c", "while :; do :; done"])
+                // `timeout` bounds the loop even if this test process is killed.
+                Command::new("timeout")
+                    .args(["60", "sh", "-c", "while :; do :; done"])
                     .spawn()
                     .unwrap()
             })
@@ -319,4 +325,56 @@ fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() 
         snap.stages[1].overruns,
         snap.stages[1].degrade_raises
     );
+}
+
+/// The machinery's own cost over a long real-time run at 10 Hz (no real
+/// stage work): `SWEEPLINE_SOAK_SECS=600 SWEEPLINE_KEEP_REPORT=out/soak
+/// cargo test --test pipeline_report soak -- --ignored --nocapture`.
+#[test]
+#[ignore = "long: run by hand (see doc comment)"]
+fn soak() {
+    let secs: u32 = std::env::var("SWEEPLINE_SOAK_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(600);
+    let params = PipelineParams::default();
+    let mut p = Pipeline::new(&params);
+    let (scan_tx, scan_rx) = queue::<Msg>("scan", params.scan_queue, Overflow::DropOldest);
+    let (pose_tx, pose_rx) = latest::<Msg>("pose");
+    let (cmd_tx, cmd_rx) = latest::<Msg>("wheel_cmd");
+    p.register_edge(&scan_tx);
+    p.register_edge(&pose_tx);
+    p.register_edge(&cmd_tx);
+    let scans = secs * 10;
+    p.spawn(
+        "scanner",
+        Scanner {
+            next: Instant::now(),
+            left: scans,
+            out: scan_tx,
+        },
+    )
+    .unwrap();
+    p.spawn("localise", worker(scan_rx, Some(pose_tx), 8))
+        .unwrap();
+    p.spawn("control", worker(pose_rx, Some(cmd_tx), 0))
+        .unwrap();
+    p.spawn("motor", worker(cmd_rx, None, 0)).unwrap();
+    let (dir, _) = out_dir();
+    let mut hooks = RunFolderHooks::new(Coverage(0), &dir, &params);
+    let out = Supervisor::new(&params).run(p, &mut hooks);
+    let snap = out.snapshot;
+    let q = sweepline::pipeline::metrics::Quantiles::of(&snap.end_to_end());
+    eprintln!(
+        "soak {secs} s: {} scans, process CPU {:.3} % of one core, end-to-end p50 {:.3} ms p99 {:.3} ms max {:.3} ms, dropped {}, late {}; report {}",
+        snap.stages[0].iterations,
+        snap.cpu_share() * 100.0,
+        q.p50 * 1e3,
+        q.p99 * 1e3,
+        q.max * 1e3,
+        snap.dropped(),
+        snap.late(),
+        dir.display()
+    );
+    assert_eq!(snap.stages[0].iterations, u64::from(scans));
 }

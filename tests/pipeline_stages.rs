@@ -577,3 +577,50 @@ fn end_to_end_latency_is_carried_through_a_chain() {
     assert!(snap.stages[2].end_to_end_q.p99 > 0.0);
     assert_eq!(snap.late(), 0, "nothing is 0.3 s old here");
 }
+
+/// Stuck inside `process` far longer than any shutdown may take.
+struct Stuck;
+
+impl Stage for Stuck {
+    type Work = ();
+    fn wait(&mut self, _timeout: Duration) -> Poll<()> {
+        Poll::Work(())
+    }
+    fn process(&mut self, _: (), _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        sleep(Duration::from_secs(60));
+        Ok(())
+    }
+}
+
+#[test]
+fn shutdown_leaves_a_stuck_stage_behind_after_the_stop_timeout() {
+    let mut prm = params();
+    prm.stop_timeout = 0.2;
+    let mut p = Pipeline::new(&prm);
+    let stops = Arc::new(AtomicUsize::new(0));
+    p.spawn("map", Stuck).unwrap();
+    p.spawn(
+        "control",
+        Idle {
+            stops: Arc::clone(&stops),
+        },
+    )
+    .unwrap();
+    sleep(Duration::from_millis(50));
+    let t = Instant::now();
+    let snap = p.stop();
+    assert!(
+        t.elapsed() < Duration::from_secs(30),
+        "stop must not wait for the 60 s item"
+    );
+    assert_eq!(
+        stops.load(Ordering::SeqCst),
+        1,
+        "the healthy stage stopped in order"
+    );
+    assert_eq!(
+        snap.stages[0].iterations, 0,
+        "the stuck item never finished"
+    );
+    assert!(!snap.stages[1].failed);
+}

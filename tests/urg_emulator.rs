@@ -28,6 +28,16 @@ fn ask(s: &mut Sensor, line: &str, now: f64) -> String {
     String::from_utf8(out).unwrap()
 }
 
+/// Sends a GD and returns its reply, sent when the measured revolution ends.
+fn ask_gd(s: &mut Sensor, line: &str, now: f64) -> String {
+    let mut out = Vec::new();
+    s.on_line(line.as_bytes(), now, &mut out);
+    assert!(out.is_empty(), "GD answered before its scan was measured");
+    let due = s.next_due().expect("a GD reply is pending");
+    s.poll(due, &mut out);
+    String::from_utf8(out).unwrap()
+}
+
 #[test]
 fn replies_are_byte_exact_against_the_real_capture() {
     let logw = sweepline::require_shared!("datasets/hokuyo-captures/example_urg_04lx.logw");
@@ -39,11 +49,14 @@ fn replies_are_byte_exact_against_the_real_capture() {
     let mut s = sensor(Model::Urg04lx, Box::new(scene), false);
     // The captured unit had its laser on already (BM answered 02).
     ask(&mut s, "BM", 0.0);
-    // Sensor clock values at the two II replies and the GD scan of the capture.
+    // Its revolutions started at clock values ending in 30 ms: the GD scan.
+    s.set_revolution_phase(0.030);
+    // Sensor clock values at the two II replies and when GD arrived (its
+    // scan, stamped 6968830 ms, is the revolution starting after that).
     let times = [
         0x6A5404 as f64 / 1e3,
         0x6A55F8 as f64 / 1e3,
-        6_968_830.0 / 1e3,
+        6_968_825.0 / 1e3,
     ];
     let mut out = Vec::new();
     let mut ii = 0;
@@ -58,6 +71,7 @@ fn replies_are_byte_exact_against_the_real_capture() {
         };
         s.on_line(line, now, &mut out);
     }
+    s.poll(6_968_930.0 / 1e3, &mut out);
     assert_eq!(
         String::from_utf8_lossy(&out),
         String::from_utf8_lossy(&expected),
@@ -81,7 +95,7 @@ fn vendor_open_sequence_replies() {
     assert_eq!(ask(&mut s, "GD0044072501", 0.0), "GD0044072501\n10Q\n\n");
     assert_eq!(ask(&mut s, "BM", 0.0), "BM\n00P\n\n");
     assert_eq!(ask(&mut s, "BM", 0.0), "BM\n02R\n\n");
-    let gd = ask(&mut s, "GD0044072501", 0.05);
+    let gd = ask_gd(&mut s, "GD0044072501", 0.05);
     let lines: Vec<&str> = gd.split('\n').collect();
     assert_eq!(&lines[..2], &["GD0044072501", "00P"]);
     assert_eq!(lines.len(), 2 + 1 + 32 + 2, "{gd}");
@@ -161,7 +175,7 @@ fn utm_answers_me_and_urg_ff_mode_pairs_steps() {
 
     let mut u = sensor(Model::Urg04lx, Box::new(RectRoom::bench(1)), false);
     ask(&mut u, "BM", 0.0);
-    let gd = ask(&mut u, "GD03840387FF", 0.0);
+    let gd = ask_gd(&mut u, "GD03840387FF", 0.0);
     let data: String = gd
         .split('\n')
         .skip(3)

@@ -217,3 +217,20 @@ fn sensor_left_in_time_adjust_or_streaming_is_recovered() {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+#[test]
+fn hung_firmware_is_rebooted_as_the_last_resort() {
+    let mut p = test_params();
+    p.reply_timeout = 0.1;
+    p.failures_before_reset = 2;
+    p.reboot_wait = 0.5;
+    let rig = rig("hang", "hang=10", false, p);
+    let got = rig.collect(20, 20.0);
+    let h = rig.driver().health().snapshot();
+    let log = rig.finish();
+    assert_eq!(got.len(), 20, "{h}");
+    assert!(h.reboots >= 1, "{h}");
+    assert!(log.boots >= 2);
+    assert!(log.commands.iter().filter(|c| *c == "RB").count() >= 2);
+    check_no_loss(&log, &got);
+}

@@ -94,6 +94,7 @@ fn probe_of_a_silent_device_says_it_did_not_answer() {
     let pty = sweepline::serial::Pty::open().unwrap();
     let params = UrgParams {
         reply_timeout: 0.02,
+        reboot_wait: 0.1,
         ..UrgParams::default()
     };
     let t0 = std::time::Instant::now();

@@ -154,3 +154,35 @@ fn utm_me_mode_delivers_1081_beams_with_intensity() {
         assert_eq!(w[1].dropped_before, d / 25 - 1);
     }
 }
+
+#[test]
+fn cluster_and_skip_from_the_settings() {
+    let mut p = test_params();
+    p.cluster = 3;
+    p.skip = 1;
+    let rig = rig("cluster", "", false, p);
+    let got = rig.collect(10, 10.0);
+    let h = rig.driver().health().snapshot();
+    let log = rig.finish();
+    assert_eq!(got.len(), 10);
+    assert!(
+        log.commands.iter().any(|c| c == "MD0044072503100"),
+        "{:?}",
+        log.commands
+    );
+    check_no_loss(&log, &got);
+    // 682 steps in groups of 3: 228 beams, each at its group's centre.
+    let s = &got[5];
+    assert_eq!(s.scan.beams.len(), 228);
+    let step = std::f64::consts::TAU / 1024.0;
+    assert!((s.scan.beams[0].angle - (45.0 - 384.0) * step).abs() < 1e-9);
+    // One scan in two: 200 ms apart, and that is not counted as dropped
+    // (a longer gap only if the emulator fell behind on a loaded machine).
+    let mut gaps = 0;
+    for w in got.windows(2) {
+        let d = w[1].sensor_ms - w[0].sensor_ms;
+        assert_eq!(d % 200, 0, "{d}");
+        gaps += d / 200 - 1;
+    }
+    assert_eq!(h.dropped_scans, gaps);
+}

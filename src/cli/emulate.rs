@@ -26,7 +26,8 @@ pub struct Args {
     #[arg(long)]
     pub scip1: bool,
     /// Fault switches, comma separated: checksum=N, drop=N, extra=N,
-    /// status=N[:CODE], stuck=N, noise=N, crlf, split, stall=N:SECONDS, wrap,
+    /// status=N or status=N:CODE, stuck=N, noise=N, hang=N, crlf, split,
+    /// stall=N:SECONDS, wrap,
     /// unplug=N:SECONDS (N = every N-th scan).
     #[arg(long, default_value = "")]
     pub faults: String,
@@ -40,6 +41,10 @@ pub struct Args {
     /// Run the sensor this many times faster than real time.
     #[arg(long, default_value_t = 1.0)]
     pub rate: f64,
+    /// Serve SCIP over TCP at this address (an Ethernet sensor, e.g.
+    /// 127.0.0.1:10940) instead of a pty.
+    #[arg(long)]
+    pub tcp: Option<std::net::SocketAddr>,
     /// Sensor clock rate error in parts per million (crystal drift).
     #[arg(long, default_value_t = 0.0)]
     pub drift_ppm: f64,
@@ -73,7 +78,6 @@ fn run_urg(args: Args) -> CliResult {
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, stop.clone())?;
     }
-    let host = PtyHost::new(args.link.clone())?;
     let cfg = EmulatorConfig {
         model,
         scip1_boot: args.scip1,
@@ -84,6 +88,21 @@ fn run_urg(args: Args) -> CliResult {
     };
     let log = Arc::new(Mutex::new(EmuLog::default()));
     let spec = urg_emu::ModelSpec::of(model);
+    if let Some(addr) = args.tcp {
+        let listener = std::net::TcpListener::bind(addr)
+            .map_err(|e| format!("cannot listen on {addr}: {e}"))?;
+        println!(
+            "{} emulated ({} ms scans) on tcp {}",
+            spec.vv[1].1,
+            (spec.period() * 1e3).round(),
+            listener.local_addr()?
+        );
+        let go = || !stop.load(Ordering::Relaxed);
+        urg_emu::serve_tcp(cfg, scene, clock, listener, log.clone(), &go)?;
+        summary(&log);
+        return Ok(());
+    }
+    let host = PtyHost::new(args.link.clone())?;
     let link_note = match &args.link {
         Some(l) => format!(" (symlink {})", l.display()),
         None => String::new(),
@@ -107,6 +126,11 @@ fn run_urg(args: Args) -> CliResult {
         &mut on_plug,
         &keep_going,
     )?;
+    summary(&log);
+    Ok(())
+}
+
+fn summary(log: &Mutex<EmuLog>) {
     if let Ok(l) = log.lock() {
         println!(
             "stopped: {} scans sent ({} corrupted on purpose), {} commands, {} boots",
@@ -116,5 +140,4 @@ fn run_urg(args: Args) -> CliResult {
             l.boots
         );
     }
-    Ok(())
 }

@@ -286,7 +286,10 @@ fn load_params(config: Option<&Path>) -> Result<IcpParams, String> {
 /// Runs `sweepline replay`.
 pub fn run(args: Args) -> CliResult {
     let params = load_params(args.config.as_deref())?;
-    let log = carmen::read_file(&args.log)?;
+    let log = carmen::read_file(&args.log).map_err(|e| match e {
+        carmen::CarmenError::Malformed { .. } => format!("{}: {e}", args.log.display()),
+        other => other.to_string(),
+    })?;
     let res = replay_log(&log, &params)?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;

@@ -195,6 +195,10 @@ impl Config {
         }
         self.pipeline.validate()?;
         self.motor.validate()?;
+        self.icp.validate()?;
+        self.scanner
+            .validate()
+            .map_err(|m| invalid("scanner", &m))?;
         Ok(())
     }
 }

@@ -134,9 +134,11 @@ pub fn polygon_area(poly: &[Point2<f64>]) -> f64 {
     if n < 3 {
         return 0.0;
     }
-    (0..n)
+    // Relative to the first vertex: exact enough far from the origin too.
+    let o = poly[0];
+    (1..n - 1)
         .map(|i| {
-            let (a, b) = (poly[i], poly[(i + 1) % n]);
+            let (a, b) = (poly[i] - o, poly[i + 1] - o);
             a.x * b.y - b.x * a.y
         })
         .sum::<f64>()

@@ -138,7 +138,6 @@ impl Decomposer {
     /// are never reused: new cells get ids above every id handed out before,
     /// so a planner's bookkeeping by id cannot mix old and new cells.
     pub fn reset(&mut self) {
-        let (p, r) = (self.params.clone(), self.inflation);
         self.shape = None;
         self.locked_angle = None;
         self.frame = None;
@@ -149,9 +148,8 @@ impl Decomposer {
         self.frozen.clear();
         self.frozen_spans.clear();
         self.frozen_adjacency.clear();
-        self.params = p;
         self.current = Decomposition {
-            inflation: r,
+            inflation: self.inflation,
             ..Decomposition::default()
         };
     }
@@ -170,7 +168,11 @@ impl Decomposer {
             self.shape = Some(shape);
         }
         let angle = self.sweep_angle(grid, segments);
-        let frame = SweepFrame::over_grid(grid, angle, self.params.resolution);
+        let Some(frame) = SweepFrame::over_grid(grid, angle, self.params.resolution) else {
+            // A grid with non-finite or absurd geometry: nothing usable.
+            self.reset();
+            return &self.current;
+        };
         if self.frame != Some(frame) {
             // Only before the direction is locked: nothing is frozen yet.
             self.frozen.clear();
@@ -180,7 +182,7 @@ impl Decomposer {
         self.prev_frame = self.frame;
         self.frame = Some(frame);
         let gap_pixels = (self.params.gap_fill / frame.h).floor() as usize;
-        let explored = self.slices.compute(
+        self.slices.compute(
             &frame,
             &SliceInput {
                 grid,
@@ -202,7 +204,6 @@ impl Decomposer {
                 min_area: self.params.min_cell_area,
             },
         );
-        let _ = explored;
         self.inherit_and_publish(&frame);
         &self.current
     }
@@ -215,7 +216,24 @@ impl Decomposer {
             self.locked_angle = Some(wrap_angle(a));
             return wrap_angle(a);
         }
-        let est = direction::from_segments(segments).or_else(|| direction::from_grid(grid));
+        // The explored part of the grid.
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for y in 0..grid.height() {
+            for x in 0..grid.width() {
+                if grid.evidence((x, y)) != 0 {
+                    x0 = x0.min(x);
+                    y0 = y0.min(y);
+                    x1 = x1.max(x);
+                    y1 = y1.max(y);
+                }
+            }
+        }
+        if x0 == usize::MAX {
+            return 0.0;
+        }
+        let window = (x0.saturating_sub(1), y0.saturating_sub(1), x1 + 2, y1 + 2);
+        let est = direction::from_segments(segments)
+            .or_else(|| direction::from_grid_window(grid, window));
         let Some(mut est) = est else {
             return 0.0;
         };
@@ -230,9 +248,9 @@ impl Decomposer {
             f64::INFINITY,
             f64::NEG_INFINITY,
         );
-        for y in 0..grid.height() {
-            for x in 0..grid.width() {
-                if grid.evidence((x, y)) != 0 && grid.state((x, y)) == CellState::Free {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                if grid.state((x, y)) == CellState::Free {
                     let p = grid.centre_of((x, y));
                     let (u, v) = (c * p.x + s * p.y, -s * p.x + c * p.y);
                     lo_u = lo_u.min(u);

@@ -48,14 +48,24 @@ pub fn from_segments(segments: &[Segment]) -> Option<AxisEstimate> {
 /// Dominant axis of the occupied structure of `grid` (Sobel gradients of the
 /// occupied indicator); `None` when nothing is occupied.
 pub fn from_grid(grid: &Grid) -> Option<AxisEstimate> {
+    from_grid_window(grid, (0, 0, grid.width(), grid.height()))
+}
+
+/// [`from_grid`] over the cells `x0..x1`, `y0..y1` only (the explored part).
+pub fn from_grid_window(
+    grid: &Grid,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+) -> Option<AxisEstimate> {
     let (w, h) = (grid.width(), grid.height());
     if w < 3 || h < 3 {
         return None;
     }
+    let (x0, y0) = (x0.max(1), y0.max(1));
+    let (x1, y1) = (x1.min(w - 1), y1.min(h - 1));
     let occ = |x: usize, y: usize| (grid.state((x, y)) == CellState::Occupied) as i32 as f64;
     let (mut sx, mut sy, mut n_occ) = (0.0, 0.0, 0usize);
-    for y in 1..h - 1 {
-        for x in 1..w - 1 {
+    for y in y0..y1 {
+        for x in x0..x1 {
             if occ(x, y) > 0.0 {
                 n_occ += 1;
             }

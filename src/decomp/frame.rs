@@ -27,9 +27,16 @@ pub struct SweepFrame {
 }
 
 impl SweepFrame {
+    /// Largest raster the decomposition works on (pixels).
+    pub const MAX_PIXELS: usize = 64 << 20;
+
     /// A frame with lanes along `angle` whose raster of pixel size `h` covers the
-    /// whole of `grid`.
-    pub fn over_grid(grid: &Grid, angle: f64, h: f64) -> Self {
+    /// whole of `grid`; `None` when the grid's geometry is not finite or the
+    /// raster would exceed [`SweepFrame::MAX_PIXELS`].
+    pub fn over_grid(grid: &Grid, angle: f64, h: f64) -> Option<Self> {
+        if !(angle.is_finite() && h.is_finite() && h > 0.0) {
+            return None;
+        }
         let mut f = Self {
             angle,
             cos: angle.cos(),
@@ -58,12 +65,21 @@ impl SweepFrame {
             hi_u = hi_u.max(u);
             hi_v = hi_v.max(v);
         }
+        if ![lo_u, lo_v, hi_u, hi_v].iter().all(|v| v.is_finite()) {
+            return None;
+        }
         // Snap to the pixel lattice so an axis-aligned grid maps cell to pixel.
         f.u0 = (lo_u / h).floor() * h;
         f.v0 = (lo_v / h).floor() * h;
-        f.nu = (((hi_u - f.u0) / h).ceil().max(0.0) as usize).max(1);
-        f.nv = (((hi_v - f.v0) / h).ceil().max(0.0) as usize).max(1);
-        f
+        let (nu, nv) = (((hi_u - f.u0) / h).ceil(), ((hi_v - f.v0) / h).ceil());
+        if !(nu.is_finite() && nv.is_finite())
+            || nu.max(1.0) * nv.max(1.0) > Self::MAX_PIXELS as f64
+        {
+            return None;
+        }
+        f.nu = (nu.max(0.0) as usize).max(1);
+        f.nv = (nv.max(0.0) as usize).max(1);
+        Some(f)
     }
 
     /// World point to lane coordinates `(u, v)`.
@@ -112,10 +128,10 @@ mod tests {
     #[test]
     fn round_trip_and_axis_aligned_lattice() {
         let g = Grid::new(Point2::new(-1.0, 2.0), 0.05, 40, 20);
-        let f = SweepFrame::over_grid(&g, 0.0, 0.05);
+        let f = SweepFrame::over_grid(&g, 0.0, 0.05).unwrap();
         assert_eq!((f.nu, f.nv), (40, 20));
         assert!((f.u0 + 1.0).abs() < 1e-9 && (f.v0 - 2.0).abs() < 1e-9);
-        let f = SweepFrame::over_grid(&g, 0.7, 0.05);
+        let f = SweepFrame::over_grid(&g, 0.7, 0.05).unwrap();
         let p = Point2::new(0.3, 2.4);
         let (u, v) = f.to_uv(&p);
         assert!((f.to_world(u, v) - p).norm() < 1e-12);
@@ -125,5 +141,17 @@ mod tests {
             assert!(u >= f.u0 - 1e-9 && u <= f.u0 + f.nu as f64 * f.h + 1e-9);
             assert!(v >= f.v0 - 1e-9 && v <= f.v0 + f.nv as f64 * f.h + 1e-9);
         }
+        // Non-finite or absurd geometry gives no frame.
+        assert!(SweepFrame::over_grid(
+            &Grid::new(Point2::new(f64::NAN, 0.0), 0.05, 4, 4),
+            0.0,
+            0.05
+        )
+        .is_none());
+        assert!(SweepFrame::over_grid(&g, 0.0, 0.0).is_none());
+        assert!(
+            SweepFrame::over_grid(&Grid::new(Point2::new(0.0, 0.0), 1e6, 4, 4), 0.0, 0.05)
+                .is_none()
+        );
     }
 }

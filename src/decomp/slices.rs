@@ -630,3 +630,47 @@ fn fill_line(px: &mut [u8], start: usize, stride: usize, n: usize, max: usize) {
         j += 1;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_unknown_gaps_between_free_are_filled_only() {
+        // F U U F U U U U F O U F
+        let mut px = vec![
+            FREE, UNK, UNK, FREE, UNK, UNK, UNK, UNK, FREE, OCC, UNK, FREE,
+        ];
+        let n = px.len();
+        fill_line(&mut px, 0, 1, n, 3);
+        assert_eq!(
+            px,
+            vec![FREE, FREE, FREE, FREE, UNK, UNK, UNK, UNK, FREE, OCC, UNK, FREE]
+        );
+        // Along a column (stride) as well.
+        let mut col = vec![FREE, 9, UNK, 9, FREE];
+        fill_line(&mut col, 0, 2, 3, 1);
+        assert_eq!(col, vec![FREE, 9, FREE, 9, FREE]);
+    }
+
+    #[test]
+    fn wall_points_block_disks_and_rounded_squares() {
+        let disk = WallPoint {
+            u: 1.0,
+            v: 2.0,
+            e: 0.0,
+            r: 0.5,
+        };
+        assert!((disk.half_width_at(2.0).unwrap() - 0.5).abs() < 1e-12);
+        assert!((disk.half_width_at(2.3).unwrap() - 0.4).abs() < 1e-12);
+        assert!(disk.half_width_at(2.5).is_none());
+        let square = WallPoint { e: 0.1, ..disk };
+        assert!((square.half_width_at(2.05).unwrap() - 0.6).abs() < 1e-12);
+        assert!((square.half_width_at(2.4).unwrap() - 0.5).abs() < 1e-12);
+        // Reach across the lanes toward an interval beside it.
+        assert!((disk.reach_across(0.0, 0.6).unwrap() - 0.3).abs() < 1e-12);
+        assert!(disk.reach_across(-2.0, 0.4).is_none());
+        let expect = 0.1 + (0.25f64 - 0.01).sqrt();
+        assert!((square.reach_across(1.2, 3.0).unwrap() - expect).abs() < 1e-12);
+    }
+}

@@ -242,3 +242,55 @@ pub fn panels(docs: Vec<Document>, columns: usize, panel_size: (f64, f64)) -> Do
 pub fn save_to(path: &std::path::Path, doc: &Document) -> std::io::Result<()> {
     svg::save(path, doc)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::decomp::cell::{Cell, CellId};
+
+    #[test]
+    fn picture_has_cells_ids_edges_and_caption() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 40, 30);
+        for y in 5..25 {
+            for x in 5..35 {
+                g.set_state((x, y), CellState::Free);
+            }
+        }
+        let cell = |id: u32, y0: f64, status| Cell {
+            id: CellId(id),
+            polygon: vec![
+                Point2::new(1.0, y0),
+                Point2::new(3.0, y0),
+                Point2::new(3.0, y0 + 0.8),
+                Point2::new(1.0, y0 + 0.8),
+            ],
+            status,
+            sweep_angle: 0.0,
+            width: 0.8,
+            length: 2.0,
+        };
+        let d = Decomposition {
+            cells: vec![
+                cell(7, 0.6, CellStatus::Final),
+                cell(9, 1.4, CellStatus::Open),
+            ],
+            virtual_edges: vec![Segment::new(Point2::new(1.0, 1.4), Point2::new(3.0, 1.4))],
+            ..Decomposition::default()
+        };
+        let s = render(&d, &g, Some(Point2::new(2.0, 1.0)), &[], "two cells").to_string();
+        assert_eq!(s.matches("<polygon").count(), 2);
+        assert!(s.contains("\n7\n") && s.contains("\n9\n") && s.contains("two cells"));
+        assert!(s.contains("stroke-dasharray"));
+        assert!(s.contains(status_colour(CellStatus::Final)));
+        let both = panels(
+            vec![
+                render(&d, &g, None, &[], "a"),
+                render(&d, &g, None, &[], "b"),
+            ],
+            2,
+            (100.0, 80.0),
+        )
+        .to_string();
+        assert!(both.contains("(a)") && both.contains("(b)"));
+    }
+}

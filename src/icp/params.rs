@@ -189,3 +189,67 @@ impl IcpParams {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_icp_table_is_the_default_and_valid() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = crate::config::Config::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(cfg.icp, IcpParams::default());
+        cfg.icp.validate().unwrap();
+    }
+
+    #[test]
+    fn bad_values_name_their_key() {
+        let cases: [(IcpParams, &str); 4] = [
+            (
+                IcpParams {
+                    gate_min: 1.0,
+                    gate_initial: 0.5,
+                    ..IcpParams::default()
+                },
+                "icp.gate_min",
+            ),
+            (
+                IcpParams {
+                    min_pairs: 2,
+                    ..IcpParams::default()
+                },
+                "icp.min_pairs",
+            ),
+            (
+                IcpParams {
+                    max_iterations: 0,
+                    ..IcpParams::default()
+                },
+                "icp.max_iterations",
+            ),
+            (
+                IcpParams {
+                    keyframe_window: 0,
+                    ..IcpParams::default()
+                },
+                "icp.keyframe_window",
+            ),
+        ];
+        for (p, key) in cases {
+            let e = p.validate().unwrap_err();
+            assert!(e.to_string().contains(key), "{e}");
+        }
+    }
+
+    #[test]
+    fn metric_and_prior_parse_from_toml() {
+        let cfg = crate::config::Config::from_toml(
+            "[icp]\nmetric = \"point_to_point\"\nprior = \"constant_velocity\"\n",
+            "t",
+        )
+        .unwrap();
+        assert_eq!(cfg.icp.metric, Metric::PointToPoint);
+        assert_eq!(cfg.icp.prior, Prior::ConstantVelocity);
+        assert!(crate::config::Config::from_toml("[icp]\nmetric = \"plane\"\n", "t").is_err());
+    }
+}

@@ -2,7 +2,7 @@
 //! constant-velocity prior, match against the keyframe local map, accept or
 //! fall back to the prediction, add keyframes as the robot moves.
 
-use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Rejection};
+use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Reference, Rejection};
 
 /// `p` with its rotation re-normalised: nalgebra does not renormalise unit
 /// complex numbers after products, and the rounding drift of thousands of
@@ -89,8 +89,30 @@ impl Tracker {
     }
 
     /// Processes one scan given as sensor-frame points in beam order, with the
-    /// wheel odometry pose at the same time when there is one.
+    /// wheel odometry pose at the same time when there is one. Matches against
+    /// the tracker's own keyframe map and adds keyframes as the robot moves.
     pub fn step(&mut self, points: &[IPoint], odom: Option<&Pose>) -> Step {
+        self.step_inner(points, odom, None)
+    }
+
+    /// Like [`Tracker::step`], but matches against `reference` (e.g. a snapshot
+    /// of the mapping layer's point map, in the same world frame) instead of
+    /// the keyframe map, which is left untouched.
+    pub fn step_with_reference(
+        &mut self,
+        points: &[IPoint],
+        odom: Option<&Pose>,
+        reference: &Reference,
+    ) -> Step {
+        self.step_inner(points, odom, Some(reference))
+    }
+
+    fn step_inner(
+        &mut self,
+        points: &[IPoint],
+        odom: Option<&Pose>,
+        external: Option<&Reference>,
+    ) -> Step {
         // A fresh odometry reading predicts from the pose where the previous
         // distinct reading first appeared; a stalled (repeated) reading says
         // nothing, so the constant-velocity prior is used instead.
@@ -102,7 +124,7 @@ impl Tracker {
             _ => None,
         };
         let prepared = self.matcher.prepare_points(points);
-        if !self.started {
+        if !self.started && external.is_none() {
             let step = match prepared {
                 Ok(_) => {
                     let params = self.matcher.params().clone();
@@ -137,7 +159,7 @@ impl Tracker {
             (Prior::Odometry, Some(_)) => self.matcher.params().prior_weight,
             _ => 0.0,
         };
-        let step = self.register(prepared.map(|_| ()), guess, weight, cv_guess);
+        let step = self.register(prepared.map(|_| ()), guess, weight, cv_guess, external);
         if let Some((now, _)) = fresh_odom {
             self.odom_anchor = Some((now, step.pose));
         }
@@ -152,14 +174,15 @@ impl Tracker {
         guess: Pose,
         weight: f64,
         alt: Pose,
+        external: Option<&Reference>,
     ) -> Step {
         if let Err(e) = prepared {
             return self.predict(guess, Outcome::Failed(e));
         }
-        let first = self.try_match(&guess, weight);
+        let first = self.try_match(&guess, weight, external);
         let outcome = match first {
             Ok(m) => Ok(m),
-            Err(bad) if alt != guess => match self.try_match(&alt, 0.0) {
+            Err(bad) if alt != guess => match self.try_match(&alt, 0.0, external) {
                 Ok(m) => Ok(m),
                 Err(bad2) => Err(better_failure(bad, bad2)),
             },
@@ -169,7 +192,7 @@ impl Tracker {
             Ok(m) => {
                 self.velocity = unit(self.pose.inverse() * m.pose);
                 self.pose = unit(m.pose);
-                let keyframe = self.maybe_keyframe();
+                let keyframe = external.is_none() && self.maybe_keyframe();
                 Step {
                     pose: self.pose,
                     outcome: Outcome::Matched(m.quality),
@@ -182,8 +205,13 @@ impl Tracker {
 
     // Both variants are plain stack values used once; boxing would allocate per scan.
     #[allow(clippy::result_large_err)]
-    fn try_match(&mut self, guess: &Pose, weight: f64) -> Result<super::Match, Outcome> {
-        let reference = self.map.reference();
+    fn try_match(
+        &mut self,
+        guess: &Pose,
+        weight: f64,
+        external: Option<&Reference>,
+    ) -> Result<super::Match, Outcome> {
+        let reference = external.unwrap_or(self.map.reference());
         match self
             .matcher
             .match_prepared_weighted(reference, guess, weight)

@@ -121,6 +121,78 @@ impl Odometer {
     }
 }
 
+/// Capacity of an [`OdometryTrack`] (poses kept); at 20 Hz about 12 s.
+pub const TRACK_LEN: usize = 256;
+
+/// The integrated odometry pose over the last few seconds, to look up where
+/// the base was (by odometry) at a scan's timestamp: the localiser's prior.
+/// Fixed capacity, allocation-free.
+#[derive(Clone, Debug)]
+pub struct OdometryTrack {
+    poses: heapless::Deque<(f64, Pose), TRACK_LEN>,
+}
+
+impl Default for OdometryTrack {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl OdometryTrack {
+    /// An empty track; the first increment starts it at the identity pose.
+    pub fn new() -> Self {
+        Self {
+            poses: heapless::Deque::new(),
+        }
+    }
+
+    /// Appends an increment (the oldest pose drops out when full). An
+    /// increment that does not start where the track ends (a gap after a
+    /// lost link) continues from the last pose anyway: odometry is relative.
+    pub fn push(&mut self, o: &Odometry) {
+        let last = match self.poses.back() {
+            Some(&(_, p)) => p,
+            None => {
+                let _ = self.poses.push_back((o.t0, Pose::identity()));
+                Pose::identity()
+            }
+        };
+        if self.poses.is_full() {
+            let _ = self.poses.pop_front();
+        }
+        let _ = self.poses.push_back((o.t1, last * o.delta));
+    }
+
+    /// The latest odometry pose and its time.
+    pub fn latest(&self) -> Option<(f64, Pose)> {
+        self.poses.back().copied()
+    }
+
+    /// The odometry pose at time `t`, interpolated between the readings
+    /// around it; `None` outside the kept span (no extrapolation).
+    pub fn pose_at(&self, t: f64) -> Option<Pose> {
+        let (first, last) = (self.poses.front()?, self.poses.back()?);
+        if !(t >= first.0 && t <= last.0) {
+            return None;
+        }
+        let mut prev = *first;
+        for &(ti, pi) in self.poses.iter() {
+            if ti >= t {
+                let span = ti - prev.0;
+                if span <= 0.0 || ti == t {
+                    return Some(pi);
+                }
+                let a = (t - prev.0) / span;
+                let step = prev.1.inverse() * pi;
+                let part = Isometry2::new(step.translation.vector * a, step.rotation.angle() * a);
+                return Some(prev.1 * part);
+            }
+            prev = (ti, pi);
+        }
+        Some(last.1)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,6 +252,46 @@ mod tests {
             total *= d.delta;
         }
         assert!((total.translation.x - 2.0).abs() < 1e-9, "{total}");
+    }
+
+    fn odo(t0: f64, t1: f64, dx: f64, dth: f64) -> Odometry {
+        Odometry {
+            t0,
+            t1,
+            delta: Isometry2::new(Vector2::new(dx, 0.0), dth),
+            left: dx,
+            right: dx,
+        }
+    }
+
+    #[test]
+    fn track_interpolates_and_refuses_to_extrapolate() {
+        let mut tr = OdometryTrack::new();
+        assert_eq!(tr.pose_at(0.0), None);
+        tr.push(&odo(1.0, 1.1, 0.02, 0.0));
+        tr.push(&odo(1.1, 1.2, 0.02, 0.1));
+        let p = tr.pose_at(1.05).unwrap();
+        assert!((p.translation.x - 0.01).abs() < 1e-12);
+        let p = tr.pose_at(1.15).unwrap();
+        assert!((p.translation.x - 0.03).abs() < 1e-12);
+        assert!((heading(&p) - 0.05).abs() < 1e-12);
+        assert_eq!(tr.pose_at(1.2), Some(tr.latest().unwrap().1));
+        assert_eq!(tr.pose_at(0.99), None);
+        assert_eq!(tr.pose_at(1.21), None);
+        assert_eq!(tr.pose_at(f64::NAN), None);
+    }
+
+    #[test]
+    fn track_keeps_the_newest_poses() {
+        let mut tr = OdometryTrack::new();
+        for i in 0..(TRACK_LEN + 50) {
+            let t = i as f64 * 0.05;
+            tr.push(&odo(t, t + 0.05, 0.01, 0.0));
+        }
+        let (t, p) = tr.latest().unwrap();
+        assert!((p.translation.x - 0.01 * (TRACK_LEN + 50) as f64).abs() < 1e-9);
+        assert!(tr.pose_at(t - 0.05 * (TRACK_LEN as f64 - 2.0)).is_some());
+        assert!(tr.pose_at(0.0).is_none());
     }
 
     #[test]

@@ -90,6 +90,10 @@ pub struct RoboClawParams {
     pub retries: u32,
     /// Whether motor 1 drives the left wheel (else the right one).
     pub m1_is_left: bool,
+    /// Wheel acceleration the controller ramps set-points at (m/s², command
+    /// 40); 0 sends plain set-points (command 37). Safety stops are always
+    /// immediate.
+    pub accel: f64,
 }
 
 impl Default for RoboClawParams {
@@ -101,6 +105,7 @@ impl Default for RoboClawParams {
             reply_timeout: 0.02,
             retries: 2,
             m1_is_left: true,
+            accel: 1.0,
         }
     }
 }
@@ -147,6 +152,12 @@ impl MotorParams {
             return Err(invalid(
                 "motor.roboclaw.serial_timeout",
                 &format!("must be 0.1..=25.5 s, got {}", r.serial_timeout),
+            ));
+        }
+        if !(r.accel.is_finite() && r.accel >= 0.0) {
+            return Err(invalid(
+                "motor.roboclaw.accel",
+                &format!("must be a finite number >= 0, got {}", r.accel),
             ));
         }
         positive("motor.create2.counts_per_rev", self.create2.counts_per_rev)?;
@@ -196,6 +207,10 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("serial_timeout"));
+        let mut p = MotorParams::default();
+        p.roboclaw.accel = -1.0;
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("motor.roboclaw.accel"), "{e}");
     }
 
     #[test]

@@ -157,6 +157,8 @@ pub struct BaseFeedback {
     pub events: heapless::Vec<SafetyEvent, 8>,
     /// Whether the link currently answers.
     pub link_up: bool,
+    /// Latest main battery voltage (V), when the base reports one.
+    pub battery: Option<f64>,
 }
 
 impl BaseFeedback {

@@ -222,6 +222,18 @@ pub struct SupervisorMetrics {
     pub notify_errors: u64,
 }
 
+/// CPU throttling of the daemon's cgroup during the run (`CPUQuota=`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ThrottleMetrics {
+    /// Quota enforcement periods elapsed (0 without a quota).
+    pub periods: u64,
+    /// Periods that ran out of quota.
+    pub throttled: u64,
+    /// Time held back (s).
+    pub throttled_time: f64,
+}
+
 /// Everything the report needs, at one instant of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -242,6 +254,8 @@ pub struct MetricsSnapshot {
     pub edges: Vec<EdgeMetrics>,
     /// Supervisor counters.
     pub supervisor: SupervisorMetrics,
+    /// cgroup CPU throttling, where the cgroup's `cpu.stat` is readable.
+    pub throttling: Option<ThrottleMetrics>,
 }
 
 /// Version written into metrics files by this build.

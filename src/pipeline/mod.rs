@@ -8,7 +8,58 @@
 //! [`Stage`] per box of the DESIGN data path, and hands the pipeline to a
 //! [`supervisor::Supervisor`], which runs until a signal, a stop request or a
 //! failed stage, then shuts down in order.
+//!
+//! ```
+//! use std::time::Duration;
+//! use sweepline::pipeline::supervisor::{NoHooks, Supervisor};
+//! use sweepline::pipeline::{
+//!     latest, Pipeline, PipelineParams, Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx,
+//! };
+//!
+//! /// Produces 100 numbers, then ends.
+//! struct Source { left: u32, out: Tx<u32> }
+//! impl Stage for Source {
+//!     type Work = u32;
+//!     fn wait(&mut self, _timeout: Duration) -> Poll<u32> {
+//!         if self.left == 0 { return Poll::Done; }
+//!         self.left -= 1;
+//!         Poll::Work(self.left)
+//!     }
+//!     fn process(&mut self, n: u32, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+//!         self.out.send(n).map(|_| ()).map_err(|e| StageFault::Fatal(e.to_string()))
+//!     }
+//! }
+//!
+//! /// Takes the newest number; does less work when told to degrade.
+//! struct Sink { input: Rx<u32> }
+//! impl Stage for Sink {
+//!     type Work = u32;
+//!     fn wait(&mut self, timeout: Duration) -> Poll<u32> {
+//!         match self.input.recv_timeout(timeout) {
+//!             Recv::Msg(n) => Poll::Work(n),
+//!             Recv::Empty => Poll::Idle,
+//!             Recv::Closed => Poll::Done,
+//!         }
+//!     }
+//!     fn process(&mut self, _n: u32, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+//!         let _iterations = 20 >> ctx.degrade(); // e.g. fewer ICP iterations
+//!         Ok(())
+//!     }
+//! }
+//!
+//! let params = PipelineParams::default();
+//! let mut p = Pipeline::new(&params);
+//! let (tx, rx) = latest::<u32>("pose");
+//! p.register_edge(&tx);
+//! p.spawn("localise", Source { left: 100, out: tx })?;
+//! p.spawn("plan", Sink { input: rx })?;
+//! let out = Supervisor::new(&params).run(p, &mut NoHooks);
+//! let e = &out.snapshot.edges[0];
+//! assert_eq!(e.received + e.dropped, 100); // newest-wins: taken or counted
+//! # Ok::<(), sweepline::pipeline::PipelineError>(())
+//! ```
 
+pub mod cgroup;
 pub mod checkpoint;
 pub mod clock;
 pub mod edge;
@@ -31,7 +82,7 @@ pub use stage::{Poll, RunState, Stage, StageCtx, StageFault, StageHealth};
 
 use clock::{core_count, process_cpu_time, Stamp};
 use edge::EdgeStats;
-use metrics::{EdgeMetrics, MetricsSnapshot, SupervisorMetrics, METRICS_VERSION};
+use metrics::{EdgeMetrics, MetricsSnapshot, SupervisorMetrics, ThrottleMetrics, METRICS_VERSION};
 use stage::StageBudget;
 
 /// Why the pipeline could not be set up.
@@ -83,6 +134,7 @@ pub struct Pipeline {
     edges: Vec<EdgeEntry>,
     started: Stamp,
     cpu0: Duration,
+    throttle0: Option<cgroup::Throttling>,
     supervisor: Arc<SupervisorCounters>,
 }
 
@@ -97,6 +149,7 @@ impl Pipeline {
             edges: Vec::new(),
             started: Stamp::now(),
             cpu0: process_cpu_time(),
+            throttle0: cgroup::read_throttling(),
             supervisor: Arc::new(SupervisorCounters::default()),
         }
     }
@@ -225,12 +278,24 @@ impl Pipeline {
                 stall_checks: sup.stall_checks.load(Ordering::Relaxed),
                 notify_errors: sup.notify_errors.load(Ordering::Relaxed),
             },
+            throttling: self.throttle0.as_ref().and_then(|t0| {
+                cgroup::read_throttling().map(|t| {
+                    let d = t.since(t0);
+                    ThrottleMetrics {
+                        periods: d.periods,
+                        throttled: d.throttled,
+                        throttled_time: d.throttled_us as f64 * 1e-6,
+                    }
+                })
+            }),
         }
     }
 
     /// Stops every stage (each sees the flag within one poll timeout, then
     /// runs its `on_stop`), joins every thread, and returns the final snapshot.
-    /// A stage stuck in `process` delays this until it returns.
+    /// A stage still stuck in `process` after `pipeline.stop_timeout` is left
+    /// behind (logged, its thread detached; it dies with the process) so that
+    /// shutdown finishes inside systemd's `TimeoutStopSec=`.
     pub fn stop(mut self) -> MetricsSnapshot {
         self.join_all();
         self.snapshot()
@@ -238,11 +303,27 @@ impl Pipeline {
 
     fn join_all(&mut self) {
         self.stop.store(true, Ordering::Release);
+        let deadline = Stamp::now().after(Duration::from_secs_f64(self.params.stop_timeout));
+        while Stamp::now() < deadline
+            && self
+                .stages
+                .iter()
+                .any(|s| s.thread.is_some() && s.health.state() == RunState::Running)
+        {
+            std::thread::sleep(Duration::from_millis(2));
+        }
         for s in &mut self.stages {
-            if let Some(t) = s.thread.take() {
-                if t.join().is_err() {
-                    stage::mark_failed(&s.health);
-                }
+            let Some(t) = s.thread.take() else { continue };
+            if s.health.state() == RunState::Running && !t.is_finished() {
+                log::error!(
+                    "stage {} did not stop within {} s; leaving its thread behind",
+                    s.health.name(),
+                    self.params.stop_timeout
+                );
+                continue;
+            }
+            if t.join().is_err() {
+                stage::mark_failed(&s.health);
             }
         }
     }

@@ -87,6 +87,9 @@ pub struct PipelineParams {
     pub watchdog_period: f64,
     /// How often the supervisor checks heartbeats and sends `STATUS=` (s).
     pub supervise_period: f64,
+    /// Longest shutdown waits for a stage to finish its current item before
+    /// leaving it behind (s); keep it below the unit's `TimeoutStopSec=`.
+    pub stop_timeout: f64,
     /// Whole-process CPU budget as a fraction of one core (0.05 = 5 %).
     pub cpu_budget: f64,
     /// Consecutive overruns that raise a stage's degradation level by one.
@@ -114,6 +117,7 @@ impl Default for PipelineParams {
             stall_after: 1.0,
             watchdog_period: 0.0,
             supervise_period: 0.1,
+            stop_timeout: 2.0,
             cpu_budget: 0.05,
             degrade_after: 3,
             recover_after: 50,
@@ -133,6 +137,7 @@ impl PipelineParams {
         positive("pipeline.poll_timeout", self.poll_timeout)?;
         positive("pipeline.stall_after", self.stall_after)?;
         positive("pipeline.supervise_period", self.supervise_period)?;
+        positive("pipeline.stop_timeout", self.stop_timeout)?;
         positive("pipeline.cpu_budget", self.cpu_budget)?;
         positive("pipeline.late_after", self.late_after)?;
         positive("pipeline.checkpoint_period", self.checkpoint_period)?;
@@ -183,6 +188,7 @@ impl PipelineParams {
             ("pipeline.supervise_period", self.supervise_period),
             ("pipeline.watchdog_period", self.watchdog_period),
             ("pipeline.stall_after", self.stall_after),
+            ("pipeline.stop_timeout", self.stop_timeout),
         ] {
             if v > 3600.0 {
                 return Err(invalid(k, &format!("must be at most 3600 s, got {v:?}")));

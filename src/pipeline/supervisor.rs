@@ -189,8 +189,14 @@ impl Supervisor {
             if stages.peek().is_some() && stages.all(|s| s.state() == RunState::Stopped) {
                 break StopReason::AllStagesDone;
             }
-            let stalled: Option<String> =
-                pipeline.unhealthy(now).next().map(|s| s.name().to_string());
+            let stalled: Option<String> = pipeline.unhealthy(now).next().map(|s| {
+                let what = if s.state() == RunState::Running {
+                    "stalled"
+                } else {
+                    "stopped"
+                };
+                format!("{what}: {}", s.name())
+            });
             match &stalled {
                 None => {
                     stalled_before = false;
@@ -203,10 +209,10 @@ impl Supervisor {
                         }
                     }
                 }
-                Some(name) => {
+                Some(what) => {
                     counters.stall_checks.fetch_add(1, Ordering::Relaxed);
                     if !stalled_before {
-                        log::warn!("stage {name} is stalled: withholding the watchdog");
+                        log::warn!("stage {what}: withholding the watchdog");
                         stalled_before = true;
                     }
                 }
@@ -215,7 +221,7 @@ impl Supervisor {
                 let extra = hooks.status();
                 let health = match &stalled {
                     None => "ok".to_string(),
-                    Some(n) => format!("stalled: {n}"),
+                    Some(n) => n.clone(),
                 };
                 let text = if extra.is_empty() {
                     format!("health {health}")

@@ -133,7 +133,8 @@ pub fn lanes(input: &LaneInput) -> Vec<Lane> {
     }
     let (a_lo, a_hi) = (coord(a_min, ov), coord(a_max, ov));
     let (t_lo, t_hi) = (coord(t_min, ov), coord(t_max, ov));
-    let reach = input.reach.max(res);
+    // A hair of tolerance: rows exactly half a spacing away count as reached.
+    let reach = input.reach.max(res) + 1e-6;
     // The tool must reach the outer edge of the extreme target rows.
     let c_lo = (t_lo - res / 2.0 + reach).clamp(a_lo, a_hi);
     let c_hi = (t_hi + res / 2.0 - reach).clamp(a_lo, a_hi);
@@ -217,6 +218,119 @@ pub fn lanes(input: &LaneInput) -> Vec<Lane> {
                     b: point(axis, b, pos),
                 });
             }
+        }
+    }
+    // Connections between neighbouring lanes sweep the floor between their
+    // ends (one side or the other, whatever the order): count both as swept.
+    let main = out.len();
+    for k in 1..main {
+        for (p, q) in [(out[k - 1].a, out[k].a), (out[k - 1].b, out[k].b)] {
+            if (q - p).norm() > 2.0 * input.spacing {
+                continue;
+            }
+            for v in v_lo..=v_hi {
+                for uu in u_lo..=u_hi {
+                    let c = point(axis, coord(uu, ou), coord(v, ov));
+                    let d = q - p;
+                    let t = ((c - p).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+                    if (c - (p + d * t)).norm() <= reach {
+                        served[(v - v_lo) * nu + (uu - u_lo)] = true;
+                    }
+                }
+            }
+        }
+    }
+    // Fix-up: floor the evenly spaced lanes could not reach (their path
+    // between two rows was blocked there) gets short lanes along single
+    // admissible rows, the row reaching most of it first.
+    let unserved = |u: usize, v: usize, served: &[bool]| {
+        at(input.targets, u, v) && !served[(v - v_lo) * nu + (u - u_lo)]
+    };
+    for _ in 0..16 {
+        let mut best: Option<(usize, usize)> = None;
+        for row in a_min..=a_max {
+            let mut count = 0;
+            for v in v_lo..=v_hi {
+                let dv = (coord(v, ov) - coord(row, ov)).abs();
+                if dv > reach {
+                    continue;
+                }
+                let half = ((reach * reach - dv * dv).max(0.0).sqrt() / res).floor() as i64;
+                for u in u_lo..=u_hi {
+                    if !unserved(u, v, &served) {
+                        continue;
+                    }
+                    let lo = (u as i64 - half).max(u_lo as i64) as usize;
+                    let hi = ((u as i64 + half) as usize).min(u_hi);
+                    if (lo..=hi).any(|uu| at(input.admissible, uu, row)) {
+                        count += 1;
+                    }
+                }
+            }
+            if count >= 4 && best.is_none_or(|(c, _)| count > c) {
+                best = Some((count, row));
+            }
+        }
+        let Some((_, row)) = best else { break };
+        let pos = coord(row, ov);
+        let mut u = u_lo;
+        let before = out.len();
+        while u <= u_hi {
+            if !at(input.admissible, u, row) {
+                u += 1;
+                continue;
+            }
+            let start = u;
+            while u <= u_hi && at(input.admissible, u, row) {
+                u += 1;
+            }
+            let (s_m, e_m) = (coord(start, ou), coord(u - 1, ou));
+            let mut cols: Vec<f64> = Vec::new();
+            for uu in u_lo..=u_hi {
+                let c = coord(uu, ou);
+                if c < s_m - reach || c > e_m + reach {
+                    continue;
+                }
+                let hit = (v_lo..=v_hi).any(|v| {
+                    let dv = (coord(v, ov) - pos).abs();
+                    let du = (c - c.clamp(s_m, e_m)).abs();
+                    dv * dv + du * du <= reach * reach && unserved(uu, v, &served)
+                });
+                if hit {
+                    cols.push(c);
+                }
+            }
+            let mut pieces: Vec<(f64, f64)> = Vec::new();
+            for c in cols {
+                match pieces.last_mut() {
+                    Some((_, hi)) if c - *hi <= input.spacing / 2.0 => *hi = c,
+                    _ => pieces.push((c, c)),
+                }
+            }
+            for (lo_t, hi_t) in pieces {
+                let a = lo_t.clamp(s_m, e_m);
+                let b = hi_t.clamp(s_m, e_m);
+                for v in v_lo..=v_hi {
+                    let dv = (coord(v, ov) - pos).abs();
+                    if dv > reach {
+                        continue;
+                    }
+                    let half = (reach * reach - dv * dv).max(0.0).sqrt();
+                    for uu in u_lo..=u_hi {
+                        let c = coord(uu, ou);
+                        if c >= a - half && c <= b + half {
+                            served[(v - v_lo) * nu + (uu - u_lo)] = true;
+                        }
+                    }
+                }
+                out.push(Lane {
+                    a: point(axis, a, pos),
+                    b: point(axis, b, pos),
+                });
+            }
+        }
+        if out.len() == before {
+            break;
         }
     }
     out
@@ -350,7 +464,7 @@ mod tests {
         for i in 0..f.len() {
             let c = f.centre(i);
             adm[i] = c.x > 0.2 && c.x < 2.8 && c.y > 0.2 && c.y < 1.8;
-            tgt[i] = c.x > 0.05 && c.x < 2.95 && c.y > 0.05 && c.y < 1.95;
+            tgt[i] = c.x > 0.07 && c.x < 2.93 && c.y > 0.07 && c.y < 1.93;
         }
         (adm, tgt)
     }
@@ -366,7 +480,7 @@ mod tests {
             bbox: (0, 0, 59, 39),
             axis: Axis::X,
             spacing: 0.29,
-            reach: 0.13,
+            reach: 0.145,
         };
         let ls = lanes(&input);
         // Targets 0.075..1.925 → centres 0.205..1.795 → ceil(1.59/0.29)+1 = 7 lanes.
@@ -408,7 +522,7 @@ mod tests {
             bbox: (0, 0, 59, 39),
             axis: Axis::Y,
             spacing: 0.29,
-            reach: 0.13,
+            reach: 0.145,
         };
         let ls = lanes(&input);
         assert!(!ls.is_empty() && ls.len() <= 3, "{ls:?}");
@@ -430,7 +544,7 @@ mod tests {
             bbox: (0, 0, 59, 39),
             axis: Axis::X,
             spacing: 0.29,
-            reach: 0.13,
+            reach: 0.145,
         };
         assert!(lanes(&input).is_empty());
         assert!(order(&[], |_| 0.0).0.is_empty());

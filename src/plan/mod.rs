@@ -51,9 +51,9 @@ impl Default for PlanParams {
         Self {
             safety_margin: 0.01,
             lane_overlap: 0.01,
-            reach_margin: 0.01,
+            reach_margin: 0.005,
             lookahead_weight: 1.0,
-            min_patch_area: 0.01,
+            min_patch_area: 0.05,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
             look_around: true,

@@ -151,7 +151,7 @@ impl Candidate {
 }
 
 /// Interruptions after which a target or frontier is given up.
-const MAX_TRIES: u8 = 3;
+const MAX_TRIES: u8 = 2;
 
 /// Candidates considered jointly when ordering (the nearest ones).
 const TOUR_CANDIDATES: usize = 9;
@@ -241,7 +241,7 @@ impl CoveragePlanner {
             scratch_a: Vec::new(),
             scratch_t: Vec::new(),
             report: None,
-            stamp_radius: (robot.tool_width / 2.0 - 0.01).max(robot.tool_width / 4.0),
+            stamp_radius: reach + 1e-6,
             history: Vec::new(),
             planned_lanes: 0,
             owner: Vec::new(),
@@ -354,10 +354,14 @@ impl CoveragePlanner {
             }
         }
         if progress.is_none() && matches!(self.task, Task::Cover(_)) {
-            // Targets the finished lanes did not reach are given up.
+            // Targets the finished lanes did not reach get one more try; after
+            // MAX_TRIES they are given up.
             for &i in &self.task_targets {
                 if !self.covered[i] {
-                    self.abandoned[i] = true;
+                    self.tries[i] = self.tries[i].saturating_add(1);
+                    if self.tries[i] >= MAX_TRIES {
+                        self.abandoned[i] = true;
+                    }
                 }
             }
             self.task_targets.clear();
@@ -395,8 +399,11 @@ impl CoveragePlanner {
         // An interrupted task: what it was after counts one more try; after
         // MAX_TRIES tries it is given up (no endless back and forth).
         let old_targets = std::mem::take(&mut self.task_targets);
+        // A task that swept some of its floor before being interrupted made
+        // progress: its floor is not charged a try.
+        let progressed = old_targets.iter().any(|&i| self.covered[i]);
         for i in old_targets {
-            if !self.covered[i] {
+            if !progressed && !self.covered[i] {
                 self.tries[i] = self.tries[i].saturating_add(1);
                 if self.tries[i] >= MAX_TRIES {
                     self.abandoned[i] = true;

@@ -80,6 +80,23 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
         ok_mark(share <= s.cpu_budget),
     );
 
+    match &s.throttling {
+        Some(t) if t.periods > 0 => {
+            let _ = writeln!(
+                md,
+                "cgroup CPU quota: {} of {} enforcement periods throttled, {} held back in all \
+                 (throttling delays every stage at once).\n",
+                t.throttled,
+                t.periods,
+                fmt_duration(t.throttled_time)
+            );
+        }
+        Some(_) => {
+            let _ = writeln!(md, "cgroup CPU quota: none in force during this run.\n");
+        }
+        None => {}
+    }
+
     let e2e = s.end_to_end();
     let q = Quantiles::of(&e2e);
     let _ = writeln!(md, "## End-to-end latency\n");

@@ -18,8 +18,10 @@ use crate::motor::odometry::arc_increment;
 use crate::motor::{Sides, WheelSpeeds};
 use crate::sim::world::World;
 
-/// Physical and noise parameters of the simulated base.
-#[derive(Clone, Debug, PartialEq)]
+/// Physical and noise parameters of the simulated base (serde-ready for a
+/// simulator config table; unknown keys are errors).
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct KinematicsParams {
     /// Distance between the wheels' contact points (m).
     pub wheel_base: f64,
@@ -347,6 +349,15 @@ mod tests {
         }
         assert!(!s.bumper().any());
         assert!(s.pose().translation.x < x);
+    }
+
+    #[test]
+    fn params_parse_with_defaults_and_reject_unknown_keys() {
+        let p: KinematicsParams = toml::from_str("slip = 0.02\nseed = 9\n").unwrap();
+        assert_eq!(p.slip, 0.02);
+        assert_eq!(p.seed, 9);
+        assert_eq!(p.wheel_base, KinematicsParams::default().wheel_base);
+        assert!(toml::from_str::<KinematicsParams>("slipp = 1.0\n").is_err());
     }
 
     #[test]

@@ -28,6 +28,12 @@ use crate::serial::Connector;
 /// One scan as the driver publishes it: the algorithms' [`LaserScan`]
 /// (angles from PP, metres, host-clock stamp, invalid beams flagged) plus
 /// what only the scanner knows.
+///
+/// `scan.stamp` is the host time (injected clock, s) at which the sensor's
+/// clock read `raw_stamp`, through the TM-fitted clock model (arrival time
+/// if clock sync is off). Taking that as the time of the first step, beam
+/// `k` was measured about `k × cluster × time_per_step` later; use it to
+/// deskew scans taken while moving.
 #[derive(Clone, Debug)]
 pub struct UrgScan {
     /// The scan for the algorithms.

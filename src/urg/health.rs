@@ -27,6 +27,8 @@ pub struct UrgHealth {
     pub resets: AtomicU64,
     /// Re-opens of the port after it went away or was reset.
     pub reconnects: AtomicU64,
+    /// Reboots (RB RB) sent as the last resort.
+    pub reboots: AtomicU64,
     /// Scans dropped because the consumer was slow (newest wins).
     pub queue_overflows: AtomicU64,
     /// Last non-OK status code from the sensor, as two ASCII bytes (0 = none).
@@ -71,6 +73,7 @@ impl UrgHealth {
             restarts: self.restarts.load(Relaxed),
             resets: self.resets.load(Relaxed),
             reconnects: self.reconnects.load(Relaxed),
+            reboots: self.reboots.load(Relaxed),
             queue_overflows: self.queue_overflows.load(Relaxed),
             last_status: (s != 0).then_some([(s >> 8) as u8, s as u8]),
             streaming: self.streaming.load(Relaxed),
@@ -103,6 +106,8 @@ pub struct HealthSnapshot {
     pub resets: u64,
     /// Port re-opens.
     pub reconnects: u64,
+    /// Reboots (RB RB).
+    pub reboots: u64,
     /// Scans dropped for a slow consumer.
     pub queue_overflows: u64,
     /// Last non-OK status code.
@@ -127,6 +132,7 @@ impl fmt::Display for HealthSnapshot {
         writeln!(f, "stream restarts      {}", self.restarts)?;
         writeln!(f, "resets (RS)          {}", self.resets)?;
         writeln!(f, "reconnects           {}", self.reconnects)?;
+        writeln!(f, "reboots (RB RB)      {}", self.reboots)?;
         writeln!(f, "queue overflows      {}", self.queue_overflows)?;
         match self.last_status {
             Some(c) => writeln!(

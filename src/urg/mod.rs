@@ -61,8 +61,13 @@ pub struct UrgParams {
     pub resync_interval: f64,
     /// Accept the known VV/II checksum quirks of some firmware (counted).
     pub lenient_info: bool,
-    /// Granularity of port reads (s): how often a blocked read checks for shutdown.
+    /// Longest single wait in a port read (s): how often a blocked read
+    /// checks for shutdown (reads otherwise sleep until their deadline).
     pub poll: f64,
+    /// When the sensor answers neither QT nor RS, reboot it (RB twice).
+    pub reboot_last_resort: bool,
+    /// How long a rebooting sensor is left alone before talking to it (s).
+    pub reboot_wait: f64,
 }
 
 impl Default for UrgParams {
@@ -82,7 +87,9 @@ impl Default for UrgParams {
             time_sync_samples: 10,
             resync_interval: 0.0,
             lenient_info: true,
-            poll: 0.01,
+            poll: 0.05,
+            reboot_last_resort: true,
+            reboot_wait: 2.0,
         }
     }
 }
@@ -118,6 +125,7 @@ impl UrgParams {
         pos("reconnect_min", self.reconnect_min)?;
         pos("reconnect_max", self.reconnect_max)?;
         pos("poll", self.poll)?;
+        pos("reboot_wait", self.reboot_wait)?;
         if !(self.scan_timeout_periods.is_finite() && self.scan_timeout_periods >= 1.5) {
             return Err(format!(
                 "scanner.scan_timeout_periods must be at least 1.5, got {}",

@@ -146,6 +146,7 @@ pub struct UrgSession {
     tx: Vec<u8>,
     in_adjust: bool,
     closing: bool,
+    read_timeout_ms: u64,
     tm_tag: u32,
     last_sync: f64,
 }
@@ -203,6 +204,7 @@ impl UrgSession {
             tx: Vec::with_capacity(64),
             in_adjust: false,
             closing: false,
+            read_timeout_ms: 0,
             tm_tag: 0,
             last_sync: now,
         };
@@ -287,8 +289,21 @@ impl UrgSession {
             if !self.closing && self.stop.load(Ordering::Relaxed) {
                 return Err(UrgError::Stopped);
             }
-            if self.core.clock.now() >= deadline {
+            let now = self.core.clock.now();
+            if now >= deadline {
                 return Ok(false);
+            }
+            // Sleep in the read until the deadline, but wake at least every
+            // `poll` seconds to notice a shutdown request.
+            let rate = self.core.clock.rate().max(1e-9);
+            let wait =
+                ((deadline - now) / rate).clamp(0.001, self.core.params.poll.clamp(0.001, 1.0));
+            let wait_ms = (wait * 1e3).ceil() as u64;
+            if wait_ms != self.read_timeout_ms {
+                self.read_timeout_ms = wait_ms;
+                let _ = self
+                    .port
+                    .set_read_timeout(std::time::Duration::from_millis(wait_ms));
             }
             match self.port.read(&mut self.buf[..]) {
                 Ok(0) => {
@@ -440,18 +455,46 @@ impl UrgSession {
                 Err(e) => return Err(e),
             }
         }
-        // Last resort before giving up: RS stops everything and resets the
-        // sensor's modes (as hokuyo_node does), then one more QT.
+        // Before giving up: RS stops everything and resets the sensor's
+        // modes (as hokuyo_node does), then one more QT.
         log::warn!("{}: no answer to QT, trying RS", self.name);
         UrgHealth::bump(&self.core.health.resets);
         self.drain_quiet(0.05, 0.3)?;
-        let _ = self.command(b"RS");
-        match self.command(b"QT")? {
-            (Status::Scip2(StatusCode::OK), _, _) => Ok(()),
-            _ => Err(UrgError::NoResponse {
-                command: "QT".into(),
-                timeout: self.core.params.reply_timeout,
+        if self.quiet_command(b"RS")? && self.quiet_command(b"QT")? {
+            return Ok(());
+        }
+        // Last resort: RB twice within a second reboots the sensor (the
+        // only cure for firmware that stops answering, urg_c #9).
+        if self.core.params.reboot_last_resort {
+            log::warn!(
+                "{}: no answer to RS either, rebooting the sensor (RB RB)",
+                self.name
+            );
+            UrgHealth::bump(&self.core.health.reboots);
+            let _ = self.quiet_command(b"RB")?;
+            let _ = self.quiet_command(b"RB")?;
+            let wait = self.core.params.reboot_wait;
+            self.drain_quiet(wait, wait)?;
+            if self.quiet_command(b"QT")? {
+                return Ok(());
+            }
+        }
+        Err(UrgError::NoResponse {
+            command: "QT".into(),
+            timeout: self.core.params.reply_timeout,
+        })
+    }
+
+    /// Sends a command; Ok(true) if it was answered with success, Ok(false)
+    /// if unanswered or refused; Err only for a gone link or shutdown.
+    fn quiet_command(&mut self, line: &[u8]) -> Result<bool, UrgError> {
+        match self.command(line) {
+            Ok((status, _, _)) => Ok(match status {
+                Status::Scip2(c) => c == StatusCode::OK || (line == b"RB" && c.0 == *b"01"),
+                Status::Scip1(_) => false,
             }),
+            Err(e) if e.link_gone() || matches!(e, UrgError::Stopped) => Err(e),
+            Err(_) => Ok(false),
         }
     }
 

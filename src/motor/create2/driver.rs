@@ -21,12 +21,16 @@ use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
 };
 
+/// The Create 2 sends a stream frame every 15 ms.
+pub const STREAM_PERIOD: f64 = 0.015;
+
 /// The packets the driver streams.
-pub const STREAM_IDS: [u8; 4] = [
+pub const STREAM_IDS: [u8; 5] = [
     pkt::BUMPS_WHEEL_DROPS,
     pkt::OI_MODE,
     pkt::LEFT_ENCODER,
     pkt::RIGHT_ENCODER,
+    pkt::VOLTAGE,
 ];
 
 /// A Create 2 (or Roomba 600-series) over its Open Interface.
@@ -49,6 +53,9 @@ pub struct Create2Driver {
     last_frame: f64,
     next_probe: f64,
     mode_warned: bool,
+    paused: bool,
+    battery: Option<f64>,
+    silent_warned: bool,
     pending: heapless::Vec<SafetyEvent, 8>,
     acc: Option<Odometry>,
 }
@@ -95,6 +102,9 @@ impl Create2Driver {
             last_frame: 0.0,
             next_probe: f64::NEG_INFINITY,
             mode_warned: false,
+            paused: false,
+            battery: None,
+            silent_warned: false,
             pending: heapless::Vec::new(),
             acc: None,
         }
@@ -135,17 +145,28 @@ impl Create2Driver {
         self.odo.rebase();
     }
 
-    /// Pauses the sensor stream (opcode 150, 0).
+    /// Pauses the sensor stream (opcode 150, 0) and stops the wheels: without
+    /// frames there is no bumper or link supervision, so nothing may move.
+    /// Silence is expected until [`Create2Driver::resume_stream`].
     pub fn pause_stream(&mut self) -> bool {
-        self.send(&OiCommand::StreamEnable(false))
+        self.paused = true;
+        self.requested = WheelSpeeds::STOP;
+        self.send(&OiCommand::drive_direct(0.0, 0.0)) && self.send(&OiCommand::StreamEnable(false))
     }
 
-    /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts.
+    /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts and
+    /// the next frame is the new odometry baseline.
     pub fn resume_stream(&mut self) -> bool {
+        self.paused = false;
         self.last_frame = self.clock.now();
         self.parser.reset();
         self.odo.rebase();
         self.send(&OiCommand::StreamEnable(true))
+    }
+
+    /// Whether the stream is paused on purpose.
+    pub fn stream_paused(&self) -> bool {
+        self.paused
     }
 
     fn effective(&self) -> WheelSpeeds {
@@ -170,6 +191,7 @@ impl Create2Driver {
         self.last_frame = now;
         if !self.up {
             self.up = true;
+            self.silent_warned = false;
             if self.ever_up {
                 log::info!(
                     "wheel base {}: sensor stream back; link restored",
@@ -225,6 +247,9 @@ impl Create2Driver {
                 self.mode_warned = false;
             }
         }
+        if let Some(mv) = f.voltage_mv {
+            self.battery = Some(mv as f64 / 1000.0);
+        }
         if let (Some(l), Some(r)) = (f.left_encoder, f.right_encoder) {
             match self.odo.update(l as u32, r as u32, now) {
                 Ok(Some(d)) => {
@@ -263,7 +288,9 @@ impl DiffDriveBase for Create2Driver {
             right: cmd.right.clamp(-m, m),
         };
         self.deadman.feed(self.clock.now());
-        if self.up {
+        if self.paused {
+            self.requested = WheelSpeeds::STOP;
+        } else if self.up {
             self.send_wheels();
         }
         Ok(())
@@ -297,9 +324,14 @@ impl DiffDriveBase for Create2Driver {
                         }
                         Err(_) => health.checksum_errors += 1,
                     });
+                    // Frames read together were sent one stream period apart:
+                    // the last one is the newest.
                     let t = self.clock.now();
-                    for f in frames {
-                        self.on_frame(f, t);
+                    let n_frames = frames.len();
+                    for (i, f) in frames.into_iter().enumerate() {
+                        let age = (n_frames - 1 - i) as f64 * STREAM_PERIOD;
+                        let tf = (t - age).max(self.last_frame);
+                        self.on_frame(f, tf);
                     }
                     // A short read drained the port: stop here rather than wait
                     // for a read timeout (frames come every 15 ms anyway).
@@ -312,7 +344,10 @@ impl DiffDriveBase for Create2Driver {
         }
         self.health.discarded_bytes = self.parser.discarded;
         let now = self.clock.now();
-        if self.up && (now - self.last_frame > self.link_timeout || !self.link.is_open()) {
+        if self.paused {
+            // Deliberate silence: no supervision to do, and nothing may move.
+            self.last_frame = now;
+        } else if self.up && (now - self.last_frame > self.link_timeout || !self.link.is_open()) {
             self.up = false;
             self.health.link_losses += 1;
             log::warn!(
@@ -325,17 +360,27 @@ impl DiffDriveBase for Create2Driver {
             self.odo.rebase();
             self.next_probe = now;
         }
-        if !self.up && self.link.is_open() && now >= self.next_probe {
+        if !self.up && !self.paused && self.link.is_open() && now >= self.next_probe {
+            if self.next_probe.is_finite() && !self.silent_warned {
+                self.silent_warned = true;
+                log::warn!(
+                    "wheel base {}: no sensor stream from the Create 2 (is it awake and powered? Start, {:?} and the stream request are re-sent every {:.1} s)",
+                    self.link.describe(),
+                    self.mode,
+                    self.probe_interval
+                );
+            }
             self.next_probe = now + self.probe_interval;
             self.initialise();
         }
-        if self.up {
+        if self.up && !self.paused {
             self.send_wheels();
         }
         let mut fb = BaseFeedback {
             odometry: self.acc.take(),
             events: heapless::Vec::new(),
             link_up: self.up,
+            battery: self.battery,
         };
         for e in self.pending.iter() {
             fb.push_event(*e);
@@ -370,5 +415,17 @@ impl DiffDriveBase for Create2Driver {
 
     fn health(&self) -> LinkHealth {
         self.health
+    }
+}
+
+impl Drop for Create2Driver {
+    /// Leaves the robot stopped: the Create 2 has no command timeout and would
+    /// otherwise keep executing its last Drive Direct.
+    fn drop(&mut self) {
+        if self.link.is_open() {
+            let _ = self
+                .link
+                .write_all(&encode(&OiCommand::drive_direct(0.0, 0.0)));
+        }
     }
 }

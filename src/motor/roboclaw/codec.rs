@@ -35,6 +35,8 @@ pub mod cmd {
     pub const READ_MAIN_BATTERY: u8 = 24;
     /// Drive M1 and M2 with signed speeds (encoder counts per second).
     pub const DRIVE_SPEEDS: u8 = 37;
+    /// Drive M1 and M2 with signed speeds and one acceleration (counts/s²).
+    pub const DRIVE_SPEEDS_ACCEL: u8 = 40;
     /// Read both encoder counters in one reply.
     pub const READ_ENCODERS: u8 = 78;
     /// Read the status (error/warning) word.
@@ -67,6 +69,15 @@ pub enum Command {
         /// Motor 2 (right wheel here).
         m2: i32,
     },
+    /// Velocity set-points reached with a ramp of `accel` counts/s².
+    DriveSpeedsAccel {
+        /// Acceleration for both motors, counts/s².
+        accel: u32,
+        /// Motor 1 (left wheel here).
+        m1: i32,
+        /// Motor 2 (right wheel here).
+        m2: i32,
+    },
     /// Ask for both encoder counters.
     ReadEncoders,
     /// Ask for the status word.
@@ -82,6 +93,7 @@ impl Command {
             Command::ReadVersion => cmd::READ_VERSION,
             Command::ReadMainBattery => cmd::READ_MAIN_BATTERY,
             Command::DriveSpeeds { .. } => cmd::DRIVE_SPEEDS,
+            Command::DriveSpeedsAccel { .. } => cmd::DRIVE_SPEEDS_ACCEL,
             Command::ReadEncoders => cmd::READ_ENCODERS,
             Command::ReadStatus => cmd::READ_STATUS,
         }
@@ -91,7 +103,10 @@ impl Command {
     pub fn is_write(&self) -> bool {
         matches!(
             self,
-            Command::SetSerialTimeout { .. } | Command::ResetEncoders | Command::DriveSpeeds { .. }
+            Command::SetSerialTimeout { .. }
+                | Command::ResetEncoders
+                | Command::DriveSpeeds { .. }
+                | Command::DriveSpeedsAccel { .. }
         )
     }
 }
@@ -107,17 +122,18 @@ pub fn data_len(code: u8) -> Option<usize> {
         | cmd::READ_ENCODERS
         | cmd::READ_STATUS => Some(0),
         cmd::DRIVE_SPEEDS => Some(8),
+        cmd::DRIVE_SPEEDS_ACCEL => Some(12),
         _ => None,
     }
 }
 
-/// A host packet: at most address, command, 8 data bytes and the CRC.
+/// A host packet: at most address, command, 12 data bytes and the CRC.
 pub type Packet = HVec<u8, 16>;
 
 /// Encodes `command` for the controller at `address`, CRC included.
 pub fn encode_command(address: u8, command: &Command) -> Packet {
     let mut p = Packet::new();
-    // Capacity 16 is more than the longest packet (12 bytes): pushes cannot fail.
+    // Capacity 16 is the longest packet (command 40): pushes cannot fail.
     let _ = p.push(address);
     let _ = p.push(command.code());
     match *command {
@@ -125,6 +141,11 @@ pub fn encode_command(address: u8, command: &Command) -> Packet {
             let _ = p.push(tenths);
         }
         Command::DriveSpeeds { m1, m2 } => {
+            let _ = p.extend_from_slice(&m1.to_be_bytes());
+            let _ = p.extend_from_slice(&m2.to_be_bytes());
+        }
+        Command::DriveSpeedsAccel { accel, m1, m2 } => {
+            let _ = p.extend_from_slice(&accel.to_be_bytes());
             let _ = p.extend_from_slice(&m1.to_be_bytes());
             let _ = p.extend_from_slice(&m2.to_be_bytes());
         }
@@ -426,6 +447,11 @@ impl CommandDecoder {
                     cmd::DRIVE_SPEEDS => Command::DriveSpeeds {
                         m1: i32::from_be_bytes([d[0], d[1], d[2], d[3]]),
                         m2: i32::from_be_bytes([d[4], d[5], d[6], d[7]]),
+                    },
+                    cmd::DRIVE_SPEEDS_ACCEL => Command::DriveSpeedsAccel {
+                        accel: u32::from_be_bytes([d[0], d[1], d[2], d[3]]),
+                        m1: i32::from_be_bytes([d[4], d[5], d[6], d[7]]),
+                        m2: i32::from_be_bytes([d[8], d[9], d[10], d[11]]),
                     },
                     cmd::READ_ENCODERS => Command::ReadEncoders,
                     _ => Command::ReadStatus,

@@ -22,6 +22,9 @@ use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
 
+/// Polls between two main-battery readings.
+const BATTERY_EVERY: u64 = 20;
+
 /// Why one request failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum TxError {
@@ -43,6 +46,7 @@ pub struct RoboClawDriver {
     m1_is_left: bool,
     counts_per_metre: f64,
     max_wheel_speed: f64,
+    reply_timeout: f64,
     link_timeout: f64,
     probe_interval: f64,
     odo: Odometer,
@@ -55,6 +59,11 @@ pub struct RoboClawDriver {
     ever_up: bool,
     last_ok: f64,
     fail_streak: u32,
+    silent_warned: bool,
+    battery: Option<f64>,
+    polls: u64,
+    accel_counts: u32,
+    stopping: bool,
     next_probe: f64,
     pending: heapless::Vec<SafetyEvent, 8>,
 }
@@ -83,6 +92,7 @@ impl RoboClawDriver {
             m1_is_left: p.roboclaw.m1_is_left,
             counts_per_metre,
             max_wheel_speed: p.max_wheel_speed,
+            reply_timeout: p.roboclaw.reply_timeout,
             link_timeout: p.link_timeout,
             probe_interval: p.reconnect_interval,
             odo: Odometer::new(
@@ -100,6 +110,13 @@ impl RoboClawDriver {
             ever_up: false,
             last_ok: 0.0,
             fail_streak: 0,
+            silent_warned: false,
+            battery: None,
+            polls: 0,
+            accel_counts: (p.roboclaw.accel * counts_per_metre)
+                .round()
+                .clamp(0.0, u32::MAX as f64) as u32,
+            stopping: false,
             next_probe: f64::NEG_INFINITY,
             pending: heapless::Vec::new(),
         }
@@ -191,11 +208,23 @@ impl RoboClawDriver {
         }
     }
 
+    /// Sends set-points: ramped at the configured acceleration (command 40)
+    /// in normal driving; at once (command 37, the PID's full authority) for
+    /// safety stops and when no acceleration is configured.
     fn send_speeds(&mut self, w: WheelSpeeds) -> Result<(), TxError> {
         let (m1, m2) = self.counts(w);
         let retries = self.retries + 1;
-        self.transact(&Command::DriveSpeeds { m1, m2 }, retries)
-            .map(|_| ())
+        let urgent = self.deadman.tripped() || self.gate.active() || self.stopping;
+        let cmd = if self.accel_counts > 0 && !urgent {
+            Command::DriveSpeedsAccel {
+                accel: self.accel_counts,
+                m1,
+                m2,
+            }
+        } else {
+            Command::DriveSpeeds { m1, m2 }
+        };
+        self.transact(&cmd, retries).map(|_| ())
     }
 
     /// Arms the controller timeout and takes an encoder baseline.
@@ -239,15 +268,30 @@ impl RoboClawDriver {
         }
         self.next_probe = now + self.probe_interval;
         self.health.discarded_bytes += self.link.drain();
-        if self.initialise().is_ok() {
+        let ok = self.initialise().is_ok();
+        if !ok && !self.silent_warned {
+            self.silent_warned = true;
+            log::warn!(
+                "wheel base {}: no valid answer from a RoboClaw at address {} (check the address, the baud rate and that packet serial mode is set); retrying every {:.1} s",
+                self.link.describe(),
+                self.address,
+                self.probe_interval
+            );
+        }
+        if ok {
+            self.silent_warned = false;
             self.up = true;
             self.last_ok = self.clock.now();
             if self.ever_up {
                 log::info!("wheel base {}: link restored", self.link.describe());
                 self.push(SafetyEvent::LinkRestored);
             } else {
+                let version = match self.transact(&Command::ReadVersion, 2) {
+                    Ok(Reply::Version(v)) => String::from_utf8_lossy(&v).into_owned(),
+                    _ => "version unknown".into(),
+                };
                 log::info!(
-                    "wheel base {}: RoboClaw at address {} answers; serial timeout armed at {:.1} s",
+                    "wheel base {}: RoboClaw at address {} answers ({version}); serial timeout armed at {:.1} s",
                     self.link.describe(),
                     self.address,
                     self.timeout_tenths as f64 / 10.0
@@ -309,10 +353,17 @@ impl DiffDriveBase for RoboClawDriver {
         if self.up {
             let w = self.effective();
             let mut closed = self.send_speeds(w) == Err(TxError::Closed);
+            let asked = self.clock.now();
             match self.transact(&Command::ReadEncoders, self.retries + 1) {
                 Ok(Reply::Encoders { m1, m2 }) => {
                     let (l, r) = if self.m1_is_left { (m1, m2) } else { (m2, m1) };
-                    match self.odo.update(l, r, self.clock.now()) {
+                    // The counters were latched somewhere between request and
+                    // reply: stamp the reading with the midpoint. (A retried
+                    // request widens the window; the last attempt is what
+                    // counts, so use the reply time minus half the last RTT.)
+                    let answered = self.clock.now();
+                    let stamp = answered - 0.5 * (answered - asked).min(self.reply_timeout);
+                    match self.odo.update(l, r, stamp) {
                         Ok(o) => odometry = o,
                         Err(g) => {
                             self.health.odometry_glitches += 1;
@@ -334,6 +385,15 @@ impl DiffDriveBase for RoboClawDriver {
                 Ok(_) => {}
                 Err(e) => closed |= e == TxError::Closed,
             }
+            // The battery changes slowly: once every BATTERY_EVERY polls.
+            if self.polls.is_multiple_of(BATTERY_EVERY) {
+                match self.transact(&Command::ReadMainBattery, 1) {
+                    Ok(Reply::MainBattery(dv)) => self.battery = Some(dv as f64 / 10.0),
+                    Ok(_) => {}
+                    Err(e) => closed |= e == TxError::Closed,
+                }
+            }
+            self.polls += 1;
             if closed {
                 self.declare_lost("device went away");
             } else if self.fail_streak >= 2 && self.clock.now() - self.last_ok > self.link_timeout {
@@ -346,6 +406,7 @@ impl DiffDriveBase for RoboClawDriver {
             odometry,
             events: heapless::Vec::new(),
             link_up: self.up,
+            battery: self.battery,
         };
         for e in self.pending.iter() {
             fb.push_event(*e);
@@ -362,17 +423,30 @@ impl DiffDriveBase for RoboClawDriver {
                 device: self.link.describe(),
             });
         }
-        self.send_speeds(WheelSpeeds::STOP)
-            .map_err(|e| MotorError::Io {
-                device: self.link.describe(),
-                source: std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    format!("stop command not acknowledged ({e:?})"),
-                ),
-            })
+        self.stopping = true;
+        let r = self.send_speeds(WheelSpeeds::STOP);
+        self.stopping = false;
+        r.map_err(|e| MotorError::Io {
+            device: self.link.describe(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                format!("stop command not acknowledged ({e:?})"),
+            ),
+        })
     }
 
     fn health(&self) -> LinkHealth {
         self.health
+    }
+}
+
+impl Drop for RoboClawDriver {
+    /// Leaves the wheels stopped: a zero set-point is written (without waiting
+    /// for the ACK); the controller's serial timeout is the backstop.
+    fn drop(&mut self) {
+        if self.link.is_open() {
+            let p = encode_command(self.address, &Command::DriveSpeeds { m1: 0, m2: 0 });
+            let _ = self.link.write_all(&p);
+        }
     }
 }

@@ -215,6 +215,52 @@ mod tests {
     }
 
     #[test]
+    fn full_mode_has_no_wheel_drop_reflex_and_stop_turns_the_oi_off() {
+        let mut d = Create2Device::new(2250.0, 0.235);
+        let mut out = Vec::new();
+        send(&mut d, OiCommand::Start, 0.0, &mut out);
+        send(&mut d, OiCommand::Full, 0.0, &mut out);
+        send(&mut d, OiCommand::drive_direct(0.1, 0.1), 0.0, &mut out);
+        let body = BodyState {
+            wheel_drop: crate::motor::Sides {
+                left: true,
+                right: true,
+            },
+            ..BodyState::default()
+        };
+        assert_eq!(
+            d.tick(0.1, &body, &mut out),
+            WheelSpeeds {
+                left: 0.1,
+                right: 0.1
+            }
+        );
+        assert_eq!(d.mode(), OiMode::Full);
+        send(&mut d, OiCommand::Stop, 0.2, &mut out);
+        assert_eq!(d.mode(), OiMode::Off);
+        assert_eq!(d.tick(0.3, &body, &mut out), WheelSpeeds::STOP);
+        // Off: Safe is ignored until Start.
+        send(&mut d, OiCommand::Safe, 0.3, &mut out);
+        assert_eq!(d.mode(), OiMode::Off);
+    }
+
+    #[test]
+    fn query_list_returns_bare_packet_data() {
+        let mut d = Create2Device::new(1000.0, 0.235);
+        let mut out = Vec::new();
+        send(&mut d, OiCommand::Start, 0.0, &mut out);
+        let mut ids = heapless::Vec::new();
+        ids.extend_from_slice(&[35, 43]).unwrap();
+        let body = BodyState {
+            encoder: (0.258, 0.0),
+            ..BodyState::default()
+        };
+        d.on_bytes(&encode(&OiCommand::QueryList(ids)), 0.0, &body, &mut out);
+        // Mode 1 (Passive), then left encoder 258 = 0x0102: no ids, no checksum.
+        assert_eq!(out, vec![1, 0x01, 0x02]);
+    }
+
+    #[test]
     fn stream_every_15_ms_with_pause_and_resume() {
         let mut d = Create2Device::new(2250.0, 0.235);
         let mut out = Vec::new();

@@ -3,9 +3,10 @@
 //!
 //! Each device is a sans-IO core ([`BaseDevice`]: bytes in, bytes and wheel
 //! set-points out); [`spawn`] runs one on a wire (a pty the daemon opens as
-//! its device) in a thread, stepping [`DiffDriveSim`] on the injected clock.
+//! its device) in a thread, stepping [`crate::sim::kinematics::DiffDriveSim`] on the injected clock.
 
 pub mod create2;
+pub mod loopback;
 pub mod pty_wire;
 pub mod roboclaw;
 pub mod runner;
@@ -64,4 +65,25 @@ pub trait BaseDevice: Send {
     fn tick(&mut self, now: f64, body: &BodyState, out: &mut Vec<u8>) -> WheelSpeeds;
     /// The device's counters.
     fn stats(&self) -> DeviceStats;
+}
+
+/// Keeps an emulator running until `stop` is set, handing its status line to
+/// `report` every `every` seconds of clock time; for `sweepline emulate`,
+/// whose `main` owns the signal handling.
+pub fn serve(
+    handle: &EmulatorHandle,
+    clock: &dyn crate::clock::Clock,
+    stop: &std::sync::atomic::AtomicBool,
+    every: f64,
+    mut report: impl FnMut(&str),
+) {
+    let mut next = clock.now();
+    while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        let now = clock.now();
+        if now >= next {
+            report(&handle.status_line());
+            next = now + every.max(0.01);
+        }
+        clock.sleep(0.05_f64.min(every.max(0.01)));
+    }
 }

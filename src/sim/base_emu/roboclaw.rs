@@ -25,6 +25,9 @@ pub struct RoboClawDevice {
     decoder: CommandDecoder,
     set_m1: i32,
     set_m2: i32,
+    ramp: Option<f64>,
+    cur: (f64, f64),
+    last_tick: f64,
     timeout_tenths: u8,
     last_valid: f64,
     last_byte: f64,
@@ -44,6 +47,9 @@ impl RoboClawDevice {
             decoder: CommandDecoder::new(),
             set_m1: 0,
             set_m2: 0,
+            ramp: None,
+            cur: (0.0, 0.0),
+            last_tick: 0.0,
             timeout_tenths: 0,
             last_valid: 0.0,
             last_byte: 0.0,
@@ -85,6 +91,14 @@ impl RoboClawDevice {
             Command::DriveSpeeds { m1, m2 } => {
                 self.set_m1 = m1;
                 self.set_m2 = m2;
+                self.ramp = None;
+                self.timed_out = false;
+                Reply::Ack
+            }
+            Command::DriveSpeedsAccel { accel, m1, m2 } => {
+                self.set_m1 = m1;
+                self.set_m2 = m2;
+                self.ramp = Some(accel as f64);
                 self.timed_out = false;
                 Reply::Ack
             }
@@ -130,9 +144,24 @@ impl BaseDevice for RoboClawDevice {
             self.stats.device_timeouts += 1;
             self.set_m1 = 0;
             self.set_m2 = 0;
+            self.ramp = None;
         }
-        let v1 = self.set_m1 as f64 / self.counts_per_metre;
-        let v2 = self.set_m2 as f64 / self.counts_per_metre;
+        let dt = (now - self.last_tick).max(0.0);
+        self.last_tick = now;
+        let (t1, t2) = (self.set_m1 as f64, self.set_m2 as f64);
+        self.cur = match self.ramp {
+            // Command 40: the controller ramps its set-point at `a` counts/s².
+            Some(a) => {
+                let dv = a * dt;
+                (
+                    self.cur.0 + (t1 - self.cur.0).clamp(-dv, dv),
+                    self.cur.1 + (t2 - self.cur.1).clamp(-dv, dv),
+                )
+            }
+            None => (t1, t2),
+        };
+        let v1 = self.cur.0 / self.counts_per_metre;
+        let v2 = self.cur.1 / self.counts_per_metre;
         if self.m1_is_left {
             WheelSpeeds {
                 left: v1,
@@ -207,6 +236,29 @@ mod tests {
         );
         assert_eq!(d.tick(0.55, &body, &mut out), WheelSpeeds::STOP);
         assert_eq!(d.stats().device_timeouts, 1);
+    }
+
+    #[test]
+    fn command_40_ramps_at_its_acceleration() {
+        let mut d = RoboClawDevice::new(0x80, 1000.0, true);
+        let body = BodyState::default();
+        let mut out = Vec::new();
+        d.tick(0.0, &body, &mut out);
+        let c = Command::DriveSpeedsAccel {
+            accel: 500,
+            m1: 200,
+            m2: 200,
+        };
+        assert_eq!(ask(&mut d, c, 0.0, &body), Some(Reply::Ack));
+        // 500 counts/s² = 0.5 m/s²: 0.05 m/s after 0.1 s, capped at 0.2.
+        let w = d.tick(0.1, &body, &mut out);
+        assert!((w.left - 0.05).abs() < 1e-12, "{w:?}");
+        let w = d.tick(1.0, &body, &mut out);
+        assert!((w.left - 0.2).abs() < 1e-12, "{w:?}");
+        // Command 37 stops at once.
+        let c = Command::DriveSpeeds { m1: 0, m2: 0 };
+        assert_eq!(ask(&mut d, c, 1.0, &body), Some(Reply::Ack));
+        assert_eq!(d.tick(1.01, &body, &mut out), WheelSpeeds::STOP);
     }
 
     #[test]

@@ -160,7 +160,16 @@ impl EmulatorConfig {
         }
     }
 
-    fn device(&self) -> Box<dyn BaseDevice> {
+    /// The same emulator placed in `world`: it starts at the world's start
+    /// pose and collides with its walls and obstacles.
+    pub fn in_world(mut self, world: Arc<World>) -> Self {
+        self.start = world.start;
+        self.world = Some(world);
+        self
+    }
+
+    /// The device core this configuration describes.
+    pub(crate) fn device(&self) -> Box<dyn BaseDevice> {
         let circ = 2.0 * std::f64::consts::PI * self.wheel_radius;
         match self.kind {
             BaseKind::Roboclaw => Box::new(RoboClawDevice::new(
@@ -220,6 +229,37 @@ impl EmulatorHandle {
     /// The robot's true pose.
     pub fn truth(&self) -> Pose {
         self.with(|s| s.truth)
+    }
+
+    /// The robot's true pose with the clock time it was reached (s), for
+    /// pose-error evaluation against timestamped estimates.
+    pub fn truth_stamped(&self) -> (f64, Pose) {
+        self.with(|s| (s.now, s.truth))
+    }
+
+    /// One human-readable status line: true pose, wheel speeds, counters.
+    pub fn status_line(&self) -> String {
+        self.with(|s| {
+            let t = s.truth;
+            let d = s.stats.device;
+            format!(
+                "t={:.1}s pose=({:.3} m, {:.3} m, {:.1} deg) wheels=({:+.3}, {:+.3}) m/s packets ok={} rejected={} frames={} device-timeouts={} bumps={} corrupted={} silenced={} unplugs={}",
+                s.now,
+                t.translation.x,
+                t.translation.y,
+                t.rotation.angle().to_degrees(),
+                s.wheels.left,
+                s.wheels.right,
+                d.packets_ok,
+                d.packets_rejected,
+                d.frames_out,
+                d.device_timeouts,
+                s.stats.bumps,
+                s.stats.corrupted_bytes,
+                s.stats.silenced_bytes,
+                s.stats.unplugs
+            )
+        })
     }
 
     /// The wheel speeds the motors currently run at (m/s).

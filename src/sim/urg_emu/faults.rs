@@ -47,6 +47,9 @@ pub struct Faults {
     pub status_every: u32,
     /// Repeat the previous timestamp in every N-th scan (a stuck clock).
     pub stuck_every: u32,
+    /// After the N-th scan the firmware hangs: no scans, no answers, except
+    /// to RB twice (reboot), which cures it. Happens once.
+    pub hang_after: u32,
     /// Send a line of line noise (control and non-ASCII bytes) before every
     /// N-th scan; the scan itself is intact.
     pub noise_every: u32,
@@ -68,7 +71,7 @@ pub struct Faults {
 
 /// A `--faults` list that could not be parsed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("bad fault `{item}`: {why} (known: checksum=N, drop=N, extra=N, status=N[:CODE], stuck=N, noise=N, crlf, split, stall=N:SECONDS, wrap, unplug=N:SECONDS)")]
+#[error("bad fault `{item}`: {why} (known: checksum=N, drop=N, extra=N, status=N[:CODE], stuck=N, noise=N, hang=N, crlf, split, stall=N:SECONDS, wrap, unplug=N:SECONDS)")]
 pub struct FaultSpecError {
     /// The offending item.
     pub item: String,
@@ -149,6 +152,7 @@ impl std::str::FromStr for Faults {
                 }
                 "stuck" => f.stuck_every = every(item, value)?,
                 "noise" => f.noise_every = every(item, value)?,
+                "hang" => f.hang_after = every(item, value)?,
                 "crlf" => flag(&mut f.crlf)?,
                 "split" => flag(&mut f.split_writes)?,
                 "wrap" => flag(&mut f.clock_wrap)?,

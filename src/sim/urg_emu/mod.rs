@@ -21,7 +21,8 @@ pub mod model;
 pub mod scene;
 pub mod sensor;
 
-use std::io::{self, Read};
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -80,6 +81,9 @@ pub enum EmuError {
     /// The emulator thread could not be started.
     #[error("cannot start the emulator thread: {0}")]
     Thread(io::Error),
+    /// The TCP listener failed.
+    #[error("emulator network socket: {0}")]
+    Io(io::Error),
 }
 
 struct Shared {
@@ -130,6 +134,40 @@ impl Emulator {
         })
     }
 
+    /// Starts the emulator as an Ethernet sensor listening on `addr` (port 0
+    /// picks a free one); returns it and the address it listens on.
+    pub fn spawn_tcp(
+        cfg: EmulatorConfig,
+        scene: Box<dyn Scene>,
+        clock: Arc<dyn Clock>,
+        addr: SocketAddr,
+    ) -> Result<(Emulator, SocketAddr), EmuError> {
+        let listener = TcpListener::bind(addr).map_err(EmuError::Io)?;
+        let local = listener.local_addr().map_err(EmuError::Io)?;
+        let shared = Arc::new(Shared {
+            log: Arc::new(Mutex::new(EmuLog::default())),
+            path: Mutex::new(None),
+            stop: AtomicBool::new(false),
+        });
+        let sh = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("urg-emulator-tcp".into())
+            .spawn(move || {
+                let go = || !sh.stop.load(Ordering::Relaxed);
+                if let Err(e) = serve_tcp(cfg, scene, clock, listener, sh.log.clone(), &go) {
+                    log::error!("urg emulator stopped: {e}");
+                }
+            })
+            .map_err(EmuError::Thread)?;
+        Ok((
+            Emulator {
+                shared,
+                thread: Some(thread),
+            },
+            local,
+        ))
+    }
+
     /// The path a client opens (the symlink if configured, else the current
     /// `/dev/pts/N`); `None` while unplugged without a symlink.
     pub fn path(&self) -> Option<PathBuf> {
@@ -177,6 +215,100 @@ fn sleep_while(clock: &dyn Clock, dt: f64, keep_going: &dyn Fn() -> bool) {
     }
 }
 
+/// The byte side of an emulated sensor: a pty master or a TCP connection.
+pub trait EmuIo: Read + Write {
+    /// Sets how long one read waits for the first byte.
+    fn set_read_timeout(&mut self, t: Duration) -> io::Result<()>;
+}
+
+impl EmuIo for Pty {
+    fn set_read_timeout(&mut self, t: Duration) -> io::Result<()> {
+        Pty::set_read_timeout(self, t);
+        Ok(())
+    }
+}
+
+impl EmuIo for TcpStream {
+    fn set_read_timeout(&mut self, t: Duration) -> io::Result<()> {
+        TcpStream::set_read_timeout(self, Some(t.max(Duration::from_millis(1))))
+    }
+}
+
+/// The sensor plus its line framer and buffers: one turn reads what the
+/// client sent (waiting at most until the next scan), answers it, and sends
+/// the scans that are due.
+struct Engine {
+    sensor: Sensor,
+    faults: Faults,
+    framer: LineFramer,
+    out: Vec<u8>,
+    line: Vec<u8>,
+    buf: [u8; 1024],
+    rng: ChaCha8Rng,
+}
+
+impl Engine {
+    fn new(cfg: &EmulatorConfig, scene: Box<dyn Scene>, log: Arc<Mutex<EmuLog>>, now: f64) -> Self {
+        let mut sensor = Sensor::new(
+            ModelSpec::of(cfg.model),
+            cfg.faults.clone(),
+            cfg.scip1_boot,
+            scene,
+            cfg.seed,
+            log,
+            now,
+        );
+        sensor.set_drift_ppm(cfg.drift_ppm);
+        Engine {
+            sensor,
+            faults: cfg.faults.clone(),
+            framer: LineFramer::new(),
+            out: Vec::with_capacity(16 * 1024),
+            line: Vec::with_capacity(256),
+            buf: [0u8; 1024],
+            rng: ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed),
+        }
+    }
+
+    /// One turn; an error means the link is unusable (for TCP: the client left).
+    fn turn(&mut self, io: &mut dyn EmuIo, clock: &dyn Clock) -> io::Result<()> {
+        let now = clock.now();
+        let wait = self
+            .sensor
+            .next_due()
+            .map(|t| (t - now) / clock.rate())
+            .unwrap_or(0.01)
+            .clamp(0.0, 0.01);
+        io.set_read_timeout(Duration::from_secs_f64(wait))?;
+        match io.read(&mut self.buf) {
+            Ok(0) => return Err(io::ErrorKind::UnexpectedEof.into()),
+            Ok(n) => {
+                for &b in &self.buf[..n] {
+                    if let Some(LineEvent::Line(l)) = self.framer.push(b) {
+                        self.line.clear();
+                        self.line.extend_from_slice(l);
+                        self.sensor.on_line(&self.line, clock.now(), &mut self.out);
+                    }
+                }
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut
+                        | io::ErrorKind::WouldBlock
+                        | io::ErrorKind::Interrupted
+                ) => {}
+            Err(e) => return Err(e),
+        }
+        self.sensor.poll(clock.now(), &mut self.out);
+        if !self.out.is_empty() {
+            send(io, &self.out, &self.faults, &mut self.rng);
+            self.out.clear();
+        }
+        Ok(())
+    }
+}
+
 /// Runs the emulator on `host` until `keep_going` returns false. `on_plug`
 /// is told the pty's slave path (`/dev/pts/N`) after every (re)plug, `None`
 /// while unplugged.
@@ -189,28 +321,13 @@ pub fn run(
     on_plug: &mut dyn FnMut(Option<PathBuf>),
     keep_going: &dyn Fn(&Option<PathBuf>) -> bool,
 ) -> Result<(), EmuError> {
-    let spec = ModelSpec::of(cfg.model);
-    let spec_period = spec.period();
-    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed);
-    let mut sensor = Sensor::new(
-        spec,
-        cfg.faults.clone(),
-        cfg.scip1_boot,
-        scene,
-        cfg.seed,
-        log.clone(),
-        clock.now(),
-    );
-    sensor.set_drift_ppm(cfg.drift_ppm);
-    let mut framer = LineFramer::new();
-    let mut out: Vec<u8> = Vec::with_capacity(16 * 1024);
-    let mut line: Vec<u8> = Vec::with_capacity(256);
-    let mut buf = [0u8; 1024];
+    let period = ModelSpec::of(cfg.model).period();
+    let mut eng = Engine::new(&cfg, scene, log.clone(), clock.now());
     on_plug(host.slave_path());
     let path_now = host.client_path();
     let go = || keep_going(&path_now);
     while go() {
-        match sensor.take_action() {
+        match eng.sensor.take_action() {
             Some(Action::Stall(d)) => {
                 if let Ok(mut l) = log.lock() {
                     l.stalls += 1;
@@ -221,7 +338,7 @@ pub fn run(
             Some(Action::Unplug(d)) => {
                 // Let the client read the last scan first: the fault is an
                 // unplug between scans, so no scan is cut in half.
-                sleep_while(&*clock, 0.3 * spec_period, &go);
+                sleep_while(&*clock, 0.3 * period, &go);
                 host.unplug();
                 if let Ok(mut l) = log.lock() {
                     l.unplugs += 1;
@@ -229,8 +346,8 @@ pub fn run(
                 on_plug(None);
                 sleep_while(&*clock, d, &go);
                 host.replug()?;
-                framer.reset();
-                sensor.power_on(clock.now(), true);
+                eng.framer.reset();
+                eng.sensor.power_on(clock.now(), true);
                 on_plug(host.slave_path());
                 continue;
             }
@@ -240,42 +357,81 @@ pub fn run(
             host.replug()?;
             continue;
         };
-        let now = clock.now();
-        let wait = sensor
-            .next_due()
-            .map(|t| (t - now) / clock.rate())
-            .unwrap_or(0.01)
-            .clamp(0.0, 0.01);
-        pty.set_read_timeout(Duration::from_secs_f64(wait));
-        match pty.read(&mut buf) {
-            Ok(n) => {
-                for &b in &buf[..n] {
-                    if let Some(LineEvent::Line(l)) = framer.push(b) {
-                        line.clear();
-                        line.extend_from_slice(l);
-                        sensor.on_line(&line, clock.now(), &mut out);
-                    }
-                }
-            }
-            Err(e) if e.kind() == io::ErrorKind::TimedOut => {}
-            Err(e) => {
-                log::warn!("urg emulator: pty read: {e}");
-                clock.sleep(0.01 * clock.rate());
-            }
-        }
-        sensor.poll(clock.now(), &mut out);
-        if !out.is_empty() {
-            send(pty, &out, &cfg.faults, &mut rng);
-            out.clear();
+        if let Err(e) = eng.turn(pty, &*clock) {
+            log::warn!("urg emulator: pty: {e}");
+            clock.sleep(0.01 * clock.rate());
         }
     }
     Ok(())
 }
 
-/// Writes `data` to the pty, applying the wire faults (CRLF endings, writes
-/// split at random points with short pauses). A client that does not read
-/// loses the bytes, as with a real device.
-fn send(pty: &mut Pty, data: &[u8], faults: &Faults, rng: &mut ChaCha8Rng) {
+/// Runs the emulator as an Ethernet sensor (UTM-30LX-EW style) on
+/// `listener`, one client at a time, until `keep_going` returns false. The
+/// sensor keeps its state between connections; the `unplug` fault closes
+/// the connection (a pulled cable) and reboots the sensor.
+pub fn serve_tcp(
+    cfg: EmulatorConfig,
+    scene: Box<dyn Scene>,
+    clock: Arc<dyn Clock>,
+    listener: TcpListener,
+    log: Arc<Mutex<EmuLog>>,
+    keep_going: &dyn Fn() -> bool,
+) -> Result<(), EmuError> {
+    let period = ModelSpec::of(cfg.model).period();
+    let mut eng = Engine::new(&cfg, scene, log.clone(), clock.now());
+    listener.set_nonblocking(true).map_err(EmuError::Io)?;
+    while keep_going() {
+        let mut stream = match listener.accept() {
+            Ok((s, _)) => s,
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_millis(5));
+                continue;
+            }
+            Err(e) => return Err(EmuError::Io(e)),
+        };
+        let setup = stream
+            .set_nonblocking(false)
+            .and_then(|_| stream.set_nodelay(true))
+            .and_then(|_| stream.set_write_timeout(Some(Duration::from_secs(1))));
+        if let Err(e) = setup {
+            log::warn!("urg emulator: tcp client: {e}");
+            continue;
+        }
+        eng.framer.reset();
+        while keep_going() {
+            match eng.sensor.take_action() {
+                Some(Action::Stall(d)) => {
+                    if let Ok(mut l) = log.lock() {
+                        l.stalls += 1;
+                    }
+                    sleep_while(&*clock, d, keep_going);
+                    continue;
+                }
+                Some(Action::Unplug(d)) => {
+                    sleep_while(&*clock, 0.3 * period, keep_going);
+                    let _ = stream.shutdown(std::net::Shutdown::Both);
+                    if let Ok(mut l) = log.lock() {
+                        l.unplugs += 1;
+                    }
+                    sleep_while(&*clock, d, keep_going);
+                    eng.sensor.power_on(clock.now(), true);
+                    break;
+                }
+                None => {}
+            }
+            if let Err(e) = eng.turn(&mut stream, &*clock) {
+                log::info!("urg emulator: tcp client gone: {e}");
+                break;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Writes `data` to the client, applying the wire faults (CRLF endings,
+/// writes split at random points with short pauses). A client that does not
+/// read loses the bytes, as with a real device.
+fn send(io: &mut dyn EmuIo, data: &[u8], faults: &Faults, rng: &mut ChaCha8Rng) {
     let crlf;
     let bytes: &[u8] = if faults.crlf {
         let mut v = Vec::with_capacity(data.len() + data.len() / 32);
@@ -298,7 +454,7 @@ fn send(pty: &mut Pty, data: &[u8], faults: &Faults, rng: &mut ChaCha8Rng) {
             rest.len()
         };
         if let Err(e) =
-            crate::serial::write_chunked(pty, &rest[..n], crate::serial::pty::WRITE_CHUNK)
+            crate::serial::write_chunked(io, &rest[..n], crate::serial::pty::WRITE_CHUNK)
         {
             log::debug!(
                 "urg emulator: client not reading ({e}); {} bytes lost",

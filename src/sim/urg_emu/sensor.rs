@@ -8,6 +8,12 @@
 //! adjust mode (TM0/TM1/TM2, everything else answered `0E` in it), MD/MS/ME
 //! streams with the remaining-scan counter in the echo, GD needing the laser
 //! on, RB twice within a second to reboot, and the exact VV/PP/II texts.
+//!
+//! GD is answered as the real unit does (checked against the capture and
+//! Hokuyo's urg_library): the scan is the revolution that starts after the
+//! command, stamped at its start and sent when it ends, so a GD reply takes
+//! one to two scan periods and back-to-back GDs never repeat a scan. Lines
+//! received meanwhile are answered after it, in order.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
@@ -81,6 +87,16 @@ pub enum Action {
     Unplug(f64),
 }
 
+/// A GD waiting for its revolution to end.
+#[derive(Clone, Copy)]
+struct PendingGet {
+    req: ScanRequest,
+    /// Start of the revolution measured (emulator clock, s): the stamp.
+    start: f64,
+    /// When the reply is sent: the end of that revolution.
+    due: f64,
+}
+
 struct Stream {
     req: StreamRequest,
     tag: Tag,
@@ -102,6 +118,13 @@ pub struct Sensor {
     adjust: bool,
     high_sensitivity: bool,
     stream: Option<Stream>,
+    get: Option<PendingGet>,
+    /// The echo line of the pending GD.
+    get_echo: Vec<u8>,
+    /// Command lines received while a GD is pending (LF-terminated).
+    waiting: Vec<u8>,
+    /// Offset (s) of the revolution starts from the clock origin.
+    phase: f64,
     /// Sensor clock (ms) at `t0`.
     clock0: u64,
     t0: f64,
@@ -111,6 +134,7 @@ pub struct Sensor {
     rate: f64,
     rb_at: Option<f64>,
     sent: u64,
+    hung: bool,
     last_stamp: u32,
     action: Option<Action>,
     angles: Vec<f64>,
@@ -159,6 +183,10 @@ impl Sensor {
             adjust: false,
             high_sensitivity: false,
             stream: None,
+            get: None,
+            get_echo: Vec::with_capacity(64),
+            waiting: Vec::with_capacity(256),
+            phase: 0.0,
             clock0,
             t0: now,
             true0: clock0,
@@ -166,6 +194,7 @@ impl Sensor {
             rate: 1.0,
             rb_at: None,
             sent: 0,
+            hung: false,
             last_stamp: 0,
             action: None,
             angles: Vec::new(),
@@ -190,7 +219,10 @@ impl Sensor {
         self.adjust = false;
         self.high_sensitivity = false;
         self.stream = None;
+        self.get = None;
+        self.waiting.clear();
         self.rb_at = None;
+        self.hung = false;
         self.boot += 1;
         if let Ok(mut l) = self.log.lock() {
             l.boots = self.boot;
@@ -231,9 +263,34 @@ impl Sensor {
         self.adjust
     }
 
-    /// When the next scan is due (emulator clock), if streaming.
+    /// When the next scan or GD reply is due (emulator clock), if any.
     pub fn next_due(&self) -> Option<f64> {
-        self.stream.as_ref().map(|s| s.next)
+        let stream = self.stream.as_ref().map(|s| s.next);
+        let get = self.get.map(|g| g.due);
+        match (stream, get) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Sets where in the sensor clock the mirror's revolutions start (s,
+    /// taken modulo the scan period; 0 by default). A real unit's phase is
+    /// arbitrary; tests set it to reproduce a captured timestamp.
+    pub fn set_revolution_phase(&mut self, phase: f64) {
+        let p = self.spec.period();
+        if phase.is_finite() && p > 0.0 {
+            self.phase = phase.rem_euclid(p);
+        }
+    }
+
+    /// Start of the first revolution that begins strictly after `now` (a
+    /// line arriving at a revolution start is too late for it; the epsilon
+    /// keeps rounding from deciding that).
+    fn next_revolution(&self, now: f64) -> f64 {
+        let p = self.spec.period();
+        let base = self.t0 + self.phase;
+        let k = ((now - base) / p + 1e-9).floor() + 1.0;
+        base + k * p
     }
 
     /// The pending stall or unplug, if any.
@@ -244,6 +301,12 @@ impl Sensor {
     /// Answers one received command line (without its line end) at `now`.
     pub fn on_line(&mut self, line: &[u8], now: f64, out: &mut Vec<u8>) {
         if line.is_empty() {
+            return;
+        }
+        if self.get.is_some() {
+            // Busy measuring for a GD: the line is answered after it.
+            self.waiting.extend_from_slice(line);
+            self.waiting.push(b'\n');
             return;
         }
         if let Ok(mut l) = self.log.lock() {
@@ -268,6 +331,9 @@ impl Sensor {
         let body = line.split(|&b| b == b';').next().unwrap_or(line);
         if body == b"RB" {
             self.reboot_request(line, now, out);
+            return;
+        }
+        if self.hung {
             return;
         }
         self.rb_at = None;
@@ -346,21 +412,14 @@ impl Sensor {
                 } else if !self.laser {
                     let _ = write_status_reply(line, Status::Scip2(StatusCode::DENIED), out);
                 } else {
-                    let t = now;
-                    self.block.clear();
-                    let mut block = std::mem::take(&mut self.block);
-                    block.extend_from_slice(line);
-                    block.push(b'\n');
-                    let _ = crate::scip::reply::write_status(ok(), &mut block);
-                    {
-                        let mut w = DataLineWriter::new(&mut block);
-                        let _ = w.put_value(self.clock_ms(t), Width::Four);
-                        let _ = w.finish();
-                    }
-                    self.measure(t, &req, &mut block);
-                    block.push(b'\n');
-                    out.extend_from_slice(&block);
-                    self.block = block;
+                    let start = self.next_revolution(now);
+                    self.get_echo.clear();
+                    self.get_echo.extend_from_slice(line);
+                    self.get = Some(PendingGet {
+                        req,
+                        start,
+                        due: start + self.spec.period(),
+                    });
                 }
             }
             Command::Stream(req) => {
@@ -370,13 +429,12 @@ impl Sensor {
                 }
                 self.laser = true;
                 let _ = write_status_reply(line, ok(), out);
-                let p = self.spec.period();
-                let k = ((now - self.t0) / p).floor() + 1.0;
+                let next = self.next_revolution(now);
                 self.stream = Some(Stream {
                     req,
                     tag: cmd.tag,
                     remaining: (req.count > 0).then_some(req.count),
-                    next: self.t0 + k * p,
+                    next,
                 });
             }
         }
@@ -458,9 +516,63 @@ impl Sensor {
         out.push(b'\n');
     }
 
-    /// Produces the scan due at or before `now`, if streaming; writes it
-    /// to `out`.
+    /// Produces what is due at or before `now` (a streamed scan, a GD
+    /// reply and the replies to the lines that waited for it), in time
+    /// order; writes it to `out`.
     pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
+        if self.hung {
+            return;
+        }
+        let get_first = match (self.get, self.stream.as_ref()) {
+            (Some(g), Some(s)) => g.due <= s.next,
+            _ => true,
+        };
+        if get_first {
+            self.poll_get(now, out);
+            self.poll_stream(now, out);
+        } else {
+            self.poll_stream(now, out);
+            self.poll_get(now, out);
+        }
+    }
+
+    /// Sends the pending GD reply if its revolution has ended, then answers
+    /// the lines that arrived meanwhile.
+    fn poll_get(&mut self, now: f64, out: &mut Vec<u8>) {
+        let Some(g) = self.get else {
+            return;
+        };
+        if now < g.due {
+            return;
+        }
+        self.get = None;
+        let mut block = std::mem::take(&mut self.block);
+        block.clear();
+        block.extend_from_slice(&self.get_echo);
+        block.push(b'\n');
+        let _ = crate::scip::reply::write_status(ok(), &mut block);
+        {
+            let mut w = DataLineWriter::new(&mut block);
+            let _ = w.put_value(self.clock_ms(g.start), Width::Four);
+            let _ = w.finish();
+        }
+        self.measure(g.start, &g.req, &mut block);
+        block.push(b'\n');
+        out.extend_from_slice(&block);
+        self.block = block;
+        let mut waiting = std::mem::take(&mut self.waiting);
+        for line in waiting.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
+            // A GD among them makes the rest wait again (in `self.waiting`).
+            self.on_line(line, g.due, out);
+        }
+        if self.waiting.is_empty() {
+            waiting.clear();
+            self.waiting = waiting;
+        }
+    }
+
+    /// Produces the scan due at or before `now`, if streaming.
+    fn poll_stream(&mut self, now: f64, out: &mut Vec<u8>) {
         let Some(stream) = self.stream.as_mut() else {
             return;
         };
@@ -538,6 +650,9 @@ impl Sensor {
                 l.sent.pop_front();
             }
             l.sent.push_back(entry);
+        }
+        if self.faults.hang_after > 0 && self.sent == u64::from(self.faults.hang_after) {
+            self.hung = true;
         }
         let hit = |every: u32| every > 0 && self.sent.is_multiple_of(u64::from(every));
         if let Some((n, d)) = self.faults.unplug {

@@ -31,6 +31,25 @@ fn drive_speeds_bytes_signed_big_endian() {
 }
 
 #[test]
+fn drive_speeds_with_acceleration_bytes() {
+    let p = encode_command(
+        0x80,
+        &Command::DriveSpeedsAccel {
+            accel: 5000,
+            m1: 1000,
+            m2: -1000,
+        },
+    );
+    assert_eq!(
+        &p[..],
+        &[
+            0x80, 0x28, 0x00, 0x00, 0x13, 0x88, 0x00, 0x00, 0x03, 0xE8, 0xFF, 0xFF, 0xFC, 0x18,
+            0x74, 0xCC
+        ]
+    );
+}
+
+#[test]
 fn read_commands_bytes() {
     assert_eq!(
         &encode_command(0x80, &Command::ReadEncoders)[..],

@@ -1,0 +1,61 @@
+//! One control cycle (set wheels + poll) of each driver against its emulator
+//! through a real pty: RoboClaw = three request/reply exchanges (speeds,
+//! encoders, status); Create 2 = one Drive Direct plus reading the stream.
+
+use std::sync::Arc;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use sweepline::clock::{MonotonicClock, SharedClock};
+use sweepline::config::Config;
+use sweepline::motor::create2::driver::Create2Driver;
+use sweepline::motor::link::ConnectorOpener;
+use sweepline::motor::roboclaw::driver::RoboClawDriver;
+use sweepline::motor::{BaseKind, DiffDriveBase, WheelSpeeds};
+use sweepline::serial::DeviceConnector;
+use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig};
+
+fn cycle(c: &mut Criterion) {
+    for kind in [BaseKind::Roboclaw, BaseKind::Create2] {
+        let clock: SharedClock = Arc::new(MonotonicClock::new());
+        let mut cfg = Config::default();
+        cfg.motor.kind = kind;
+        // A benchmark loop commands far faster than the dead-man needs.
+        let emu = spawn_on_pty(EmulatorConfig::from_config(&cfg, kind), None, clock.clone())
+            .expect("emulator");
+        let opener = Box::new(ConnectorOpener(Box::new(DeviceConnector::new(
+            emu.path().expect("pty path"),
+        ))));
+        let mut base: Box<dyn DiffDriveBase> = match kind {
+            BaseKind::Roboclaw => {
+                Box::new(RoboClawDriver::new(&cfg.motor, &cfg.robot, opener, clock))
+            }
+            BaseKind::Create2 => {
+                Box::new(Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock))
+            }
+        };
+        for _ in 0..50 {
+            let _ = base.poll();
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let name = format!("{kind:?}_set_wheels_and_poll_over_pty").to_lowercase();
+        c.bench_function(&name, |b| {
+            b.iter(|| {
+                base.set_wheels(WheelSpeeds {
+                    left: 0.1,
+                    right: 0.1,
+                })
+                .expect("finite");
+                base.poll().expect("poll")
+            })
+        });
+        drop(base);
+        emu.shutdown();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(20);
+    targets = cycle
+}
+criterion_main!(benches);
