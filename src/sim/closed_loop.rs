@@ -18,6 +18,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::clock::{ScaledClock, SharedClock};
 use crate::config::Config;
+use crate::control::{integrate, Twist, WheelCmd};
 use crate::daemon::{urg_clock, Daemon, DaemonSetup, MapFrame};
 use crate::geom::{heading, wrap_angle, Pose};
 use crate::motor::{BaseKind, LinkHealth};
@@ -209,12 +210,21 @@ pub fn fix_errors(
     ((sp / d).sqrt(), (sh / d).sqrt(), mx, n)
 }
 
+fn to_cmd(w: crate::motor::WheelSpeeds) -> WheelCmd {
+    WheelCmd {
+        left: w.left,
+        right: w.right,
+    }
+}
+
 /// The world as the emulated scanner sees it, from the true pose of the
 /// emulated base.
 struct WorldScene {
     world: Arc<World>,
     base: Arc<EmulatorHandle>,
     seen: TruthLog,
+    clock: SharedClock,
+    wheel_base: f64,
     mount: f64,
     noise: f64,
     rng: ChaCha8Rng,
@@ -230,7 +240,16 @@ impl WorldScene {
 
 impl Scene for WorldScene {
     fn sample(&mut self, t: f64, angles: &[f64], out: &mut [Echo]) {
-        let p = self.base.truth();
+        // The emulator thread may run a little after the scan's own time
+        // `t`: take the true pose back to `t` along the current motion.
+        let now = self.base.truth();
+        let lag = (self.clock.now() - t).clamp(0.0, 0.3);
+        let back = Twist::from_wheels(&to_cmd(self.base.wheels()), self.wheel_base);
+        let back = Twist {
+            v: -back.v,
+            w: -back.w,
+        };
+        let p = integrate(&now, &back, lag);
         if let Ok(mut g) = self.seen.lock() {
             g.push((t, p));
         }
@@ -287,6 +306,8 @@ fn start_emulators(
         world: opts.world.clone(),
         base: base.clone(),
         seen,
+        clock: clock.clone(),
+        wheel_base: opts.config.robot.wheel_base,
         mount: opts.config.robot.scanner_offset_x,
         noise: opts.range_noise,
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
