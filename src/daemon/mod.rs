@@ -240,6 +240,7 @@ impl Daemon {
                 wheel_base: robot.wheel_base,
                 backoff: BUMP_BACKOFF,
                 last_pose: None,
+                bump_seen: f64::NEG_INFINITY,
             },
         )?;
         pipeline.spawn(
@@ -267,6 +268,7 @@ impl Daemon {
                 tx: snap_tx,
                 shared: shared.clone(),
                 max_range: MAP_MAX_RANGE,
+                contacts: Vec::new(),
             },
         )?;
         pipeline.spawn(

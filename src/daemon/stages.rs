@@ -171,6 +171,31 @@ pub struct MapStage {
     pub shared: Arc<Shared>,
     /// Longest range merged (m); farther echoes are too uncertain.
     pub max_range: f64,
+    /// Bumper contacts: obstacles the scanner cannot see, kept occupied
+    /// even when later rays pass over them.
+    pub contacts: Vec<Point2<f64>>,
+}
+
+/// Radius of the obstacle a bumper contact marks (m).
+pub const CONTACT_RADIUS: f64 = 0.05;
+
+impl MapStage {
+    fn mark_contacts(&mut self) {
+        let res = self.grid.resolution();
+        let n = (CONTACT_RADIUS / res).ceil() as i64;
+        for c in &self.contacts {
+            for dy in -n..=n {
+                for dx in -n..=n {
+                    let p = Point2::new(c.x + dx as f64 * res, c.y + dy as f64 * res);
+                    if (p - c).norm() <= CONTACT_RADIUS {
+                        if let Some(cell) = self.grid.cell_of(&p) {
+                            self.grid.set_state(cell, crate::grid::CellState::Occupied);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 impl Stage for MapStage {
@@ -199,11 +224,16 @@ impl Stage for MapStage {
                 }
             }
             MapMsg::Contact(at) => {
-                if let Some(c) = self.grid.cell_of(&at) {
-                    self.grid.set_state(c, crate::grid::CellState::Occupied);
+                if self
+                    .contacts
+                    .iter()
+                    .all(|c| (c - at).norm() > CONTACT_RADIUS)
+                {
+                    self.contacts.push(at);
                 }
             }
         }
+        self.mark_contacts();
         let snap = Arc::new(self.grid.clone());
         self.shared.with_status(|s| s.grid = Some(snap.clone()));
         self.tx
@@ -376,6 +406,8 @@ pub struct ControlStage {
     pub backoff: f64,
     /// Last pose estimate (for the path length).
     pub last_pose: Option<Pose>,
+    /// Clock time of the last bump handled.
+    pub bump_seen: f64,
 }
 
 impl ControlStage {
@@ -399,6 +431,12 @@ impl ControlStage {
         {
             WheelSpeeds::STOP
         } else if now - self.shared.last_bump() < self.backoff {
+            if self.shared.last_bump() != self.bump_seen {
+                // The path runs into something the map did not show: drop
+                // it; the planner plans again around the contact.
+                self.bump_seen = self.shared.last_bump();
+                self.follower.set_path(&[], None);
+            }
             WheelSpeeds::from_body(-0.05, 0.0, self.wheel_base)
         } else {
             let (_, w) = self.follower.step(&est, dt);
@@ -521,8 +559,8 @@ impl MotorStage {
                     let here = self.shared.with_status(|s| s.pose);
                     let th = heading(&here);
                     let at = Point2::new(
-                        here.translation.x + (self.radius + 0.03) * th.cos(),
-                        here.translation.y + (self.radius + 0.03) * th.sin(),
+                        here.translation.x + (self.radius + 0.01) * th.cos(),
+                        here.translation.y + (self.radius + 0.01) * th.sin(),
                     );
                     let _ = self.to_map.send(MapMsg::Contact(at));
                     log::warn!("safety: {e:?} at ({:.2}, {:.2}) m", at.x, at.y);

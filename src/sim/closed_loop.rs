@@ -284,6 +284,17 @@ pub fn map_frame(world: &World) -> MapFrame {
     }
 }
 
+/// A fresh folder for the device symlinks of one run.
+fn link_dir() -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static RUN: AtomicU64 = AtomicU64::new(0);
+    std::env::temp_dir().join(format!(
+        "sweepline-sim-{}-{}",
+        std::process::id(),
+        RUN.fetch_add(1, Ordering::Relaxed)
+    ))
+}
+
 fn start_emulators(
     opts: &SimOptions,
     clock: &SharedClock,
@@ -298,8 +309,13 @@ fn start_emulators(
     );
     ecfg.seed = opts.seed;
     ecfg.kinematics.seed = opts.seed;
+    // Stable symlinks, like the udev names on the robot: they follow the
+    // emulators' ptys over unplug and replug.
+    let links = link_dir();
+    std::fs::create_dir_all(&links)
+        .map_err(|e| SimError::Emulator(format!("cannot create {}: {e}", links.display())))?;
     let base = Arc::new(
-        base_emu::spawn_on_pty(ecfg, None, clock.clone())
+        base_emu::spawn_on_pty(ecfg, Some(links.join("base")), clock.clone())
             .map_err(|e| SimError::Emulator(e.to_string()))?,
     );
     let scene = WorldScene {
@@ -314,6 +330,7 @@ fn start_emulators(
     };
     let ucfg = urg_emu::EmulatorConfig {
         faults: opts.urg_faults.clone(),
+        link: Some(links.join("urg")),
         seed: opts.seed,
         ..Default::default()
     };
@@ -332,8 +349,11 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
         )));
     }
     let robot = opts.config.robot.clone();
+    // Reachable floor is what the body can reach: the body's world when it
+    // has obstacles the scanner cannot see.
+    let truth_world = opts.body_world.as_deref().unwrap_or(&opts.world);
     let mut tracker = CoverageTracker::new(
-        &opts.world,
+        truth_world,
         robot.radius,
         robot.tool_width,
         &opts.world.start,

@@ -108,7 +108,7 @@ pub fn write(
         coverage_svg::save(&dir.join("cells.svg"), &doc)?;
     }
     let doc = coverage_svg::path_svg(
-        &opts.world,
+        opts.body_world.as_deref().unwrap_or(&opts.world),
         tracker.passes(),
         tracker.reachable(),
         &r.truth,
