@@ -299,6 +299,7 @@ fn start_emulators(
     opts: &SimOptions,
     clock: &SharedClock,
     seen: TruthLog,
+    links: &Path,
 ) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
     let mut ecfg = base_emu::EmulatorConfig::from_config(&opts.config, opts.base);
     ecfg.start = opts.world.start;
@@ -311,8 +312,7 @@ fn start_emulators(
     ecfg.kinematics.seed = opts.seed;
     // Stable symlinks, like the udev names on the robot: they follow the
     // emulators' ptys over unplug and replug.
-    let links = link_dir();
-    std::fs::create_dir_all(&links)
+    std::fs::create_dir_all(links)
         .map_err(|e| SimError::Emulator(format!("cannot create {}: {e}", links.display())))?;
     let base = Arc::new(
         base_emu::spawn_on_pty(ecfg, Some(links.join("base")), clock.clone())
@@ -352,7 +352,7 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
     // Reachable floor is what the body can reach: the body's world when it
     // has obstacles the scanner cannot see.
     let truth_world = opts.body_world.as_deref().unwrap_or(&opts.world);
-    let mut tracker = CoverageTracker::new(
+    let tracker = CoverageTracker::new(
         truth_world,
         robot.radius,
         robot.tool_width,
@@ -361,7 +361,23 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
     let wall0 = Instant::now();
     let clock: SharedClock = Arc::new(ScaledClock::new(opts.speed));
     let seen: TruthLog = Arc::default();
-    let (base, urg) = start_emulators(opts, &clock, seen.clone())?;
+    let links = link_dir();
+    let started = start_emulators(opts, &clock, seen.clone(), &links);
+    let result =
+        started.and_then(|(base, urg)| drive(opts, clock, seen, base, urg, tracker, wall0));
+    let _ = std::fs::remove_dir_all(&links);
+    result
+}
+
+fn drive(
+    opts: &SimOptions,
+    clock: SharedClock,
+    seen: TruthLog,
+    base: Arc<EmulatorHandle>,
+    urg: urg_emu::Emulator,
+    mut tracker: CoverageTracker,
+    wall0: Instant,
+) -> Result<SimReport, SimError> {
     let base_path = base
         .path()
         .ok_or_else(|| SimError::Emulator("the base emulator has no pty path".into()))?;
