@@ -177,6 +177,48 @@ impl Grid {
         }
     }
 
+    /// True when cell `c` is free and touches an unknown cell (4-neighbourhood,
+    /// the grid's edge counts as unknown): the explored boundary, where free
+    /// space seen by the scanner ends in unexplored space.
+    pub fn is_frontier(&self, c: CellIndex) -> bool {
+        if self.state(c) != CellState::Free {
+            return false;
+        }
+        let (x, y) = c;
+        let unknown = |cx: Option<usize>, cy: Option<usize>| match (cx, cy) {
+            (Some(cx), Some(cy)) => self.state((cx, cy)) == CellState::Unknown,
+            _ => true,
+        };
+        unknown(x.checked_sub(1), Some(y))
+            || unknown(Some(x + 1).filter(|&v| v < self.width), Some(y))
+            || unknown(Some(x), y.checked_sub(1))
+            || unknown(Some(x), Some(y + 1).filter(|&v| v < self.height))
+    }
+
+    /// Writes every explored-boundary cell ([`is_frontier`](Self::is_frontier))
+    /// into `out` (cleared first), row by row.
+    pub fn frontier_into(&self, out: &mut Vec<CellIndex>) {
+        out.clear();
+        for y in 0..self.height {
+            for x in 0..self.width {
+                if self.is_frontier((x, y)) {
+                    out.push((x, y));
+                }
+            }
+        }
+    }
+
+    /// Makes `self` an exact copy of `other`, reusing `self`'s cell buffer when
+    /// it is large enough (no allocation for grids of equal size).
+    pub fn copy_from(&mut self, other: &Grid) {
+        self.origin = other.origin;
+        self.resolution = other.resolution;
+        self.width = other.width;
+        self.height = other.height;
+        self.cells.clear();
+        self.cells.extend_from_slice(&other.cells);
+    }
+
     /// Raw evidence of every cell, row-major from row 0 (for checkpoints).
     pub fn raw_evidence(&self) -> &[u8] {
         &self.cells
@@ -233,6 +275,22 @@ mod tests {
         assert_eq!(g.state((20, 0)), CellState::Occupied);
         assert_eq!(g.state((21, 0)), CellState::Unknown);
         assert_eq!(g.state((5, 1)), CellState::Unknown);
+    }
+
+    #[test]
+    fn frontier_is_free_next_to_unknown() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 10, 10);
+        g.integrate_ray(&Point2::new(0.05, 0.55), &Point2::new(0.55, 0.55), true);
+        let mut f = Vec::new();
+        g.frontier_into(&mut f);
+        // Cells 0..=4 of row 5 are free, all next to unknown rows 4 and 6.
+        assert_eq!(f, vec![(0, 5), (1, 5), (2, 5), (3, 5), (4, 5)]);
+        assert!(!g.is_frontier((5, 5)), "occupied is not frontier");
+        let mut h = Grid::new(Point2::new(1.0, 1.0), 0.2, 3, 3);
+        h.copy_from(&g);
+        assert_eq!(h.counts(), g.counts());
+        assert_eq!(h.width(), 10);
+        assert_eq!(h.state((5, 5)), CellState::Occupied);
     }
 
     #[test]

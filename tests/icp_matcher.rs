@@ -204,3 +204,63 @@ fn prior_weight_holds_the_translation_to_the_guess() {
     let d = (held.pose.translation.vector - guess.translation.vector).norm();
     assert!(d < 0.005, "moved {d} m from the guess");
 }
+
+/// Along a featureless corridor the scans say nothing about travel, so the
+/// tracker keeps the odometry prior there. Logged odometry with timing jitter
+/// (the MIT CSAIL log alternates short and long steps) then puts that jitter
+/// into the trajectory; `odometry_smoothing` removes most of it.
+#[test]
+fn smoothed_odometry_reduces_jitter_along_a_corridor() {
+    use sweepline::icp::{Outcome, Tracker};
+    let walls = vec![
+        Wall::new(-60.0, -1.0, 60.0, -1.0, 0.5),
+        Wall::new(-60.0, 1.0, 60.0, 1.0, 0.5),
+    ];
+    let run = |smoothing: f64| -> (f64, usize) {
+        let params = IcpParams {
+            odometry_smoothing: smoothing,
+            ..IcpParams::default()
+        };
+        let start = pose(0.0, 0.0, 0.0);
+        let mut t = Tracker::new(params, start).unwrap();
+        let (mut truth, mut last) = (start, start);
+        let (mut sum, mut degenerate) = (0.0, 0);
+        for k in 0..40u64 {
+            truth *= pose(0.24, 0.0, 0.0);
+            // The odometry reading lags or leads by a quarter of a step.
+            let jitter = if k % 2 == 0 { -0.06 } else { 0.06 };
+            let odom = pose(truth.translation.x + jitter, 0.0, 0.0);
+            let scan = cast(
+                &walls,
+                &truth,
+                &ScanSpec {
+                    seed: 300 + k,
+                    ..ScanSpec::default()
+                },
+            );
+            let s = t.step(&scan, Some(&odom));
+            if let Outcome::Matched(q) = s.outcome {
+                degenerate += usize::from(q.degenerate);
+            }
+            if k >= 10 {
+                // Error of the estimated step against the true 0.24 m.
+                let step = last.inverse() * s.pose;
+                sum += (step.translation.x - 0.24).abs();
+            }
+            last = s.pose;
+        }
+        (sum / 30.0, degenerate)
+    };
+    let (raw, deg_raw) = run(0.0);
+    let (smooth, deg_smooth) = run(0.5);
+    eprintln!("step error along the corridor: raw {raw:.4} m, smoothed {smooth:.4} m");
+    assert!(
+        deg_raw > 30 && deg_smooth > 30,
+        "the corridor is degenerate"
+    );
+    assert!(raw > 0.04, "raw odometry jitter shows: {raw} m per step");
+    assert!(
+        smooth < 0.5 * raw,
+        "smoothed {smooth} m per step vs raw {raw} m"
+    );
+}

@@ -196,9 +196,12 @@ impl Config {
         self.pipeline.validate()?;
         self.motor.validate()?;
         self.icp.validate()?;
-        self.scanner
-            .validate()
-            .map_err(|m| invalid("scanner", &m))?;
+        self.scanner.validate().map_err(|m| {
+            // The driver's messages start with the dotted key they are about.
+            let (key, rest) = m.split_once(' ').unwrap_or(("scanner", m.as_str()));
+            invalid(key, rest)
+        })?;
+        self.map.validate()?;
         Ok(())
     }
 }

@@ -73,6 +73,12 @@ pub struct IcpParams {
     pub prior_weight: f64,
     /// Initial guess for tracking: odometry or constant velocity.
     pub prior: Prior,
+    /// Share of the previous smoothed odometry step kept when a new odometry
+    /// increment arrives, in [0, 1): 0 = raw increments. Logged odometry is
+    /// sampled with timing jitter (the step per scan alternates short/long);
+    /// smoothing its translation gives a better prior along weakly constrained
+    /// directions (corridors).
+    pub odometry_smoothing: f64,
     /// Add a keyframe to the local map after this much travel (m).
     pub keyframe_distance: f64,
     /// ... or after this much rotation (rad).
@@ -109,6 +115,7 @@ impl Default for IcpParams {
             min_point_spacing: 0.03,
             prior_weight: 0.0,
             prior: Prior::Odometry,
+            odometry_smoothing: 0.5,
             keyframe_distance: 0.3,
             keyframe_angle: 0.2,
             keyframe_window: 6,
@@ -176,6 +183,9 @@ impl IcpParams {
         if !(self.prior_weight.is_finite() && self.prior_weight >= 0.0) {
             return Err(invalid("icp.prior_weight", "must be a finite number >= 0"));
         }
+        if !(0.0..1.0).contains(&self.odometry_smoothing) {
+            return Err(invalid("icp.odometry_smoothing", "must be in [0, 1)"));
+        }
         positive("icp.keyframe_distance", self.keyframe_distance)?;
         positive("icp.keyframe_angle", self.keyframe_angle)?;
         if self.keyframe_window == 0 {
@@ -213,7 +223,14 @@ mod tests {
 
     #[test]
     fn bad_values_name_their_key() {
-        let cases: [(IcpParams, &str); 4] = [
+        let cases: [(IcpParams, &str); 5] = [
+            (
+                IcpParams {
+                    odometry_smoothing: 1.0,
+                    ..IcpParams::default()
+                },
+                "icp.odometry_smoothing",
+            ),
             (
                 IcpParams {
                     gate_min: 1.0,

@@ -21,6 +21,7 @@ fn better_failure(a: Outcome, b: Outcome) -> Outcome {
 }
 use crate::config::ConfigError;
 use crate::geom::{IPoint, Pose};
+use nalgebra::Vector2;
 
 /// What happened to one scan.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,6 +57,10 @@ pub struct Tracker {
     /// The last distinct odometry reading, and our pose estimate at the scan
     /// where it first appeared (odometry in logs may stall, then jump).
     odom_anchor: Option<(Pose, Pose)>,
+    /// Scans processed since the anchor's odometry reading first appeared.
+    scans_since_anchor: u32,
+    /// Smoothed odometry translation per scan, in the robot frame (m).
+    odom_step: Option<Vector2<f64>>,
     started: bool,
 }
 
@@ -69,6 +74,8 @@ impl Tracker {
             pose: start,
             velocity: Pose::identity(),
             odom_anchor: None,
+            scans_since_anchor: 0,
+            odom_step: None,
             started: false,
         })
     }
@@ -116,10 +123,12 @@ impl Tracker {
         // A fresh odometry reading predicts from the pose where the previous
         // distinct reading first appeared; a stalled (repeated) reading says
         // nothing, so the constant-velocity prior is used instead.
+        self.scans_since_anchor = self.scans_since_anchor.saturating_add(1);
         let fresh_odom = match (odom, self.odom_anchor) {
-            (Some(now), Some((before, at))) if *now != before => {
-                Some((*now, unit(at * (before.inverse() * now))))
-            }
+            (Some(now), Some((before, at))) if *now != before => Some((
+                *now,
+                unit(at * self.smoothed_increment(&(before.inverse() * now))),
+            )),
             (Some(now), None) => Some((*now, self.pose)),
             _ => None,
         };
@@ -147,6 +156,7 @@ impl Tracker {
             };
             if let Some((now, _)) = fresh_odom {
                 self.odom_anchor = Some((now, self.pose));
+                self.scans_since_anchor = 0;
             }
             return step;
         }
@@ -162,8 +172,28 @@ impl Tracker {
         let step = self.register(prepared.map(|_| ()), guess, weight, cv_guess, external);
         if let Some((now, _)) = fresh_odom {
             self.odom_anchor = Some((now, step.pose));
+            self.scans_since_anchor = 0;
         }
         step
+    }
+
+    /// The odometry increment `inc` (spanning the scans since the anchor) with
+    /// its translation replaced by the smoothed per-scan step times that span;
+    /// updates the smoothed step. The rotation is kept as measured.
+    fn smoothed_increment(&mut self, inc: &Pose) -> Pose {
+        let a = self.matcher.params().odometry_smoothing;
+        let k = f64::from(self.scans_since_anchor.max(1));
+        let raw = inc.translation.vector / k;
+        let step = match self.odom_step {
+            Some(s) if a > 0.0 => s * a + raw * (1.0 - a),
+            _ => raw,
+        };
+        self.odom_step = Some(step);
+        if a == 0.0 {
+            return *inc;
+        }
+        let t = step * k;
+        crate::geom::pose(t.x, t.y, inc.rotation.angle())
     }
 
     /// Matches the prepared scan from `guess`; when that match is rejected or

@@ -1,14 +1,13 @@
 //! Simulation: worlds, ray casting, robot kinematics, device emulators on
 //! ptys, and replay of recorded logs.
 pub mod base_emu;
+pub mod carmen;
+pub mod closed_loop;
 pub mod coverage_metrics;
 pub mod coverage_svg;
 pub mod floorplan;
 pub mod kinematics;
 pub mod lockstep;
+pub mod sim_report;
 pub mod urg_emu;
 pub mod world;
-
-pub mod carmen;
-pub mod closed_loop;
-pub mod sim_report;
