@@ -200,6 +200,22 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
     for (k, v) in rows {
         let _ = writeln!(s, "| {k} | {v} |");
     }
+    let _ = writeln!(
+        s,
+        "\n## Edges\n\n| edge | policy | sent | received | dropped | max depth |\n|---|---|---|---|---|---|"
+    );
+    for e in &r.pipeline.edges {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} |",
+            e.name, e.policy, e.sent, e.received, e.dropped, e.max_depth
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nNewest-wins edges drop superseded messages by design (the planner only \
+         wants the newest map); `scans` dropped = scans the localiser never saw."
+    );
     let _ = writeln!(s, "\n## Scanner link\n\n```\n{}\n```", r.urg);
     let _ = writeln!(
         s,
