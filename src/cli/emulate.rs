@@ -14,7 +14,7 @@ use crate::urg::{Clock, MonotonicClock, ScaledClock};
 /// Arguments of `sweepline emulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Which device to emulate: urg (roboclaw and create2 come with the motor link).
+    /// Which device to emulate: urg, roboclaw or create2.
     pub device: String,
     /// Also make this symlink to the pty (kept pointing at it over unplug/replug).
     #[arg(long)]
@@ -54,9 +54,39 @@ pub struct Args {
 pub fn run(args: Args) -> CliResult {
     match args.device.as_str() {
         "urg" => run_urg(args),
-        "roboclaw" | "create2" => super::not_yet(&format!("emulate {}", args.device)),
+        "roboclaw" | "create2" => run_base(args),
         other => Err(format!("unknown device `{other}`: expected urg, roboclaw or create2").into()),
     }
+}
+
+/// An emulated wheel base (the motor engineer's `sim::base_emu`) on a pty,
+/// open floor, until SIGINT/SIGTERM.
+fn run_base(args: Args) -> CliResult {
+    let kind = super::sim::parse_base(&args.device)?;
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        return Err(format!("--rate must be a positive number, got {}", args.rate).into());
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, stop.clone())?;
+    }
+    let cfg = crate::config::Config::default();
+    let mut ecfg = crate::sim::base_emu::EmulatorConfig::from_config(&cfg, kind);
+    ecfg.seed = args.seed;
+    let clock: crate::clock::SharedClock = Arc::new(crate::clock::ScaledClock::new(args.rate));
+    let emu = crate::sim::base_emu::spawn_on_pty(ecfg, args.link.clone(), clock)?;
+    let at = args.link.clone().or(emu.path()).unwrap_or_default();
+    println!("{} base emulated at {}", args.device, at.display());
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let s = emu.stats();
+    let p = emu.truth();
+    println!(
+        "stopped: {} packets ok, {} rejected; robot at ({:.3}, {:.3}) m",
+        s.device.packets_ok, s.device.packets_rejected, p.translation.x, p.translation.y
+    );
+    Ok(())
 }
 
 fn run_urg(args: Args) -> CliResult {

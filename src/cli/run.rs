@@ -1,19 +1,28 @@
 //! `sweepline run`: the daemon on real devices (systemd service).
 //!
-//! This build loads and validates the configuration, installs the signal
-//! handlers and the systemd notifier, opens the state folder and looks for a
-//! checkpoint to resume, then checks both serial devices. The scanner,
-//! localise, map, plan, control and motor stages are wired in here as they
-//! land; until then a run with both devices present stops with a clear error.
+//! Loads and validates the configuration, opens the state folder and looks
+//! for a checkpoint to resume (map, pose, progress), checks both serial
+//! devices, then starts the daemon (`crate::daemon`: the same stages
+//! `sweepline sim` runs over ptys) with the monotonic clock, the systemd
+//! notifier and the signal handlers, and supervises it until coverage is
+//! done or SIGTERM (wheels stopped, scanner QT, final checkpoint). Metrics
+//! and the budget report go to `STATE/run/`.
 
 use std::path::{Path, PathBuf};
 
+use std::sync::Arc;
+
 use super::CliResult;
+use crate::clock::{MonotonicClock, SharedClock};
 use crate::config::Config;
+use crate::daemon::{Daemon, DaemonSetup, MapFrame, Resume};
+use crate::geom::Pose;
+use crate::grid::Grid;
 use crate::pipeline::checkpoint::{CheckpointStore, RunProgress};
 use crate::pipeline::notify::Notifier;
 use crate::pipeline::signals::SignalForwarder;
-use crate::pipeline::supervisor::Supervisor;
+use crate::report::run_folder::RunFolderHooks;
+use crate::serial::DeviceConnector;
 
 /// Stable device name the udev rules give the URG-04LX (`hw/99-sweepline.rules`).
 pub const DEFAULT_SCANNER: &str = "/dev/sweepline-urg";
@@ -41,6 +50,10 @@ pub struct Args {
     /// `$STATE_DIRECTORY`, else /var/lib/sweepline).
     #[arg(long)]
     pub state_dir: Option<PathBuf>,
+    /// Side of the square map around the start (m): the largest room the
+    /// robot can cover from where it is switched on is half of it each way.
+    #[arg(long, default_value_t = 16.0)]
+    pub map_extent: f64,
 }
 
 /// The state folder: the flag, else the first entry of `$STATE_DIRECTORY`
@@ -73,16 +86,56 @@ fn check_device(what: &str, path: &Path) -> Result<(), String> {
     }
 }
 
+/// Loads what a checkpoint in `store` holds to resume from, if anything.
+fn resume_from(store: &CheckpointStore) -> Option<Resume> {
+    match store.load() {
+        Ok(None) => {
+            log::info!("no checkpoint: fresh start");
+            None
+        }
+        Ok(Some(l)) => {
+            if let Some(why) = &l.fell_back {
+                log::warn!("latest checkpoint unusable ({why}); using the previous copy");
+            }
+            let cp = &l.checkpoint;
+            match (cp.get::<RunProgress>(), cp.get::<Pose>(), cp.get::<Grid>()) {
+                (Ok(Some(progress)), Ok(Some(pose)), Ok(Some(grid))) => {
+                    log::info!(
+                        "checkpoint #{} found: ~{:.1} % covered after {:.0} s; resuming",
+                        progress.sequence,
+                        progress.coverage * 100.0,
+                        progress.elapsed
+                    );
+                    Some(Resume {
+                        pose,
+                        grid,
+                        progress,
+                    })
+                }
+                (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
+                    log::warn!("checkpoint unreadable, starting fresh: {e}");
+                    None
+                }
+                _ => {
+                    log::info!("checkpoint without map or pose: fresh start");
+                    None
+                }
+            }
+        }
+        Err(e) => {
+            log::warn!("no usable checkpoint, starting fresh: {e}");
+            None
+        }
+    }
+}
+
 /// Runs `sweepline run`.
 pub fn run(args: Args) -> CliResult {
-    let cfg = Config::load(&args.config)?;
+    let mut cfg = Config::load(&args.config)?;
     if args.check_config {
         println!("{}: configuration is valid", args.config.display());
         return Ok(());
     }
-    let supervisor = Supervisor::new(&cfg.pipeline);
-    let _signals = SignalForwarder::install(supervisor.control())
-        .map_err(|e| format!("cannot install signal handlers: {e}"))?;
     let notifier = Notifier::new();
     notifier.status("starting: checking state folder and devices");
 
@@ -90,25 +143,7 @@ pub fn run(args: Args) -> CliResult {
     std::fs::create_dir_all(&dir)
         .map_err(|e| format!("cannot create state folder {}: {e}", dir.display()))?;
     let store = CheckpointStore::new(&dir);
-    match store.load() {
-        Ok(None) => log::info!("no checkpoint in {}: fresh start", dir.display()),
-        Ok(Some(l)) => {
-            if let Some(why) = &l.fell_back {
-                log::warn!("latest checkpoint unusable ({why}); using the previous copy");
-            }
-            match l.checkpoint.get::<RunProgress>() {
-                Ok(Some(p)) => log::info!(
-                    "checkpoint #{} found: {:.1} % covered after {:.0} s; resuming",
-                    p.sequence,
-                    p.coverage * 100.0,
-                    p.elapsed
-                ),
-                Ok(None) => log::info!("checkpoint found without progress section"),
-                Err(e) => log::warn!("checkpoint progress unreadable: {e}"),
-            }
-        }
-        Err(e) => log::warn!("no usable checkpoint, starting fresh: {e}"),
-    }
+    let resume = resume_from(&store);
 
     let devices = check_device("scanner", &args.scanner)
         .and_then(|()| check_device("wheel-base", &args.base));
@@ -116,8 +151,37 @@ pub fn run(args: Args) -> CliResult {
         notifier.status(&format!("failed: {msg}"));
         return Err(msg.into());
     }
-    let msg = "both devices are present, but the scanner and motor stages are not wired into \
-               `sweepline run` in this build yet (use `sweepline sim`)";
-    notifier.status(&format!("failed: {msg}"));
-    Err(msg.into())
+    cfg.scanner.port = args.scanner.display().to_string();
+    cfg.motor.device = args.base.display().to_string();
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let base = crate::motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
+    let start = resume
+        .as_ref()
+        .map(|r| r.pose)
+        .unwrap_or_else(Pose::identity);
+    let map = MapFrame::centred(
+        start.translation.vector.into(),
+        args.map_extent,
+        cfg.decomp.resolution,
+    );
+    let daemon = Daemon::start(DaemonSetup {
+        config: cfg.clone(),
+        clock,
+        scanner: Box::new(DeviceConnector::new(&args.scanner)),
+        base,
+        start,
+        map,
+        resume,
+        state_dir: Some(dir.clone()),
+    })?;
+    let _signals = SignalForwarder::install(daemon.control())
+        .map_err(|e| format!("cannot install signal handlers: {e}"))?;
+    let mut hooks = RunFolderHooks::new(daemon.hooks(), &dir.join("run"), &cfg.pipeline);
+    let outcome = daemon.run(&mut hooks);
+    log::info!("stopped: {}", outcome.reason);
+    if outcome.reason.is_failure() {
+        Err(format!("the daemon stopped: {}", outcome.reason).into())
+    } else {
+        Ok(())
+    }
 }

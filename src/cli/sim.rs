@@ -1,17 +1,128 @@
-//! `sweepline sim`: the main job: starts the emulated scanner and wheel base on ptys and the daemon, covers the default world and writes a report folder.
+//! `sweepline sim`: the main job. Starts the emulated URG-04LX and wheel base
+//! on ptys and the daemon opening both, covers the world, prints progress and
+//! writes a report folder (summary, map/cells/path SVGs, budget report).
+//!
+//! ```text
+//! sweepline sim                                  # hw/worlds/paper.world into out/sim
+//! sweepline sim --room office_f:3 --out out/office_f_3
+//! sweepline sim --base create2 --speed 5
+//! ```
+
+use std::path::PathBuf;
 
 use super::CliResult;
+use crate::config::Config;
+use crate::motor::BaseKind;
+use crate::sim::closed_loop::{self, SimOptions};
+use crate::sim::floorplan;
+use crate::sim::world::World;
+
+/// Default world of `sweepline sim`.
+pub const DEFAULT_WORLD: &str = "hw/worlds/paper.world";
 
 /// Arguments of `sweepline sim`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// World file to cover (default: hw/worlds/paper.world).
+    #[arg(long, conflicts_with = "room")]
+    pub world: Option<PathBuf>,
+    /// A room of a benchmark floor plan instead, MAP:N (e.g. office_f:3;
+    /// `sweepline coverage --list-rooms MAP` lists them).
     #[arg(long)]
-    pub world: Option<std::path::PathBuf>,
+    pub room: Option<String>,
+    /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
+    #[arg(long)]
+    pub maps: Option<PathBuf>,
+    /// Simulated seconds per wall-clock second.
+    #[arg(long, default_value_t = 10.0)]
+    pub speed: f64,
+    /// Report folder.
+    #[arg(long, default_value = "out/sim")]
+    pub out: PathBuf,
+    /// Emulated wheel base: roboclaw or create2.
+    #[arg(long, default_value = "roboclaw")]
+    pub base: String,
+    /// Robot configuration.
+    #[arg(long, default_value = "hw/robot.toml")]
+    pub config: PathBuf,
+    /// Seed of the simulated noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated seconds after which the run stops unfinished.
+    #[arg(long, default_value_t = 3600.0)]
+    pub time_cap: f64,
+    /// Scanner emulator faults (as `sweepline emulate urg --faults`).
+    #[arg(long, default_value = "")]
+    pub urg_faults: String,
+}
+
+/// Parses a base name.
+pub fn parse_base(s: &str) -> Result<BaseKind, String> {
+    match s {
+        "roboclaw" => Ok(BaseKind::Roboclaw),
+        "create2" => Ok(BaseKind::Create2),
+        other => Err(format!(
+            "unknown base `{other}`: expected roboclaw or create2"
+        )),
+    }
 }
 
 /// Runs `sweepline sim`.
 pub fn run(args: Args) -> CliResult {
-    let _ = args;
-    super::not_yet("sim")
+    let world = match (&args.world, &args.room) {
+        (_, Some(spec)) => {
+            let dir = args
+                .maps
+                .clone()
+                .unwrap_or_else(|| crate::testdata::shared_dir().join(floorplan::MAPS_DIR));
+            floorplan::load_room(&dir, spec)?.world()
+        }
+        (Some(w), None) => World::load(w)?,
+        (None, None) => World::load(std::path::Path::new(DEFAULT_WORLD))?,
+    };
+    let config = Config::load(&args.config)?;
+    let mut opts = SimOptions::new(world, config);
+    opts.speed = args.speed;
+    opts.base = parse_base(&args.base)?;
+    opts.out = Some(args.out.clone());
+    opts.seed = args.seed;
+    opts.time_cap = args.time_cap;
+    opts.progress = true;
+    opts.urg_faults = args.urg_faults.parse()?;
+    if args.out.join("state").exists() {
+        std::fs::remove_dir_all(args.out.join("state"))?;
+    }
+    println!(
+        "sweepline sim: {} ({:.1} m² free), {:?} base, speed ×{}, report in {}",
+        opts.world.name,
+        opts.world.free.free_area(),
+        opts.base,
+        opts.speed,
+        args.out.display()
+    );
+    let r = closed_loop::run(&opts)?;
+    let m = &r.metrics;
+    println!(
+        "done in {:.1} s wall ({:.0} s simulated): {} — coverage {:.2} % of {:.2} m² reachable, \
+         path {:.1} m, {} turns, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°",
+        r.wall,
+        r.sim_time,
+        r.reason,
+        m.coverage * 100.0,
+        m.reachable_area,
+        m.path_length,
+        m.turns,
+        m.overlap * 100.0,
+        r.position_rmse * 1e3,
+        r.heading_rmse.to_degrees()
+    );
+    println!(
+        "report: {}/summary.md (pictures map.svg, cells.svg, path.svg)",
+        args.out.display()
+    );
+    if r.finished {
+        Ok(())
+    } else {
+        Err(format!("coverage did not finish: {}", r.reason).into())
+    }
 }

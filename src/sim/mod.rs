@@ -2,10 +2,12 @@
 //! ptys, and replay of recorded logs.
 pub mod base_emu;
 pub mod carmen;
+pub mod closed_loop;
 pub mod coverage_metrics;
 pub mod coverage_svg;
 pub mod floorplan;
 pub mod kinematics;
 pub mod lockstep;
+pub mod sim_report;
 pub mod urg_emu;
 pub mod world;

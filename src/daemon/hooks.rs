@@ -1,0 +1,127 @@
+//! The daemon's supervisor hooks: the `STATUS=` line with the coverage
+//! estimate, a checkpoint (progress, pose, map) every
+//! `pipeline.checkpoint_period`, and the ordered shutdown (wheels stopped
+//! first, then the stages joined, then the final checkpoint).
+
+use std::path::Path;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use super::shared::Shared;
+use crate::clock::SharedClock;
+use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress};
+use crate::pipeline::clock::Stamp;
+use crate::pipeline::metrics::MetricsSnapshot;
+use crate::pipeline::periodic::Every;
+use crate::pipeline::supervisor::{Hooks, StopReason};
+use crate::pipeline::Pipeline;
+
+/// Hooks of a daemon run.
+pub struct DaemonHooks {
+    shared: Arc<Shared>,
+    clock: SharedClock,
+    store: Option<CheckpointStore>,
+    every: Every,
+    started: f64,
+    base: RunProgress,
+    sequence: u64,
+    /// Checkpoints that could not be written.
+    pub checkpoint_errors: u64,
+}
+
+impl DaemonHooks {
+    /// Hooks checkpointing into `state_dir` (none: no checkpoints) every
+    /// `period` seconds, continuing the progress of `resumed` if given.
+    pub fn new(
+        shared: Arc<Shared>,
+        clock: SharedClock,
+        state_dir: Option<&Path>,
+        period: f64,
+        resumed: Option<RunProgress>,
+    ) -> Self {
+        let base = resumed
+            .map(|p| RunProgress {
+                resumes: p.resumes + 1,
+                ..p
+            })
+            .unwrap_or_default();
+        Self {
+            started: clock.now(),
+            shared,
+            clock,
+            store: state_dir.map(CheckpointStore::new),
+            every: Every::new(period, Stamp::now()),
+            sequence: base.sequence,
+            base,
+            checkpoint_errors: 0,
+        }
+    }
+
+    /// The run's progress now.
+    pub fn progress(&self) -> RunProgress {
+        let (scans, path, covered, grid) = self
+            .shared
+            .with_status(|s| (s.scans, s.path_length, s.covered_area, s.grid.clone()));
+        let free = grid
+            .map(|g| g.counts().1 as f64 * g.resolution() * g.resolution())
+            .unwrap_or(0.0);
+        RunProgress {
+            sequence: self.sequence,
+            elapsed: self.base.elapsed + (self.clock.now() - self.started),
+            coverage: if free > 0.0 {
+                (covered / free).min(1.0)
+            } else {
+                0.0
+            },
+            scans: self.base.scans + scans,
+            path_length: path,
+            resumes: self.base.resumes,
+        }
+    }
+
+    /// Writes a checkpoint now (when a state folder is set).
+    pub fn checkpoint(&mut self) {
+        let Some(store) = &self.store else { return };
+        self.sequence += 1;
+        let progress = self.progress();
+        let (pose, grid) = self.shared.with_status(|s| (s.pose, s.grid.clone()));
+        let mut cp = Checkpoint::new();
+        let mut r = cp.put(&progress).and_then(|()| cp.put(&pose));
+        if let Some(g) = grid {
+            r = r.and_then(|()| cp.put(&*g));
+        }
+        if let Err(e) = r.and_then(|()| store.save(&cp)) {
+            self.checkpoint_errors += 1;
+            if self.checkpoint_errors <= 3 {
+                log::warn!("checkpoint not written: {e}");
+            }
+        }
+    }
+}
+
+impl Hooks for DaemonHooks {
+    fn status(&mut self) -> String {
+        let p = self.progress();
+        let task = self.shared.with_status(|s| s.task.clone());
+        format!(
+            "coverage ~{:.1} %, {:.0} s, {} scans, task {task}",
+            p.coverage * 100.0,
+            p.elapsed,
+            p.scans
+        )
+    }
+
+    fn tick(&mut self, _pipeline: &Pipeline, now: Stamp) {
+        if self.every.due(now) {
+            self.checkpoint();
+        }
+    }
+
+    fn before_stop(&mut self, _reason: &StopReason, _pipeline: &Pipeline) {
+        self.shared.halt.store(true, Ordering::Relaxed);
+    }
+
+    fn after_stop(&mut self, _reason: &StopReason, _final: &MetricsSnapshot) {
+        self.checkpoint();
+    }
+}

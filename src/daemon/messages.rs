@@ -1,0 +1,75 @@
+//! The messages on the daemon's edges. Each carries the monotonic stamp of
+//! the scan it descends from (`t0`, taken when the scan arrived) so the
+//! motor stage can record the end-to-end latency of the wheel command a scan
+//! produced.
+
+use nalgebra::Point2;
+
+use crate::geom::Pose;
+use crate::motor::WheelSpeeds;
+use crate::pipeline::clock::Stamp;
+use crate::scan::LaserScan;
+
+/// scanner → localise: one scan with the odometry of the scanner at its time.
+#[derive(Clone, Debug)]
+pub struct ScanMsg {
+    /// When the scan arrived (monotonic).
+    pub t0: Stamp,
+    /// The scan's time on the daemon clock (s).
+    pub stamp: f64,
+    /// Odometry pose of the scanner at `stamp` (odometry frame).
+    pub odom: Pose,
+    /// The scan.
+    pub scan: LaserScan,
+}
+
+/// localise → control: the robot's pose at a scan's time.
+#[derive(Clone, Copy, Debug)]
+pub struct PoseFix {
+    /// When the scan arrived (monotonic).
+    pub t0: Stamp,
+    /// The scan's time on the daemon clock (s).
+    pub stamp: f64,
+    /// Robot pose in the map frame.
+    pub pose: Pose,
+    /// Robot odometry pose at the same time (odometry frame).
+    pub odom: Pose,
+    /// False when the match was rejected and the odometry prediction used.
+    pub matched: bool,
+}
+
+/// localise or motor → map.
+// The scan travels by value (no allocation per scan); contacts are rare.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum MapMsg {
+    /// A registered scan: the scanner pose in the map frame and the scan.
+    Scan {
+        /// Scanner pose.
+        pose: Pose,
+        /// The scan.
+        scan: LaserScan,
+    },
+    /// A bumper contact at this point: an obstacle the scanner did not see.
+    Contact(Point2<f64>),
+}
+
+/// plan → control: a path to follow.
+#[derive(Clone, Debug)]
+pub struct PathMsg {
+    /// Sequence number (increases with every new path).
+    pub seq: u64,
+    /// Waypoints (m, map frame).
+    pub points: Vec<Point2<f64>>,
+    /// Heading to turn to at the end, if any (rad).
+    pub final_heading: Option<f64>,
+}
+
+/// control → motor: wheel speeds.
+#[derive(Clone, Copy, Debug)]
+pub struct CmdMsg {
+    /// Left and right wheel speeds (m/s).
+    pub wheels: WheelSpeeds,
+    /// The scan this command answers, when it was produced by a new pose fix.
+    pub t0: Option<Stamp>,
+}

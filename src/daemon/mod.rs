@@ -1,0 +1,339 @@
+//! The daemon: the real stages of the DESIGN data path wired into the
+//! pipeline machinery. One thread per stage — scanner (the URG driver's own
+//! reader thread behind it), localise, map, plan, control, motor — joined by
+//! newest-wins edges, watched by the supervisor (metrics, watchdog, status,
+//! periodic checkpoints, ordered shutdown).
+//!
+//! The daemon opens its two devices through [`crate::serial::Connector`]s and
+//! reads time only through the injected [`crate::clock::Clock`]: `sweepline
+//! run` hands it `/dev/...` paths and the monotonic clock, `sweepline sim`
+//! hands it pty paths and a scaled clock; nothing in here knows which.
+
+pub mod hooks;
+pub mod messages;
+pub mod shared;
+pub mod stages;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use nalgebra::Point2;
+
+use crate::clock::SharedClock;
+use crate::config::Config;
+use crate::control::PathFollower;
+use crate::decomp::Decomposer;
+use crate::geom::{pose, Pose};
+use crate::grid::Grid;
+use crate::icp::Tracker;
+use crate::motor::DiffDriveBase;
+use crate::pipeline::checkpoint::RunProgress;
+use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
+use crate::pipeline::{latest, queue, Overflow, Pipeline};
+use crate::plan::CoveragePlanner;
+use crate::serial::Connector;
+use crate::urg::{UrgDriver, UrgHealth};
+
+pub use hooks::DaemonHooks;
+pub use shared::{LiveStatus, Shared};
+
+/// Control period (s): the follower runs at 20 Hz.
+pub const CONTROL_PERIOD: f64 = 0.05;
+/// Encoder polling period (s).
+pub const MOTOR_POLL_PERIOD: f64 = 0.02;
+/// Shortest time between two planning updates (s).
+pub const PLAN_INTERVAL: f64 = 0.2;
+/// Time the robot reverses after a bumper contact (s).
+pub const BUMP_BACKOFF: f64 = 1.0;
+/// Longest range merged into the map (m).
+pub const MAP_MAX_RANGE: f64 = 5.0;
+
+/// Why the daemon could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    /// A module refused its settings.
+    #[error("configuration: {0}")]
+    Config(String),
+    /// A thread could not be started.
+    #[error("cannot start the pipeline: {0}")]
+    Pipeline(#[from] crate::pipeline::PipelineError),
+    /// The scanner driver could not start.
+    #[error("scanner: {0}")]
+    Scanner(#[from] crate::urg::UrgError),
+}
+
+/// The extent of the explored-area grid (map frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapFrame {
+    /// Lower-left corner (m).
+    pub origin: Point2<f64>,
+    /// Cell size (m).
+    pub resolution: f64,
+    /// Cells along x.
+    pub width: usize,
+    /// Cells along y.
+    pub height: usize,
+}
+
+impl MapFrame {
+    /// A square of `extent` metres centred on `centre`.
+    pub fn centred(centre: Point2<f64>, extent: f64, resolution: f64) -> Self {
+        let n = (extent / resolution).ceil().max(1.0) as usize;
+        Self {
+            origin: Point2::new(centre.x - extent / 2.0, centre.y - extent / 2.0),
+            resolution,
+            width: n,
+            height: n,
+        }
+    }
+
+    fn grid(&self) -> Grid {
+        Grid::new(self.origin, self.resolution, self.width, self.height)
+    }
+}
+
+/// Where a resumed run picks up.
+#[derive(Clone, Debug)]
+pub struct Resume {
+    /// Robot pose at the checkpoint.
+    pub pose: Pose,
+    /// The map at the checkpoint.
+    pub grid: Grid,
+    /// Progress at the checkpoint.
+    pub progress: RunProgress,
+}
+
+/// Everything the daemon needs to start.
+pub struct DaemonSetup {
+    /// The configuration.
+    pub config: Config,
+    /// The clock every stage and driver reads.
+    pub clock: SharedClock,
+    /// Opens the scanner's port.
+    pub scanner: Box<dyn Connector>,
+    /// The wheel-base driver.
+    pub base: Box<dyn DiffDriveBase>,
+    /// Robot pose at start in the map frame.
+    pub start: Pose,
+    /// Extent of the map.
+    pub map: MapFrame,
+    /// Resume from a checkpoint.
+    pub resume: Option<Resume>,
+    /// Folder for checkpoints (none: no checkpoints).
+    pub state_dir: Option<PathBuf>,
+}
+
+/// Bridges the daemon's clock to the scanner driver's clock trait.
+struct UrgClock(SharedClock);
+
+impl crate::urg::Clock for UrgClock {
+    fn now(&self) -> f64 {
+        self.0.now()
+    }
+    fn sleep(&self, dt: f64) {
+        self.0.sleep(dt)
+    }
+    fn rate(&self) -> f64 {
+        self.0.speed()
+    }
+}
+
+/// The scanner driver's clock trait over a daemon clock (also used by the
+/// simulator for the URG emulator, so both read one time base).
+pub fn urg_clock(clock: SharedClock) -> Arc<dyn crate::urg::Clock> {
+    Arc::new(UrgClock(clock))
+}
+
+/// A daemon whose stages are running, not yet supervised.
+pub struct Daemon {
+    pipeline: Pipeline,
+    supervisor: Supervisor,
+    shared: Arc<Shared>,
+    urg_health: Arc<UrgHealth>,
+    clock: SharedClock,
+    resume: Option<RunProgress>,
+    state_dir: Option<PathBuf>,
+    checkpoint_period: f64,
+}
+
+impl Daemon {
+    /// Builds every stage and starts its thread.
+    pub fn start(setup: DaemonSetup) -> Result<Daemon, DaemonError> {
+        let cfg = setup.config;
+        let clock = setup.clock;
+        let robot = cfg.robot.clone();
+        let mount = pose(robot.scanner_offset_x, 0.0, 0.0);
+        let supervisor = Supervisor::new(&cfg.pipeline);
+        let mut pipeline = Pipeline::new(&cfg.pipeline);
+        let shared = Arc::new(Shared::default());
+
+        let (start, grid) = match &setup.resume {
+            Some(r) => (r.pose, r.grid.clone()),
+            None => (setup.start, setup.map.grid()),
+        };
+        shared.with_status(|s| {
+            s.pose = start;
+            if let Some(r) = &setup.resume {
+                s.path_length = r.progress.path_length;
+            }
+        });
+
+        let (scan_tx, scan_rx) = latest("scans");
+        let (fix_tx, fix_rx) = latest("pose_fixes");
+        let (map_tx, map_rx) = queue("registered_scans", 8, Overflow::DropOldest);
+        let (snap_tx, snap_rx) = latest("map_snapshots");
+        let (path_tx, path_rx) = queue("paths", 4, Overflow::DropOldest);
+        let (pose_tx, pose_rx) = queue("swept_poses", 1024, Overflow::DropOldest);
+        let (cmd_tx, cmd_rx) = latest("wheel_commands");
+        pipeline.register_edge(&scan_tx);
+        pipeline.register_edge(&fix_tx);
+        pipeline.register_edge(&map_tx);
+        pipeline.register_edge(&snap_tx);
+        pipeline.register_edge(&path_tx);
+        pipeline.register_edge(&pose_tx);
+        pipeline.register_edge(&cmd_tx);
+
+        let tracker = Tracker::new(cfg.icp.clone(), start * mount)
+            .map_err(|e| DaemonError::Config(e.to_string()))?;
+        let decomposer = Decomposer::new(&cfg.decomp, robot.radius)
+            .map_err(|e| DaemonError::Config(e.to_string()))?;
+        let mut planner = CoveragePlanner::new(&cfg.plan, &robot)
+            .map_err(|e| DaemonError::Config(e.to_string()))?;
+        planner.record_pose(&start);
+        let follower = PathFollower::new(&cfg.control, &robot)
+            .map_err(|e| DaemonError::Config(e.to_string()))?;
+
+        let driver =
+            UrgDriver::start(setup.scanner, cfg.scanner.clone(), urg_clock(clock.clone()))?;
+        let urg_health = driver.health();
+        let now = clock.now();
+
+        pipeline.spawn(
+            "motor",
+            stages::MotorStage {
+                base: setup.base,
+                rx: cmd_rx,
+                to_map: map_tx.clone(),
+                shared: shared.clone(),
+                clock: clock.clone(),
+                period: MOTOR_POLL_PERIOD,
+                next_poll: now,
+                radius: robot.radius,
+            },
+        )?;
+        pipeline.spawn(
+            "control",
+            stages::ControlStage {
+                follower,
+                paths: path_rx,
+                fixes: fix_rx,
+                tx: cmd_tx,
+                poses: pose_tx,
+                shared: shared.clone(),
+                clock: clock.clone(),
+                period: CONTROL_PERIOD,
+                next_tick: now,
+                last_cmd: now,
+                fix: None,
+                start,
+                path_seq: 0,
+                wheel_base: robot.wheel_base,
+                backoff: BUMP_BACKOFF,
+                last_pose: None,
+                bump_seen: f64::NEG_INFINITY,
+            },
+        )?;
+        pipeline.spawn(
+            "plan",
+            stages::PlanStage {
+                decomposer,
+                planner,
+                rx: snap_rx,
+                poses: pose_rx,
+                tx: path_tx,
+                shared: shared.clone(),
+                control: supervisor.control(),
+                clock: clock.clone(),
+                min_interval: PLAN_INTERVAL,
+                last: f64::NEG_INFINITY,
+                seq: 0,
+                updates: 0,
+            },
+        )?;
+        pipeline.spawn(
+            "map",
+            stages::MapStage {
+                grid,
+                rx: map_rx,
+                tx: snap_tx,
+                shared: shared.clone(),
+                max_range: MAP_MAX_RANGE,
+                contacts: Vec::new(),
+            },
+        )?;
+        pipeline.spawn(
+            "localise",
+            stages::LocaliseStage {
+                tracker,
+                rx: scan_rx,
+                to_control: fix_tx,
+                to_map: map_tx,
+                shared: shared.clone(),
+                mount,
+                points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
+            },
+        )?;
+        pipeline.spawn(
+            "scanner",
+            stages::ScannerStage {
+                driver: Some(driver),
+                tx: scan_tx,
+                shared: shared.clone(),
+                mount,
+            },
+        )?;
+        Ok(Daemon {
+            pipeline,
+            supervisor,
+            shared,
+            urg_health,
+            clock,
+            resume: setup.resume.map(|r| r.progress),
+            state_dir: setup.state_dir,
+            checkpoint_period: cfg.pipeline.checkpoint_period,
+        })
+    }
+
+    /// A handle to ask for a stop or signal readiness.
+    pub fn control(&self) -> Control {
+        self.supervisor.control()
+    }
+
+    /// The state shared by the stages (live status, odometry, flags).
+    pub fn shared(&self) -> Arc<Shared> {
+        self.shared.clone()
+    }
+
+    /// The scanner link's counters.
+    pub fn urg_health(&self) -> Arc<UrgHealth> {
+        self.urg_health.clone()
+    }
+
+    /// The daemon's own hooks (status line, checkpoints, ordered shutdown).
+    pub fn hooks(&self) -> DaemonHooks {
+        DaemonHooks::new(
+            self.shared.clone(),
+            self.clock.clone(),
+            self.state_dir.as_deref(),
+            self.checkpoint_period,
+            self.resume,
+        )
+    }
+
+    /// Supervises the stages until coverage is done, a signal, a stop request
+    /// or a failed stage; then shuts down in order and reports.
+    pub fn run(self, hooks: &mut dyn Hooks) -> Outcome {
+        self.supervisor.control().ready();
+        self.supervisor.run(self.pipeline, hooks)
+    }
+}

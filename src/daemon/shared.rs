@@ -1,0 +1,251 @@
+//! State the daemon's stages share outside the edges: the wheel odometry
+//! (written by the motor stage, read by the scanner and control stages), the
+//! follower's progress (control → plan), and the live status the supervisor
+//! and the simulator read. Each is a short critical section, never held
+//! across I/O or an algorithm.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Mutex;
+
+use crate::geom::{heading, pose, wrap_angle, Pose};
+
+/// How many odometry samples are kept for looking up the pose at a scan's time.
+const ODOM_HISTORY: usize = 256;
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    match m.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    }
+}
+
+/// The integrated wheel odometry: an absolute pose in the odometry frame,
+/// with a short history so a scan can be paired with the odometry at its own
+/// time rather than at its arrival.
+#[derive(Debug)]
+pub struct OdomLog {
+    inner: Mutex<VecDeque<(f64, Pose)>>,
+}
+
+impl Default for OdomLog {
+    fn default() -> Self {
+        let mut q = VecDeque::with_capacity(ODOM_HISTORY);
+        q.push_back((f64::NEG_INFINITY, Pose::identity()));
+        Self {
+            inner: Mutex::new(q),
+        }
+    }
+}
+
+impl OdomLog {
+    /// Appends the increment `delta` (base frame of the previous reading),
+    /// read at clock time `t`.
+    pub fn push(&self, t: f64, delta: &Pose) {
+        let mut q = lock(&self.inner);
+        let last = q.back().map(|s| s.1).unwrap_or_else(Pose::identity);
+        let next = last * delta;
+        let next = pose(next.translation.x, next.translation.y, heading(&next));
+        if q.len() == ODOM_HISTORY {
+            q.pop_front();
+        }
+        q.push_back((t, next));
+    }
+
+    /// The newest odometry pose.
+    pub fn latest(&self) -> Pose {
+        lock(&self.inner)
+            .back()
+            .map(|s| s.1)
+            .unwrap_or_else(Pose::identity)
+    }
+
+    /// The odometry pose at clock time `t`, interpolated between the two
+    /// samples around it (the oldest or newest one outside the history).
+    pub fn at(&self, t: f64) -> Pose {
+        let q = lock(&self.inner);
+        let Some(&(tn, pn)) = q.back() else {
+            return Pose::identity();
+        };
+        if t >= tn || !t.is_finite() {
+            return pn;
+        }
+        let mut after = (tn, pn);
+        for &(ts, ps) in q.iter().rev() {
+            if ts <= t {
+                let span = after.0 - ts;
+                if !(span.is_finite() && span > 0.0) {
+                    return ps;
+                }
+                let f = (t - ts) / span;
+                let (a, b) = (ps, after.1);
+                let th = heading(&a) + f * wrap_angle(heading(&b) - heading(&a));
+                return pose(
+                    a.translation.x + f * (b.translation.x - a.translation.x),
+                    a.translation.y + f * (b.translation.y - a.translation.y),
+                    wrap_angle(th),
+                );
+            }
+            after = (ts, ps);
+        }
+        after.1
+    }
+}
+
+/// Where the follower is on which path, for the planner.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    /// Sequence number of the path being followed.
+    pub path_seq: u64,
+    /// Index of the waypoint driven to; `None` when the path is finished.
+    pub next: Option<usize>,
+}
+
+/// What the whole daemon knows now, for status lines, checkpoints and the
+/// simulator's pose-error measurement.
+#[derive(Clone, Debug)]
+pub struct LiveStatus {
+    /// The control stage's current pose estimate (last ICP pose composed with
+    /// the odometry since).
+    pub pose: Pose,
+    /// Clock time of that estimate (s).
+    pub pose_time: f64,
+    /// Floor the planner records as swept (m²).
+    pub covered_area: f64,
+    /// Scans localised so far.
+    pub scans: u64,
+    /// Scans whose match was rejected or failed (odometry used instead).
+    pub fallbacks: u64,
+    /// Path driven according to the pose estimate (m).
+    pub path_length: f64,
+    /// What the planner is doing, in words.
+    pub task: String,
+    /// The newest map snapshot.
+    pub grid: Option<std::sync::Arc<crate::grid::Grid>>,
+    /// The newest decomposition.
+    pub decomposition: Option<std::sync::Arc<crate::decomp::Decomposition>>,
+}
+
+impl Default for LiveStatus {
+    fn default() -> Self {
+        Self {
+            pose: Pose::identity(),
+            pose_time: 0.0,
+            covered_area: 0.0,
+            scans: 0,
+            fallbacks: 0,
+            path_length: 0.0,
+            task: "starting".into(),
+            grid: None,
+            decomposition: None,
+        }
+    }
+}
+
+/// Everything shared between stages besides the edges.
+#[derive(Debug, Default)]
+pub struct Shared {
+    /// Integrated wheel odometry.
+    pub odom: OdomLog,
+    /// The follower's progress.
+    pub progress: Mutex<Progress>,
+    /// Live status.
+    pub status: Mutex<LiveStatus>,
+    /// Set when coverage is finished (the planner has nothing left).
+    pub done: AtomicBool,
+    /// Set on shutdown: control sends only stops from now on.
+    pub halt: AtomicBool,
+    /// Bumper or wheel-drop latched: clock time (f64 bits) of the last event.
+    pub bumped_at: AtomicU64,
+    /// Safety events seen (bumper, wheel drop, dead-man, link lost).
+    pub safety_events: AtomicU64,
+    /// The wheel-base link counters, copied by the motor stage.
+    pub base_health: Mutex<crate::motor::LinkHealth>,
+    /// Every localised robot pose with its scan time (clock s), kept when
+    /// [`Shared::keep_fixes`] is set (the simulator scores them).
+    pub fixes: Mutex<Vec<(f64, Pose)>>,
+    /// Whether to keep [`Shared::fixes`].
+    pub keep_fixes: AtomicBool,
+}
+
+impl Shared {
+    /// Runs `f` on the live status.
+    pub fn with_status<T>(&self, f: impl FnOnce(&mut LiveStatus) -> T) -> T {
+        f(&mut lock(&self.status))
+    }
+
+    /// The follower's progress.
+    pub fn progress(&self) -> Progress {
+        *lock(&self.progress)
+    }
+
+    /// Sets the follower's progress.
+    pub fn set_progress(&self, p: Progress) {
+        *lock(&self.progress) = p;
+    }
+
+    /// The wheel-base link counters.
+    pub fn base_health(&self) -> crate::motor::LinkHealth {
+        *lock(&self.base_health)
+    }
+
+    /// Stores the wheel-base link counters.
+    pub fn set_base_health(&self, h: crate::motor::LinkHealth) {
+        *lock(&self.base_health) = h;
+    }
+
+    /// Records a localised pose (when asked to keep them).
+    pub fn note_fix(&self, stamp: f64, p: Pose) {
+        if self.keep_fixes.load(Ordering::Relaxed) {
+            lock(&self.fixes).push((stamp, p));
+        }
+    }
+
+    /// The kept localised poses.
+    pub fn fixes(&self) -> Vec<(f64, Pose)> {
+        lock(&self.fixes).clone()
+    }
+
+    /// Records a bumper or wheel-drop event at clock time `t`.
+    pub fn note_bump(&self, t: f64) {
+        self.bumped_at.store(t.to_bits(), Ordering::Relaxed);
+    }
+
+    /// Clock time of the last bump (−∞ when none).
+    pub fn last_bump(&self) -> f64 {
+        let b = self.bumped_at.load(Ordering::Relaxed);
+        if b == 0 {
+            f64::NEG_INFINITY
+        } else {
+            f64::from_bits(b)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn odometry_integrates_and_interpolates() {
+        let log = OdomLog::default();
+        log.push(0.0, &Pose::identity());
+        log.push(1.0, &pose(1.0, 0.0, std::f64::consts::FRAC_PI_2));
+        log.push(2.0, &pose(1.0, 0.0, 0.0));
+        let p = log.latest();
+        assert!((p.translation.x - 1.0).abs() < 1e-9 && (p.translation.y - 1.0).abs() < 1e-9);
+        let mid = log.at(0.5);
+        assert!((mid.translation.x - 0.5).abs() < 1e-9, "{mid:?}");
+        assert!((heading(&mid) - std::f64::consts::FRAC_PI_4).abs() < 1e-9);
+        assert_eq!(log.at(5.0), log.latest());
+        assert_eq!(log.at(f64::NAN), log.latest());
+    }
+
+    #[test]
+    fn bump_time_round_trips() {
+        let s = Shared::default();
+        assert_eq!(s.last_bump(), f64::NEG_INFINITY);
+        s.note_bump(12.5);
+        assert_eq!(s.last_bump(), 12.5);
+    }
+}

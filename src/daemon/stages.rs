@@ -1,0 +1,621 @@
+//! The six stages of the data path, each a [`Stage`] run on its own thread by
+//! the pipeline: scanner, localise, map, plan, control, motor. Every stage
+//! reads time only through the injected clock; edge waits are converted to
+//! wall time with [`crate::clock::Clock::to_wall`].
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use nalgebra::Point2;
+
+use super::messages::{CmdMsg, MapMsg, PathMsg, PoseFix, ScanMsg};
+use super::shared::{Progress, Shared};
+use crate::clock::SharedClock;
+use crate::control::PathFollower;
+use crate::decomp::Decomposer;
+use crate::geom::{heading, pose, IPoint, Pose};
+use crate::grid::Grid;
+use crate::icp::{Outcome, Tracker};
+use crate::motor::{DiffDriveBase, SafetyEvent, WheelSpeeds};
+use crate::pipeline::clock::Stamp;
+use crate::pipeline::supervisor::Control;
+use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
+use crate::plan::{CoveragePlanner, PlanStatus};
+use crate::urg::UrgDriver;
+
+/// The fault of a send to a stage that has gone: expected while shutting
+/// down, fatal otherwise.
+fn gone(shared: &Shared, what: &str) -> Result<(), StageFault> {
+    if shared.halt.load(Ordering::Relaxed) {
+        Ok(())
+    } else {
+        Err(StageFault::Fatal(format!("the {what} stage is gone")))
+    }
+}
+
+/// Wall time until clock time `at`, at most `cap`.
+fn wall_until(clock: &SharedClock, at: f64, cap: Duration) -> Duration {
+    clock.to_wall((at - clock.now()).max(0.0)).min(cap)
+}
+
+/// The scanner stage: forwards the URG driver's scans (the driver runs its
+/// own reader thread and channel), stamped on arrival and paired with the
+/// odometry at the scan's time.
+pub struct ScannerStage {
+    /// The driver; taken on stop to send QT and join its thread.
+    pub driver: Option<UrgDriver>,
+    /// Scans out (newest wins).
+    pub tx: Tx<ScanMsg>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// Pose of the scanner in the robot frame.
+    pub mount: Pose,
+}
+
+impl Stage for ScannerStage {
+    type Work = crate::urg::UrgScan;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<Self::Work> {
+        let Some(d) = &self.driver else {
+            return Poll::Done;
+        };
+        match d.scans().recv_timeout(timeout) {
+            Ok(s) => Poll::Work(s),
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => Poll::Idle,
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, work: Self::Work, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        let t0 = Stamp::now();
+        let odom = self.shared.odom.at(work.scan.stamp) * self.mount;
+        let msg = ScanMsg {
+            t0,
+            stamp: work.scan.stamp,
+            odom,
+            scan: work.scan,
+        };
+        self.tx
+            .send(msg)
+            .map_or_else(|_| gone(&self.shared, "localise"), |_| Ok(()))
+    }
+
+    fn on_stop(&mut self) {
+        if let Some(d) = self.driver.take() {
+            d.shutdown();
+        }
+    }
+}
+
+/// The localise stage: intensity-ICP of each newest scan against the
+/// tracker's local map with the odometry prior; a rejected or failed match
+/// falls back to the odometry prediction (counted) and is kept out of the map.
+pub struct LocaliseStage {
+    /// The scan-to-map tracker (scanner poses).
+    pub tracker: Tracker,
+    /// Scans in.
+    pub rx: Rx<ScanMsg>,
+    /// Pose fixes to control.
+    pub to_control: Tx<PoseFix>,
+    /// Registered scans to the map.
+    pub to_map: Tx<MapMsg>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// Pose of the scanner in the robot frame.
+    pub mount: Pose,
+    /// Reused point buffer.
+    pub points: Vec<IPoint>,
+}
+
+impl Stage for LocaliseStage {
+    type Work = ScanMsg;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<ScanMsg> {
+        match self.rx.recv_timeout(timeout) {
+            Recv::Msg(m) => match self.rx.try_recv_newest() {
+                Recv::Msg(newer) => Poll::Work(newer),
+                _ => Poll::Work(m),
+            },
+            Recv::Empty => Poll::Idle,
+            Recv::Closed => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        ctx.note_age(msg.t0);
+        msg.scan.points_into(&mut self.points);
+        let step = self.tracker.step(&self.points, Some(&msg.odom));
+        let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        let robot = step.pose * self.mount.inverse();
+        let robot_odom = msg.odom * self.mount.inverse();
+        self.shared.with_status(|s| {
+            s.scans += 1;
+            if !matched {
+                s.fallbacks += 1;
+            }
+        });
+        if matched {
+            self.shared.note_fix(msg.stamp, robot);
+        }
+        let fix = PoseFix {
+            t0: msg.t0,
+            stamp: msg.stamp,
+            pose: robot,
+            odom: robot_odom,
+            matched,
+        };
+        if self.to_control.send(fix).is_err() {
+            return gone(&self.shared, "control");
+        }
+        if matched {
+            let _ = self.to_map.send(MapMsg::Scan {
+                pose: step.pose,
+                scan: msg.scan,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The map stage: merges registered scans into the explored-area grid and
+/// publishes immutable `Arc` snapshots for the planner.
+pub struct MapStage {
+    /// The map.
+    pub grid: Grid,
+    /// Registered scans and bumper contacts in.
+    pub rx: Rx<MapMsg>,
+    /// Snapshots out (newest wins).
+    pub tx: Tx<Arc<Grid>>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// Longest range merged (m); farther echoes are too uncertain.
+    pub max_range: f64,
+    /// Bumper contacts: obstacles the scanner cannot see, kept occupied
+    /// even when later rays pass over them.
+    pub contacts: Vec<Point2<f64>>,
+}
+
+/// Radius of the obstacle a bumper contact marks (m).
+pub const CONTACT_RADIUS: f64 = 0.05;
+
+impl MapStage {
+    fn mark_contacts(&mut self) {
+        let res = self.grid.resolution();
+        let n = (CONTACT_RADIUS / res).ceil() as i64;
+        for c in &self.contacts {
+            for dy in -n..=n {
+                for dx in -n..=n {
+                    let p = Point2::new(c.x + dx as f64 * res, c.y + dy as f64 * res);
+                    if (p - c).norm() <= CONTACT_RADIUS {
+                        if let Some(cell) = self.grid.cell_of(&p) {
+                            self.grid.set_state(cell, crate::grid::CellState::Occupied);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Stage for MapStage {
+    type Work = MapMsg;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<MapMsg> {
+        match self.rx.recv_timeout(timeout) {
+            Recv::Msg(m) => Poll::Work(m),
+            Recv::Empty => Poll::Idle,
+            Recv::Closed => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, msg: MapMsg, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        match msg {
+            MapMsg::Scan { pose: p, scan } => {
+                let o: Point2<f64> = p.translation.vector.into();
+                for b in scan.beams.iter() {
+                    if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
+                        continue;
+                    }
+                    let r = b.range.min(self.max_range);
+                    let (s, c) = b.angle.sin_cos();
+                    let end = p * Point2::new(r * c, r * s);
+                    self.grid.integrate_ray(&o, &end, r >= b.range);
+                }
+            }
+            MapMsg::Contact(at) => {
+                if self
+                    .contacts
+                    .iter()
+                    .all(|c| (c - at).norm() > CONTACT_RADIUS)
+                {
+                    self.contacts.push(at);
+                }
+            }
+        }
+        self.mark_contacts();
+        let snap = Arc::new(self.grid.clone());
+        self.shared.with_status(|s| s.grid = Some(snap.clone()));
+        self.tx
+            .send(snap)
+            .map_or_else(|_| gone(&self.shared, "plan"), |_| Ok(()))
+    }
+}
+
+/// The plan stage: online cell decomposition and the coverage planner on
+/// each new map snapshot, rate-limited (more so when degraded); tells the
+/// supervisor when nothing reachable is left.
+pub struct PlanStage {
+    /// The decomposer.
+    pub decomposer: Decomposer,
+    /// The planner.
+    pub planner: CoveragePlanner,
+    /// Map snapshots in.
+    pub rx: Rx<Arc<Grid>>,
+    /// Executed poses in (the tool swept the floor there).
+    pub poses: Rx<Pose>,
+    /// Paths out.
+    pub tx: Tx<PathMsg>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// Asks the supervisor to stop when coverage is done.
+    pub control: Control,
+    /// The injected clock.
+    pub clock: SharedClock,
+    /// Shortest time between two planning updates (clock s).
+    pub min_interval: f64,
+    /// Clock time of the last update.
+    pub last: f64,
+    /// Sequence number of the last path sent.
+    pub seq: u64,
+    /// Updates so far.
+    pub updates: u64,
+}
+
+impl Stage for PlanStage {
+    type Work = Arc<Grid>;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<Arc<Grid>> {
+        if self.shared.done.load(Ordering::Relaxed) {
+            std::thread::sleep(timeout);
+            return Poll::Idle;
+        }
+        let due = self.last + self.min_interval;
+        if self.clock.now() < due {
+            std::thread::sleep(wall_until(&self.clock, due, timeout));
+            return Poll::Idle;
+        }
+        match self.rx.recv_timeout(timeout) {
+            Recv::Msg(g) => match self.rx.try_recv_newest() {
+                Recv::Msg(newer) => Poll::Work(newer),
+                _ => Poll::Work(g),
+            },
+            Recv::Empty => Poll::Idle,
+            Recv::Closed => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, grid: Arc<Grid>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        self.last = self.clock.now() + self.min_interval * f64::from(ctx.degrade());
+        while let Recv::Msg(p) = self.poses.try_recv() {
+            self.planner.record_pose(&p);
+        }
+        let decomp = self.decomposer.update(&grid, &[]);
+        let progress = self.shared.progress();
+        let progress = if progress.path_seq == self.seq {
+            progress.next
+        } else {
+            Some(0)
+        };
+        let here = self.shared.with_status(|s| s.pose);
+        let status = self
+            .planner
+            .update(&grid, decomp, &here, progress)
+            .map_err(|e| StageFault::Transient(format!("planner: {e}")))?;
+        self.updates += 1;
+        let res = self.planner.cspace().frame.res;
+        let covered = self.planner.covered().iter().filter(|c| **c).count() as f64 * res * res;
+        let snapshot = (self.updates % 5 == 1).then(|| Arc::new(decomp.clone()));
+        let task = match status {
+            PlanStatus::Working { task, .. } => format!("{task:?}"),
+            PlanStatus::Done(_) => "Done".into(),
+        };
+        self.shared.with_status(|s| {
+            s.covered_area = covered;
+            s.task = task;
+            if let Some(d) = snapshot {
+                s.decomposition = Some(d);
+            }
+        });
+        match status {
+            PlanStatus::Done(r) => {
+                self.shared
+                    .with_status(|s| s.decomposition = Some(Arc::new(decomp.clone())));
+                self.shared.done.store(true, Ordering::Relaxed);
+                log::info!(
+                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned",
+                    r.covered_area,
+                    r.unreachable_area,
+                    r.abandoned_area
+                );
+                self.control.stop("coverage finished");
+            }
+            PlanStatus::Working { new_path: true, .. } => {
+                self.seq += 1;
+                let (points, final_heading) = self.planner.path();
+                let msg = PathMsg {
+                    seq: self.seq,
+                    points: points.to_vec(),
+                    final_heading,
+                };
+                if self.tx.send(msg).is_err() {
+                    return gone(&self.shared, "control");
+                }
+            }
+            PlanStatus::Working { .. } => {}
+        }
+        Ok(())
+    }
+}
+
+/// What wakes the control stage.
+#[derive(Debug)]
+pub enum ControlWork {
+    /// A new path.
+    Path(PathMsg),
+    /// A new pose fix: a command goes out at once (end-to-end latency).
+    Fix(PoseFix),
+    /// The 20 Hz tick.
+    Tick,
+}
+
+/// The control stage: path following at a fixed rate on the latest pose
+/// (last ICP pose composed with the odometry since), plus one immediate
+/// command per new pose fix. Stops on shutdown or when done; backs off after
+/// a bumper contact.
+pub struct ControlStage {
+    /// The path follower.
+    pub follower: PathFollower,
+    /// Paths in.
+    pub paths: Rx<PathMsg>,
+    /// Pose fixes in.
+    pub fixes: Rx<PoseFix>,
+    /// Wheel commands out.
+    pub tx: Tx<CmdMsg>,
+    /// Executed poses out, for the planner's swept-floor record.
+    pub poses: Tx<Pose>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// The injected clock.
+    pub clock: SharedClock,
+    /// Control period (clock s).
+    pub period: f64,
+    /// Clock time of the next tick.
+    pub next_tick: f64,
+    /// Clock time of the last command.
+    pub last_cmd: f64,
+    /// The newest pose fix.
+    pub fix: Option<PoseFix>,
+    /// Where the robot started (used before the first fix).
+    pub start: Pose,
+    /// Sequence number of the path followed.
+    pub path_seq: u64,
+    /// Wheel base (m).
+    pub wheel_base: f64,
+    /// Reversing time after a bumper contact (clock s).
+    pub backoff: f64,
+    /// Last pose estimate (for the path length).
+    pub last_pose: Option<Pose>,
+    /// Clock time of the last bump handled.
+    pub bump_seen: f64,
+}
+
+impl ControlStage {
+    /// The current pose estimate.
+    fn estimate(&self) -> Pose {
+        let odom = self.shared.odom.latest();
+        let p = match &self.fix {
+            Some(f) => f.pose * (f.odom.inverse() * odom),
+            None => self.start * odom,
+        };
+        pose(p.translation.x, p.translation.y, heading(&p))
+    }
+
+    fn command(&mut self, t0: Option<Stamp>) -> Result<(), StageFault> {
+        let now = self.clock.now();
+        let dt = (now - self.last_cmd).clamp(1e-3, 4.0 * self.period);
+        self.last_cmd = now;
+        let est = self.estimate();
+        let wheels = if self.shared.halt.load(Ordering::Relaxed)
+            || self.shared.done.load(Ordering::Relaxed)
+        {
+            WheelSpeeds::STOP
+        } else if now - self.shared.last_bump() < self.backoff {
+            if self.shared.last_bump() != self.bump_seen {
+                // The path runs into something the map did not show: drop
+                // it; the planner plans again around the contact.
+                self.bump_seen = self.shared.last_bump();
+                self.follower.set_path(&[], None);
+            }
+            WheelSpeeds::from_body(-0.05, 0.0, self.wheel_base)
+        } else {
+            let (_, w) = self.follower.step(&est, dt);
+            WheelSpeeds {
+                left: w.left,
+                right: w.right,
+            }
+        };
+        let d = self
+            .last_pose
+            .map(|p| (p.translation.vector - est.translation.vector).norm())
+            .unwrap_or(0.0);
+        self.last_pose = Some(est);
+        self.shared.with_status(|s| {
+            s.pose = est;
+            s.pose_time = now;
+            s.path_length += d;
+        });
+        self.shared.set_progress(Progress {
+            path_seq: self.path_seq,
+            next: (!self.follower.is_done()).then(|| self.follower.next_index()),
+        });
+        let _ = self.poses.send(est);
+        match self.tx.send(CmdMsg { wheels, t0 }) {
+            Ok(_) => Ok(()),
+            Err(_) if self.shared.halt.load(Ordering::Relaxed) => Ok(()),
+            Err(_) => Err(StageFault::Fatal("the motor stage is gone".into())),
+        }
+    }
+}
+
+impl Stage for ControlStage {
+    type Work = ControlWork;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<ControlWork> {
+        if let Recv::Msg(p) = self.paths.try_recv_newest() {
+            return Poll::Work(ControlWork::Path(p));
+        }
+        let now = self.clock.now();
+        if now >= self.next_tick {
+            self.next_tick = (self.next_tick + self.period).max(now);
+            return Poll::Work(ControlWork::Tick);
+        }
+        match self
+            .fixes
+            .recv_timeout(wall_until(&self.clock, self.next_tick, timeout))
+        {
+            Recv::Msg(f) => Poll::Work(ControlWork::Fix(f)),
+            Recv::Empty => Poll::Idle,
+            Recv::Closed => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, work: ControlWork, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        match work {
+            ControlWork::Path(p) => {
+                self.follower.set_path(&p.points, p.final_heading);
+                self.path_seq = p.seq;
+                self.shared.set_progress(Progress {
+                    path_seq: p.seq,
+                    next: (!self.follower.is_done()).then(|| self.follower.next_index()),
+                });
+                Ok(())
+            }
+            ControlWork::Fix(f) => {
+                ctx.note_age(f.t0);
+                let t0 = f.t0;
+                self.fix = Some(f);
+                self.command(Some(t0))
+            }
+            ControlWork::Tick => self.command(None),
+        }
+    }
+}
+
+/// What wakes the motor stage.
+#[derive(Debug)]
+pub enum MotorWork {
+    /// A wheel command.
+    Cmd(CmdMsg),
+    /// Time to read the encoders and sensors.
+    Poll,
+}
+
+/// The motor stage: owns the wheel-base driver; commands out, encoder
+/// odometry and safety events in; stops the wheels when it ends.
+pub struct MotorStage {
+    /// The base driver.
+    pub base: Box<dyn DiffDriveBase>,
+    /// Commands in.
+    pub rx: Rx<CmdMsg>,
+    /// Bumper contacts to the map.
+    pub to_map: Tx<MapMsg>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// The injected clock.
+    pub clock: SharedClock,
+    /// Encoder polling period (clock s).
+    pub period: f64,
+    /// Clock time of the next poll.
+    pub next_poll: f64,
+    /// Robot radius (m): where a bumper contact is.
+    pub radius: f64,
+}
+
+impl MotorStage {
+    fn poll(&mut self) -> Result<(), StageFault> {
+        let fb = self.base.poll();
+        self.shared.set_base_health(self.base.health());
+        let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
+        if let Some(o) = fb.odometry {
+            self.shared.odom.push(o.t1, &o.delta);
+        }
+        for e in fb.events.iter() {
+            match e {
+                SafetyEvent::Bumper(_) | SafetyEvent::WheelDrop(_) => {
+                    let now = self.clock.now();
+                    self.shared.note_bump(now);
+                    self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
+                    let here = self.shared.with_status(|s| s.pose);
+                    let th = heading(&here);
+                    let at = Point2::new(
+                        here.translation.x + (self.radius + 0.01) * th.cos(),
+                        here.translation.y + (self.radius + 0.01) * th.sin(),
+                    );
+                    let _ = self.to_map.send(MapMsg::Contact(at));
+                    log::warn!("safety: {e:?} at ({:.2}, {:.2}) m", at.x, at.y);
+                }
+                SafetyEvent::DeadMan | SafetyEvent::LinkLost => {
+                    self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
+                    log::warn!("wheel base: {e:?}");
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Stage for MotorStage {
+    type Work = MotorWork;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<MotorWork> {
+        if self.clock.now() >= self.next_poll {
+            self.next_poll = (self.next_poll + self.period).max(self.clock.now());
+            return Poll::Work(MotorWork::Poll);
+        }
+        match self
+            .rx
+            .recv_timeout(wall_until(&self.clock, self.next_poll, timeout))
+        {
+            Recv::Msg(c) => Poll::Work(MotorWork::Cmd(c)),
+            Recv::Empty => Poll::Idle,
+            Recv::Closed => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, work: MotorWork, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        match work {
+            MotorWork::Cmd(c) => {
+                let wheels = if self.shared.halt.load(Ordering::Relaxed) {
+                    WheelSpeeds::STOP
+                } else {
+                    c.wheels
+                };
+                let r = self.base.set_wheels(wheels);
+                if let Some(t0) = c.t0 {
+                    ctx.end_to_end(t0);
+                }
+                r.map_err(|e| StageFault::Transient(e.to_string()))
+            }
+            MotorWork::Poll => self.poll(),
+        }
+    }
+
+    fn on_stop(&mut self) {
+        if let Err(e) = self.base.stop() {
+            log::warn!("could not stop the wheels on shutdown: {e}");
+        }
+        self.shared.set_base_health(self.base.health());
+    }
+}

@@ -1,0 +1,525 @@
+//! The closed-loop simulation behind `sweepline sim`: the emulated URG-04LX
+//! and wheel base on pseudo-terminals, the daemon opening both pty paths as
+//! it would open `/dev/ttyACM0`, all on one scaled clock.
+//!
+//! The base emulator integrates the kinematics (the ground truth); the
+//! scanner emulator ray-casts the world at that true pose; the daemon only
+//! sees bytes. A sampler on the same clock records the true trajectory (for
+//! the coverage metric, the same code as the lock-step simulation) and the
+//! daemon's pose estimate beside it (for the pose error).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use nalgebra::Point2;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::clock::{ScaledClock, SharedClock};
+use crate::config::Config;
+use crate::control::{integrate, Twist, WheelCmd};
+use crate::daemon::{urg_clock, Daemon, DaemonSetup, MapFrame};
+use crate::geom::{heading, wrap_angle, Pose};
+use crate::motor::{BaseKind, LinkHealth};
+use crate::pipeline::metrics::MetricsSnapshot;
+use crate::pipeline::supervisor::StopReason;
+use crate::report::run_folder::RunFolderHooks;
+use crate::serial::DeviceConnector;
+use crate::sim::base_emu::{self, EmuStats, EmulatorHandle, Fault};
+use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
+use crate::sim::urg_emu::{self, Echo, Scene};
+use crate::sim::world::World;
+use crate::urg::HealthSnapshot;
+
+/// Sampling period of the truth and the estimate (clock s).
+pub const SAMPLE_PERIOD: f64 = 0.05;
+/// Shortest dead-man time in wall seconds under time scaling.
+pub const DEADMAN_WALL: f64 = 0.05;
+/// Longest range the emulated URG-04LX reports (m).
+pub const URG_RANGE: f64 = 5.6;
+
+/// Why a simulation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// The world's start pose is not free.
+    #[error("world: {0}")]
+    Start(#[from] MetricsError),
+    /// An emulator could not start.
+    #[error("emulator: {0}")]
+    Emulator(String),
+    /// The daemon could not start.
+    #[error("daemon: {0}")]
+    Daemon(#[from] crate::daemon::DaemonError),
+    /// A bad option.
+    #[error("{0}")]
+    BadOption(String),
+    /// The report could not be written.
+    #[error("cannot write the report into {dir}: {source}")]
+    Report {
+        /// The folder.
+        dir: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+}
+
+/// A fault injected at a given simulated time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimedFault {
+    /// Simulated time (s from the start).
+    pub at: f64,
+    /// The fault, on the wheel-base link.
+    pub fault: Fault,
+}
+
+/// Settings of one closed-loop run.
+#[derive(Clone)]
+pub struct SimOptions {
+    /// The world.
+    pub world: Arc<World>,
+    /// The robot configuration the daemon runs with.
+    pub config: Config,
+    /// Time scale (simulated seconds per wall second).
+    pub speed: f64,
+    /// Report folder (none: no files).
+    pub out: Option<PathBuf>,
+    /// Which wheel base is emulated.
+    pub base: BaseKind,
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Simulated time after which the run is stopped unfinished (s).
+    pub time_cap: f64,
+    /// Print progress lines.
+    pub progress: bool,
+    /// Faults of the scanner emulator.
+    pub urg_faults: urg_emu::Faults,
+    /// Faults of the base emulator, by time.
+    pub base_faults: Vec<TimedFault>,
+    /// Obstacles the body hits but the scanner does not see (the base
+    /// emulator collides with this world instead, when set).
+    pub body_world: Option<Arc<World>>,
+    /// Range noise of the scanner (m, standard deviation).
+    pub range_noise: f64,
+}
+
+impl SimOptions {
+    /// Defaults for `world`: RoboClaw base, speed 10, 1 h cap.
+    pub fn new(world: World, config: Config) -> Self {
+        Self {
+            world: Arc::new(world),
+            config,
+            speed: 10.0,
+            out: None,
+            base: BaseKind::Roboclaw,
+            seed: 1,
+            time_cap: 3600.0,
+            progress: false,
+            urg_faults: urg_emu::Faults::default(),
+            base_faults: Vec::new(),
+            body_world: None,
+            range_noise: 0.005,
+        }
+    }
+}
+
+/// What a run measured.
+#[derive(Clone, Debug)]
+pub struct SimReport {
+    /// Ground-truth coverage figures.
+    pub metrics: CoverageMetrics,
+    /// RMS position error of the localised poses (ICP at each scan) against
+    /// the true pose the scan was cast from (m).
+    pub position_rmse: f64,
+    /// RMS heading error of the localised poses (rad).
+    pub heading_rmse: f64,
+    /// Largest position error of a localised pose (m).
+    pub position_max: f64,
+    /// Localised poses scored.
+    pub scored_fixes: usize,
+    /// Shift of the scan stamps against the emulator's sampling times that
+    /// fits best (s; diagnostic of the scanner's time stamping).
+    pub stamp_offset: f64,
+    /// RMS position error of the control stage's live estimate (last fix
+    /// composed with odometry) sampled every 50 ms against the truth at the
+    /// same instant (m); includes up to one control period of lag.
+    pub live_position_rmse: f64,
+    /// RMS heading error of the live estimate (rad).
+    pub live_heading_rmse: f64,
+    /// Largest position error of the live estimate (m).
+    pub live_position_max: f64,
+    /// True when the daemon finished coverage by itself.
+    pub finished: bool,
+    /// Why the daemon stopped.
+    pub reason: String,
+    /// Wall-clock duration of the run (s).
+    pub wall: f64,
+    /// Simulated duration (s).
+    pub sim_time: f64,
+    /// The scanner link's counters.
+    pub urg: HealthSnapshot,
+    /// The wheel-base link's counters (daemon side).
+    pub base: LinkHealth,
+    /// The base emulator's counters.
+    pub base_emu: EmuStats,
+    /// Scans the daemon localised and how many fell back to odometry.
+    pub scans: (u64, u64),
+    /// Safety events the daemon saw.
+    pub safety_events: u64,
+    /// The pipeline's final metrics.
+    pub pipeline: MetricsSnapshot,
+    /// True trajectory (one pose per sample).
+    pub truth: Vec<Pose>,
+    /// Estimated trajectory (same samples).
+    pub estimate: Vec<Pose>,
+}
+
+/// True poses at the times the emulated scanner sampled the world.
+type TruthLog = Arc<std::sync::Mutex<Vec<(f64, Pose)>>>;
+
+/// Pose error of localised poses `fixes` against the truth log `truth`
+/// (both sorted by time), pairing each fix with the truth sample nearest to
+/// its time shifted by `offset`, within `tolerance`: (position RMSE, heading
+/// RMSE, max position error, pairs).
+pub fn fix_errors(
+    fixes: &[(f64, Pose)],
+    truth: &[(f64, Pose)],
+    offset: f64,
+    tolerance: f64,
+) -> (f64, f64, f64, usize) {
+    let (mut sp, mut sh, mut mx, mut n) = (0.0, 0.0, 0.0f64, 0usize);
+    for (t, p) in fixes {
+        let t = t + offset;
+        let i = truth.partition_point(|(tt, _)| *tt < t);
+        let best = [i.wrapping_sub(1), i]
+            .into_iter()
+            .filter_map(|k| truth.get(k))
+            .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()));
+        let Some((tt, q)) = best else { continue };
+        if (tt - t).abs() > tolerance {
+            continue;
+        }
+        let e = (p.translation.vector - q.translation.vector).norm();
+        let eh = wrap_angle(heading(p) - heading(q));
+        sp += e * e;
+        sh += eh * eh;
+        mx = mx.max(e);
+        n += 1;
+    }
+    let d = n.max(1) as f64;
+    ((sp / d).sqrt(), (sh / d).sqrt(), mx, n)
+}
+
+fn to_cmd(w: crate::motor::WheelSpeeds) -> WheelCmd {
+    WheelCmd {
+        left: w.left,
+        right: w.right,
+    }
+}
+
+/// The world as the emulated scanner sees it, from the true pose of the
+/// emulated base.
+struct WorldScene {
+    world: Arc<World>,
+    base: Arc<EmulatorHandle>,
+    seen: TruthLog,
+    clock: SharedClock,
+    wheel_base: f64,
+    mount: f64,
+    noise: f64,
+    rng: ChaCha8Rng,
+}
+
+impl WorldScene {
+    fn gauss(&mut self) -> f64 {
+        let u1: f64 = self.rng.random_range(1e-12..1.0);
+        let u2: f64 = self.rng.random_range(0.0..1.0);
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+}
+
+impl Scene for WorldScene {
+    fn sample(&mut self, t: f64, angles: &[f64], out: &mut [Echo]) {
+        // The emulator thread may run a little after the scan's own time
+        // `t`: take the true pose back to `t` along the current motion.
+        let now = self.base.truth();
+        let lag = (self.clock.now() - t).clamp(0.0, 0.3);
+        let back = Twist::from_wheels(&to_cmd(self.base.wheels()), self.wheel_base);
+        let back = Twist {
+            v: -back.v,
+            w: -back.w,
+        };
+        let p = integrate(&now, &back, lag);
+        if let Ok(mut g) = self.seen.lock() {
+            g.push((t, p));
+        }
+        let th = heading(&p);
+        let o = Point2::new(
+            p.translation.x + self.mount * th.cos(),
+            p.translation.y + self.mount * th.sin(),
+        );
+        for (a, e) in angles.iter().zip(out.iter_mut()) {
+            *e = match self.world.cast_ray(&o, th + a, URG_RANGE) {
+                Some(hit) => {
+                    let r = hit.range + self.noise * self.gauss();
+                    Echo::Hit {
+                        range: r.max(0.0),
+                        reflectivity: hit.reflectivity * hit.incidence.cos().abs().max(0.05),
+                    }
+                }
+                None => Echo::NoReturn,
+            };
+        }
+    }
+}
+
+/// The map frame the daemon gets for `world`: its bounding box plus a margin.
+pub fn map_frame(world: &World) -> MapFrame {
+    let g = crate::sim::lockstep::grid_for(world, 0.05, 0.5);
+    MapFrame {
+        origin: g.origin(),
+        resolution: g.resolution(),
+        width: g.width(),
+        height: g.height(),
+    }
+}
+
+/// A fresh folder for the device symlinks of one run.
+fn link_dir() -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static RUN: AtomicU64 = AtomicU64::new(0);
+    std::env::temp_dir().join(format!(
+        "sweepline-sim-{}-{}",
+        std::process::id(),
+        RUN.fetch_add(1, Ordering::Relaxed)
+    ))
+}
+
+fn start_emulators(
+    opts: &SimOptions,
+    clock: &SharedClock,
+    seen: TruthLog,
+    links: &Path,
+) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
+    let mut ecfg = base_emu::EmulatorConfig::from_config(&opts.config, opts.base);
+    ecfg.start = opts.world.start;
+    ecfg.world = Some(
+        opts.body_world
+            .clone()
+            .unwrap_or_else(|| opts.world.clone()),
+    );
+    ecfg.seed = opts.seed;
+    ecfg.kinematics.seed = opts.seed;
+    // Stable symlinks, like the udev names on the robot: they follow the
+    // emulators' ptys over unplug and replug.
+    std::fs::create_dir_all(links)
+        .map_err(|e| SimError::Emulator(format!("cannot create {}: {e}", links.display())))?;
+    let base = Arc::new(
+        base_emu::spawn_on_pty(ecfg, Some(links.join("base")), clock.clone())
+            .map_err(|e| SimError::Emulator(e.to_string()))?,
+    );
+    let scene = WorldScene {
+        world: opts.world.clone(),
+        base: base.clone(),
+        seen,
+        clock: clock.clone(),
+        wheel_base: opts.config.robot.wheel_base,
+        mount: opts.config.robot.scanner_offset_x,
+        noise: opts.range_noise,
+        rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
+    };
+    let ucfg = urg_emu::EmulatorConfig {
+        faults: opts.urg_faults.clone(),
+        link: Some(links.join("urg")),
+        seed: opts.seed,
+        ..Default::default()
+    };
+    let urg = urg_emu::Emulator::spawn(ucfg, Box::new(scene), urg_clock(clock.clone()))
+        .map_err(|e| SimError::Emulator(e.to_string()))?;
+    Ok((base, urg))
+}
+
+/// Runs one closed-loop coverage of `opts.world` and writes the report
+/// folder when `opts.out` is set.
+pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
+    if !(opts.speed.is_finite() && opts.speed > 0.0) {
+        return Err(SimError::BadOption(format!(
+            "--speed must be a positive number, got {}",
+            opts.speed
+        )));
+    }
+    let robot = opts.config.robot.clone();
+    // Reachable floor is what the body can reach: the body's world when it
+    // has obstacles the scanner cannot see.
+    let truth_world = opts.body_world.as_deref().unwrap_or(&opts.world);
+    let tracker = CoverageTracker::new(
+        truth_world,
+        robot.radius,
+        robot.tool_width,
+        &opts.world.start,
+    )?;
+    let wall0 = Instant::now();
+    let clock: SharedClock = Arc::new(ScaledClock::new(opts.speed));
+    let seen: TruthLog = Arc::default();
+    let links = link_dir();
+    let started = start_emulators(opts, &clock, seen.clone(), &links);
+    let result =
+        started.and_then(|(base, urg)| drive(opts, clock, seen, base, urg, tracker, wall0));
+    let _ = std::fs::remove_dir_all(&links);
+    result
+}
+
+fn drive(
+    opts: &SimOptions,
+    clock: SharedClock,
+    seen: TruthLog,
+    base: Arc<EmulatorHandle>,
+    urg: urg_emu::Emulator,
+    mut tracker: CoverageTracker,
+    wall0: Instant,
+) -> Result<SimReport, SimError> {
+    let base_path = base
+        .path()
+        .ok_or_else(|| SimError::Emulator("the base emulator has no pty path".into()))?;
+    let urg_path = urg
+        .path()
+        .ok_or_else(|| SimError::Emulator("the scanner emulator has no pty path".into()))?;
+    let mut cfg = opts.config.clone();
+    cfg.motor.kind = opts.base;
+    cfg.motor.device = base_path.display().to_string();
+    cfg.scanner.port = urg_path.display().to_string();
+    // Host scheduling stalls are multiplied by the time scale: give the
+    // dead-man at least 50 ms of wall time.
+    cfg.motor.deadman = cfg.motor.deadman.max(DEADMAN_WALL * opts.speed);
+    let driver = crate::motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
+    let daemon = Daemon::start(DaemonSetup {
+        config: cfg.clone(),
+        clock: clock.clone(),
+        scanner: Box::new(DeviceConnector::new(urg_path)),
+        base: driver,
+        start: opts.world.start,
+        map: map_frame(&opts.world),
+        resume: None,
+        state_dir: opts.out.as_ref().map(|o| o.join("state")),
+    })?;
+    let shared = daemon.shared();
+    shared
+        .keep_fixes
+        .store(true, std::sync::atomic::Ordering::Relaxed);
+    let control = daemon.control();
+    let urg_health = daemon.urg_health();
+    let out = opts.out.clone();
+    let pipeline_params = cfg.pipeline.clone();
+    let mut hooks = daemon.hooks();
+    let runner = std::thread::Builder::new()
+        .name("supervisor".into())
+        .spawn(move || match &out {
+            Some(dir) => {
+                let mut h = RunFolderHooks::new(hooks, dir, &pipeline_params);
+                daemon.run(&mut h)
+            }
+            None => daemon.run(&mut hooks),
+        })
+        .map_err(|e| SimError::Emulator(format!("cannot start the supervisor thread: {e}")))?;
+
+    let t_start = clock.now();
+    let mut faults = opts.base_faults.clone();
+    faults.sort_by(|a, b| a.at.total_cmp(&b.at));
+    let mut next_fault = 0;
+    let (mut truth, mut estimate) = (Vec::new(), Vec::new());
+    let (mut se_pos, mut se_head, mut n_err, mut max_err) = (0.0, 0.0, 0usize, 0.0f64);
+    let mut last_print = Instant::now();
+    let mut capped = false;
+    while !runner.is_finished() {
+        clock.sleep(SAMPLE_PERIOD);
+        let t = clock.now() - t_start;
+        while next_fault < faults.len() && faults[next_fault].at <= t {
+            log::info!("sim: injecting {:?} at {t:.1} s", faults[next_fault].fault);
+            base.inject(faults[next_fault].fault);
+            next_fault += 1;
+        }
+        let p = base.truth();
+        let est = shared.with_status(|s| s.pose);
+        tracker.record(&p, t);
+        let e = (p.translation.vector - est.translation.vector).norm();
+        let eh = wrap_angle(heading(&p) - heading(&est));
+        se_pos += e * e;
+        se_head += eh * eh;
+        n_err += 1;
+        max_err = max_err.max(e);
+        truth.push(p);
+        estimate.push(est);
+        if opts.progress && last_print.elapsed().as_secs_f64() >= 2.0 {
+            last_print = Instant::now();
+            println!(
+                "  {:5.1} s wall  {:6.1} s sim  coverage {:5.1} %  pose error {:.3} m  task {}",
+                wall0.elapsed().as_secs_f64(),
+                t,
+                tracker.metrics().coverage * 100.0,
+                e,
+                shared.with_status(|s| s.task.clone()),
+            );
+        }
+        if t > opts.time_cap && !capped {
+            capped = true;
+            control.stop("simulation time cap reached");
+        }
+    }
+    let outcome = runner
+        .join()
+        .map_err(|_| SimError::Emulator("the supervisor thread panicked".into()))?;
+    let sim_time = clock.now() - t_start;
+    drop(urg);
+    let base_emu = base.stats();
+    let n = n_err.max(1) as f64;
+    let seen = seen.lock().map(|g| g.clone()).unwrap_or_default();
+    let fixes = shared.fixes();
+    let (pos, head, pmax, pairs) = fix_errors(&fixes, &seen, 0.0, 0.2);
+    let best_offset = (-20..=20)
+        .map(|k| f64::from(k) * 0.01)
+        .min_by(|a, b| {
+            fix_errors(&fixes, &seen, *a, 0.2)
+                .1
+                .total_cmp(&fix_errors(&fixes, &seen, *b, 0.2).1)
+        })
+        .unwrap_or(0.0);
+    let report = SimReport {
+        metrics: tracker.metrics(),
+        position_rmse: pos,
+        heading_rmse: head,
+        position_max: pmax,
+        scored_fixes: pairs,
+        stamp_offset: best_offset,
+        live_position_rmse: (se_pos / n).sqrt(),
+        live_heading_rmse: (se_head / n).sqrt(),
+        live_position_max: max_err,
+        finished: matches!(&outcome.reason, StopReason::Requested(w) if w == "coverage finished"),
+        reason: outcome.reason.to_string(),
+        wall: wall0.elapsed().as_secs_f64(),
+        sim_time,
+        urg: urg_health.snapshot(),
+        base: shared.base_health(),
+        base_emu,
+        scans: shared.with_status(|s| (s.scans, s.fallbacks)),
+        safety_events: shared
+            .safety_events
+            .load(std::sync::atomic::Ordering::Relaxed),
+        pipeline: outcome.snapshot,
+        truth,
+        estimate,
+    };
+    if let Some(dir) = &opts.out {
+        super::sim_report::write(dir, opts, &report, &tracker, &shared).map_err(|source| {
+            SimError::Report {
+                dir: dir.clone(),
+                source,
+            }
+        })?;
+    }
+    Ok(report)
+}
+
+/// Where `sweepline sim` writes by default.
+pub fn default_out() -> &'static Path {
+    Path::new("out/sim")
+}

@@ -1,0 +1,236 @@
+//! The report folder of a closed-loop run: `summary.md` (coverage, pose
+//! error, links, pipeline), `map.svg` (the daemon's map with the true and
+//! estimated trajectories), `cells.svg` (the last decomposition), `path.svg`
+//! (the driven path with pass counts). The latency/CPU budget report and
+//! `metrics.toml` are written beside them by the run-folder hooks.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use svg::node::element::{Polyline, Rectangle};
+use svg::Document;
+
+use super::closed_loop::{SimOptions, SimReport};
+use super::coverage_metrics::CoverageTracker;
+use super::coverage_svg;
+use crate::daemon::Shared;
+use crate::geom::Pose;
+use crate::grid::{CellState, Grid};
+
+fn polyline(poses: &[Pose], g: &Grid, scale: f64, colour: &str) -> Polyline {
+    let (o, h) = (g.origin(), g.height() as f64 * g.resolution());
+    let pts: Vec<String> = poses
+        .iter()
+        .map(|p| {
+            format!(
+                "{:.1},{:.1}",
+                (p.translation.x - o.x) * scale,
+                (h - (p.translation.y - o.y)) * scale
+            )
+        })
+        .collect();
+    Polyline::new()
+        .set("points", pts.join(" "))
+        .set("fill", "none")
+        .set("stroke", colour)
+        .set("stroke-width", 1.2)
+}
+
+/// The map as the daemon built it (free light, occupied black, unknown
+/// grey), with the true trajectory (green) and the estimate (red, dashed).
+pub fn map_svg(g: &Grid, truth: &[Pose], estimate: &[Pose]) -> Document {
+    let scale = 100.0;
+    let r = g.resolution() * scale;
+    let (w, h) = (g.width(), g.height());
+    let mut doc = Document::new()
+        .set("viewBox", (0, 0, w as f64 * r, h as f64 * r))
+        .set("width", w as f64 * r)
+        .set("height", h as f64 * r)
+        .add(
+            Rectangle::new()
+                .set("width", "100%")
+                .set("height", "100%")
+                .set("fill", "#bdbdbd"),
+        );
+    for y in 0..h {
+        let mut x = 0;
+        while x < w {
+            let s = g.state((x, y));
+            let mut e = x + 1;
+            while e < w && g.state((e, y)) == s {
+                e += 1;
+            }
+            let fill = match s {
+                CellState::Free => Some("#ffffff"),
+                CellState::Occupied => Some("#000000"),
+                CellState::Unknown => None,
+            };
+            if let Some(fill) = fill {
+                doc = doc.add(
+                    Rectangle::new()
+                        .set("x", x as f64 * r)
+                        .set("y", (h - 1 - y) as f64 * r)
+                        .set("width", (e - x) as f64 * r)
+                        .set("height", r)
+                        .set("fill", fill)
+                        .set("shape-rendering", "crispEdges"),
+                );
+            }
+            x = e;
+        }
+    }
+    doc.add(polyline(truth, g, scale, "#31a354"))
+        .add(polyline(estimate, g, scale, "#de2d26").set("stroke-dasharray", "4 3"))
+}
+
+/// Writes the report folder.
+pub fn write(
+    dir: &Path,
+    opts: &SimOptions,
+    r: &SimReport,
+    tracker: &CoverageTracker,
+    shared: &Shared,
+) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let (grid, decomp) = shared.with_status(|s| (s.grid.clone(), s.decomposition.clone()));
+    if let Some(g) = &grid {
+        svg::save(dir.join("map.svg"), &map_svg(g, &r.truth, &r.estimate))?;
+    }
+    let radius = opts.config.robot.radius;
+    if let Some(d) = &decomp {
+        let doc = coverage_svg::cells_svg(
+            &opts.world,
+            d,
+            &r.estimate,
+            radius,
+            &format!("{} cells, estimated track", d.cells.len()),
+        );
+        coverage_svg::save(&dir.join("cells.svg"), &doc)?;
+    }
+    let doc = coverage_svg::path_svg(
+        opts.body_world.as_deref().unwrap_or(&opts.world),
+        tracker.passes(),
+        tracker.reachable(),
+        &r.truth,
+        &r.metrics,
+        &format!("{}: closed loop through the ptys", opts.world.name),
+    );
+    coverage_svg::save(&dir.join("path.svg"), &doc)?;
+    std::fs::write(dir.join("summary.md"), summary(opts, r))
+}
+
+/// The Markdown summary of a run.
+pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
+    let m = &r.metrics;
+    let mut s = String::new();
+    let _ = writeln!(s, "# sweepline sim: {}\n", opts.world.name);
+    let _ = writeln!(
+        s,
+        "Closed loop through the ptys: emulated URG-04LX + emulated {:?} base, speed ×{}, seed {}.\n",
+        opts.base, opts.speed, opts.seed
+    );
+    let _ = writeln!(s, "| figure | value |\n|---|---|");
+    let rows = [
+        (
+            "finished by itself",
+            format!("{} ({})", r.finished, r.reason),
+        ),
+        (
+            "coverage of reachable floor",
+            format!("{:.2} %", m.coverage * 100.0),
+        ),
+        (
+            "footprint coverage",
+            format!("{:.2} %", m.footprint_coverage * 100.0),
+        ),
+        ("reachable area", format!("{:.2} m²", m.reachable_area)),
+        ("covered area", format!("{:.2} m²", m.covered_area)),
+        ("overlap", format!("{:.1} %", m.overlap * 100.0)),
+        ("path length", format!("{:.1} m", m.path_length)),
+        ("turns (> 30°)", format!("{}", m.turns)),
+        ("collisions (truth)", format!("{}", m.collisions)),
+        (
+            "localisation error at scan times: position RMSE / max, heading RMSE",
+            format!(
+                "{:.1} mm / {:.1} mm, {:.2}° ({} scans scored; best stamp shift {:+.0} ms)",
+                r.position_rmse * 1e3,
+                r.position_max * 1e3,
+                r.heading_rmse.to_degrees(),
+                r.scored_fixes,
+                r.stamp_offset * 1e3
+            ),
+        ),
+        (
+            "live estimate (20 Hz, incl. lag): position RMSE / max, heading RMSE",
+            format!(
+                "{:.1} mm / {:.1} mm, {:.2}°",
+                r.live_position_rmse * 1e3,
+                r.live_position_max * 1e3,
+                r.live_heading_rmse.to_degrees()
+            ),
+        ),
+        ("simulated time", format!("{:.1} s", r.sim_time)),
+        ("wall time", format!("{:.1} s", r.wall)),
+        (
+            "scans localised / odometry fallbacks",
+            format!("{} / {}", r.scans.0, r.scans.1),
+        ),
+        ("safety events", format!("{}", r.safety_events)),
+        (
+            "process CPU",
+            format!(
+                "{:.1} % of one core",
+                100.0 * r.pipeline.process_cpu / r.pipeline.wall.max(1e-9)
+            ),
+        ),
+        ("end-to-end latency p50 / p99 / max", {
+            let e = r.pipeline.end_to_end();
+            format!(
+                "{:.2} / {:.2} / {:.2} ms",
+                e.quantile(0.5).as_secs_f64() * 1e3,
+                e.quantile(0.99).as_secs_f64() * 1e3,
+                e.max().as_secs_f64() * 1e3
+            )
+        }),
+        (
+            "dropped messages (edges)",
+            format!("{}", r.pipeline.dropped()),
+        ),
+    ];
+    for (k, v) in rows {
+        let _ = writeln!(s, "| {k} | {v} |");
+    }
+    let _ = writeln!(
+        s,
+        "\n## Edges\n\n| edge | policy | sent | received | dropped | max depth |\n|---|---|---|---|---|---|"
+    );
+    for e in &r.pipeline.edges {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} |",
+            e.name, e.policy, e.sent, e.received, e.dropped, e.max_depth
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nNewest-wins edges drop superseded messages by design (the planner only \
+         wants the newest map); `scans` dropped = scans the localiser never saw."
+    );
+    let _ = writeln!(s, "\n## Scanner link\n\n```\n{}\n```", r.urg);
+    let _ = writeln!(
+        s,
+        "\n## Wheel-base link (daemon side)\n\n```\n{:#?}\n```",
+        r.base
+    );
+    let _ = writeln!(s, "\n## Wheel-base emulator\n\n```\n{:#?}\n```", r.base_emu);
+    let _ = writeln!(
+        s,
+        "\nPictures: `map.svg` (map, true track green, estimate red), `cells.svg`, `path.svg`. \
+         Latency/CPU budget: see the budget report beside this file (`sweepline report {}` rewrites it).",
+        opts.out
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default()
+    );
+    s
+}

@@ -1,0 +1,75 @@
+//! End to end through the real pty path: the emulated URG-04LX and RoboClaw
+//! on ptys, the daemon opening both, covering a small world time-scaled.
+//! Asserts ground-truth coverage, localisation error and that both links
+//! carried traffic. Wall-clock figures are not asserted (shared machine).
+
+use std::path::Path;
+
+use sweepline::config::Config;
+use sweepline::motor::BaseKind;
+use sweepline::sim::closed_loop::{self, SimOptions};
+use sweepline::sim::world::World;
+
+/// A 3.2 m × 2.6 m room with a box: small enough for a test run.
+const SMALL: &str = "name e2e-small\nresolution 0.02\n\
+room 0 0 3.2 0 3.2 2.6 0 2.6 refl 0.55\n\
+box 1.8 1.0 2.3 1.5 refl 0.8\n\
+start 0.5 0.5 0.0\n";
+
+fn config() -> Config {
+    Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
+}
+
+fn out_dir(name: &str) -> std::path::PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn daemon_covers_a_small_world_through_the_ptys() {
+    let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());
+    opts.speed = 8.0;
+    opts.time_cap = 900.0;
+    opts.out = Some(out_dir("e2e_small"));
+    let r = closed_loop::run(&opts).unwrap();
+    let m = &r.metrics;
+    eprintln!(
+        "{}: coverage {:.2} %, pose RMSE {:.1} mm / {:.2}°, {:.0} s sim in {:.1} s wall",
+        r.reason,
+        m.coverage * 100.0,
+        r.position_rmse * 1e3,
+        r.heading_rmse.to_degrees(),
+        r.sim_time,
+        r.wall
+    );
+    assert!(r.finished, "did not finish: {}", r.reason);
+    assert!(m.coverage >= 0.97, "coverage {:.3}", m.coverage);
+    assert_eq!(m.collisions, 0);
+    assert!(r.scored_fixes > 100, "{} fixes scored", r.scored_fixes);
+    assert!(r.position_rmse <= 0.03, "position RMSE {}", r.position_rmse);
+    assert!(
+        r.heading_rmse.to_degrees() <= 1.0,
+        "heading RMSE {}°",
+        r.heading_rmse.to_degrees()
+    );
+    assert!(r.urg.scans > 100 && r.urg.checksum_errors == 0);
+    assert!(r.base.received > 100, "{:?}", r.base);
+    let dir = opts.out.unwrap();
+    for f in ["summary.md", "map.svg", "path.svg", "metrics.toml"] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    // The daemon left a checkpoint a restart could resume from.
+    assert!(dir.join("state").read_dir().unwrap().next().is_some());
+}
+
+#[test]
+fn bad_speed_is_refused() {
+    let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());
+    opts.speed = 0.0;
+    let e = closed_loop::run(&opts).unwrap_err();
+    assert!(e.to_string().contains("--speed"), "{e}");
+    opts.speed = f64::NAN;
+    assert!(closed_loop::run(&opts).is_err());
+    let _ = BaseKind::Create2;
+}
