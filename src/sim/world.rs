@@ -96,7 +96,9 @@ impl FreeRaster {
 /// Why a world could not be built.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WorldError {
-    /// Line number (1-based) in the world file, 0 when not from a file.
+    /// The file the world came from, when it came from one.
+    pub file: Option<String>,
+    /// Line number (1-based) in the world text, 0 when not about one line.
     pub line: usize,
     /// What is wrong.
     pub message: String,
@@ -104,10 +106,11 @@ pub struct WorldError {
 
 impl fmt::Display for WorldError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let file = self.file.as_deref().unwrap_or("world");
         if self.line > 0 {
-            write!(f, "world line {}: {}", self.line, self.message)
+            write!(f, "{file} line {}: {}", self.line, self.message)
         } else {
-            write!(f, "world: {}", self.message)
+            write!(f, "{file}: {}", self.message)
         }
     }
 }
@@ -116,6 +119,7 @@ impl std::error::Error for WorldError {}
 
 fn err(line: usize, message: impl Into<String>) -> WorldError {
     WorldError {
+        file: None,
         line,
         message: message.into(),
     }
@@ -307,7 +311,7 @@ impl World {
         let text = std::fs::read_to_string(path)
             .map_err(|e| err(0, format!("cannot read {}: {e}", path.display())))?;
         World::parse(&text).map_err(|mut e| {
-            e.message = format!("{}: {}", path.display(), e.message);
+            e.file = Some(path.display().to_string());
             e
         })
     }
