@@ -21,6 +21,7 @@ use crate::grid::Grid;
 use crate::pipeline::checkpoint::{CheckpointStore, RunProgress};
 use crate::pipeline::notify::Notifier;
 use crate::pipeline::signals::SignalForwarder;
+use crate::plan::SweptFloor;
 use crate::report::run_folder::RunFolderHooks;
 use crate::serial::DeviceConnector;
 
@@ -106,10 +107,18 @@ fn resume_from(store: &CheckpointStore) -> Option<Resume> {
                         progress.coverage * 100.0,
                         progress.elapsed
                     );
+                    let swept = match cp.get::<SweptFloor>() {
+                        Ok(s) => s,
+                        Err(e) => {
+                            log::warn!("swept-floor record unreadable, covering again: {e}");
+                            None
+                        }
+                    };
                     Some(Resume {
                         pose,
                         grid,
                         progress,
+                        swept,
                     })
                 }
                 (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {

@@ -30,7 +30,7 @@ use crate::motor::DiffDriveBase;
 use crate::pipeline::checkpoint::RunProgress;
 use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
 use crate::pipeline::{latest, queue, Overflow, Pipeline};
-use crate::plan::CoveragePlanner;
+use crate::plan::{CoveragePlanner, SweptFloor};
 use crate::serial::Connector;
 use crate::urg::{UrgDriver, UrgHealth};
 
@@ -101,6 +101,9 @@ pub struct Resume {
     pub grid: Grid,
     /// Progress at the checkpoint.
     pub progress: RunProgress,
+    /// The planner's record of swept floor at the checkpoint (none: the
+    /// floor is covered again).
+    pub swept: Option<SweptFloor>,
 }
 
 /// Everything the daemon needs to start.
@@ -175,6 +178,13 @@ impl Daemon {
             s.pose = start;
             if let Some(r) = &setup.resume {
                 s.path_length = r.progress.path_length;
+                // Until the planner's first update, the checkpointed record
+                // stands (a checkpoint written meanwhile keeps it).
+                if let Some(sw) = &r.swept {
+                    s.covered_area = sw.area();
+                    s.swept = Some(Arc::new(sw.clone()));
+                }
+                s.grid = Some(Arc::new(r.grid.clone()));
             }
         });
 
@@ -199,6 +209,9 @@ impl Daemon {
             .map_err(|e| DaemonError::Config(e.to_string()))?;
         let mut planner = CoveragePlanner::new(&cfg.plan, &robot)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
+        if let Some(swept) = setup.resume.as_ref().and_then(|r| r.swept.clone()) {
+            planner.restore_swept(swept);
+        }
         planner.record_pose(&start);
         let follower = PathFollower::new(&cfg.control, &robot)
             .map_err(|e| DaemonError::Config(e.to_string()))?;

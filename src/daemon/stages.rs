@@ -320,8 +320,12 @@ impl Stage for PlanStage {
             PlanStatus::Working { task, .. } => format!("{task:?}"),
             PlanStatus::Done(_) => "Done".into(),
         };
+        let swept = self.planner.swept().map(Arc::new);
         self.shared.with_status(|s| {
             s.covered_area = covered;
+            if swept.is_some() {
+                s.swept = swept;
+            }
             s.task = task;
             if let Some(d) = snapshot {
                 s.decomposition = Some(d);
