@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::CliResult;
-use crate::clock::{MonotonicClock, SharedClock};
+use crate::clock::{MonotonicClock, ScaledClock, SharedClock};
 use crate::config::Config;
 use crate::daemon::{Daemon, DaemonSetup, MapFrame, Resume};
 use crate::geom::Pose;
@@ -162,7 +162,17 @@ pub fn run(args: Args) -> CliResult {
     }
     cfg.scanner.port = args.scanner.display().to_string();
     cfg.motor.device = args.base.display().to_string();
-    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let p = &cfg.pipeline;
+    let clock: SharedClock = if p.time_scale != 1.0 || p.clock_epoch > 0.0 {
+        log::info!(
+            "clock: {}x wall time since UNIX time {:.3}",
+            p.time_scale,
+            p.clock_epoch
+        );
+        Arc::new(ScaledClock::since_unix(p.time_scale, p.clock_epoch))
+    } else {
+        Arc::new(MonotonicClock::new())
+    };
     let base = crate::motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
     let start = resume
         .as_ref()
