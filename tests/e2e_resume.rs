@@ -13,6 +13,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use sweepline::clock::{ScaledClock, SharedClock};
 use sweepline::config::Config;
+use sweepline::geom::Pose;
 use sweepline::motor::BaseKind;
 use sweepline::pipeline::checkpoint::{CheckpointStore, RunProgress};
 use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
@@ -33,6 +34,8 @@ const CHECKPOINT_WALL: f64 = 0.1;
 const KILL_AT: f64 = 0.40;
 /// Coverage the whole run must reach (the in-process e2e test's bound).
 const MIN_COVERAGE: f64 = 0.97;
+/// True poses kept to match a checkpointed pose against (3 s simulated).
+const RECENT: usize = (3.0 / SAMPLE_PERIOD) as usize;
 /// Simulated time after which the test gives up (s).
 const TIME_CAP: f64 = 900.0;
 
@@ -80,8 +83,14 @@ fn spawn(dir: &Path, links: &Path, n: u32) -> Daemon {
 }
 
 fn latest(store: &CheckpointStore) -> Option<RunProgress> {
+    latest_with_pose(store).map(|(p, _)| p)
+}
+
+fn latest_with_pose(store: &CheckpointStore) -> Option<(RunProgress, Pose)> {
     let l = store.load().ok()??;
-    l.checkpoint.get::<RunProgress>().ok()?
+    let p = l.checkpoint.get::<RunProgress>().ok()??;
+    let q = l.checkpoint.get::<Pose>().ok()??;
+    Some((p, q))
 }
 
 #[test]
@@ -121,14 +130,38 @@ fn killed_daemon_resumes_its_coverage() {
     let mut at_kill: Option<RunProgress> = None;
     let mut first_resumed: Option<(RunProgress, f64)> = None;
     let mut last_poll = Instant::now();
+    // Largest distance between a checkpointed pose and the nearest true pose
+    // of the last 3 s, before and after the kill.
+    let mut pose_err = [0.0f64; 2];
+    let mut recent = std::collections::VecDeque::with_capacity(RECENT);
+    // Ground-truth coverage every 20 s simulated, for the output.
+    let mut timeline = String::new();
+    let mut next_mark = 0.0;
     let status = loop {
         clock.sleep(SAMPLE_PERIOD);
         let t = clock.now() - t0;
-        tracker.record(&base.truth(), t);
+        let truth_pose = base.truth();
+        tracker.record(&truth_pose, t);
+        if recent.len() == RECENT {
+            recent.pop_front();
+        }
+        recent.push_back(truth_pose);
         let truth = tracker.metrics().coverage;
+        if t >= next_mark {
+            timeline += &format!(" {t:.0}s:{:.0}%", truth * 100.0);
+            next_mark += 20.0;
+        }
         if last_poll.elapsed() >= Duration::from_millis(20) {
             last_poll = Instant::now();
-            if let Some(p) = latest(&store) {
+            if let Some((p, est)) = latest_with_pose(&store) {
+                // The daemon's frame is the world frame moved to the start.
+                let est = world.start * est;
+                let e = recent
+                    .iter()
+                    .map(|q: &Pose| (est.translation.vector - q.translation.vector).norm())
+                    .fold(f64::INFINITY, f64::min);
+                let k = usize::from(killed.is_some());
+                pose_err[k] = pose_err[k].max(e);
                 match killed {
                     None if last_seen.map(|(q, _)| q.sequence) != Some(p.sequence) => {
                         last_seen = Some((p, truth));
@@ -145,6 +178,7 @@ fn killed_daemon_resumes_its_coverage() {
             daemon.0.kill().unwrap();
             daemon.0.wait().unwrap();
             killed = Some((truth, t));
+            timeline += &format!(" [kill -9 at {t:.0}s:{:.0}%]", truth * 100.0);
             at_kill = latest(&store);
             std::thread::sleep(Duration::from_millis(200));
             daemon = spawn(&dir, &links, 2);
@@ -186,6 +220,14 @@ fn killed_daemon_resumes_its_coverage() {
         sim_time,
         wall0.elapsed().as_secs_f64(),
         final_progress.resumes
+    );
+    eprintln!(
+        "checkpointed pose vs truth: max {:.3} m before the kill, {:.3} m after",
+        pose_err[0], pose_err[1]
+    );
+    eprintln!(
+        "true coverage by simulated time:{timeline} end {sim_time:.0}s:{:.0}%",
+        m.coverage * 100.0
     );
     assert!(status.success(), "second daemon failed: {status}\n{log2}");
     assert!(
