@@ -11,6 +11,7 @@
 
 pub mod hooks;
 pub mod messages;
+pub mod relocalise;
 pub mod shared;
 pub mod stages;
 
@@ -294,6 +295,7 @@ impl Daemon {
                 shared: shared.clone(),
                 mount,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
+                relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
             },
         )?;
         pipeline.spawn(
