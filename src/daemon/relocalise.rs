@@ -13,8 +13,9 @@ use crate::grid::{CellState, Grid};
 
 /// Half-width of the translation search (m).
 pub const SEARCH_TRANSLATION: f64 = 0.6;
-/// Half-width of the heading search (rad).
-pub const SEARCH_ROTATION: f64 = 0.3;
+/// Half-width of the heading search (rad): the robot may have been turning
+/// in place when it was killed.
+pub const SEARCH_ROTATION: f64 = 1.2;
 /// Most scan points used (evenly thinned).
 const MAX_POINTS: usize = 240;
 
@@ -104,8 +105,8 @@ pub fn relocalise(grid: &Grid, points: &[IPoint], guess: &Pose) -> Option<Reloca
         }
         local
     };
-    let best = search(best, 0.04, SEARCH_TRANSLATION, 0.02, SEARCH_ROTATION);
-    let best = search(best, 0.01, 0.04, 0.005, 0.02);
+    let best = search(best, 0.05, SEARCH_TRANSLATION, 0.02, SEARCH_ROTATION);
+    let best = search(best, 0.01, 0.05, 0.005, 0.02);
     let n = pts.len() as f64;
     Some(Relocalised {
         pose: best.2,
@@ -163,7 +164,7 @@ mod tests {
         let g = room();
         let truth = pose(1.0, 0.8, 0.3);
         let pts = scan_from(&g, &truth);
-        let stale = pose(1.35, 0.6, 0.15);
+        let stale = pose(1.35, 0.6, -0.5);
         let r = relocalise(&g, &pts, &stale).unwrap();
         let e = (r.pose.translation.vector - truth.translation.vector).norm();
         assert!(e < 0.04, "{e} m off: {r:?}");
