@@ -81,6 +81,27 @@ impl ScaledClock {
     }
 }
 
+impl ScaledClock {
+    /// A clock running `speed` times real time that read 0 at UNIX time
+    /// `epoch` (s): two processes building it from the same pair read the
+    /// same time (to the system clock's resolution). An epoch in the future
+    /// is taken as now.
+    pub fn since_unix(speed: f64, epoch: f64) -> Self {
+        let mut c = Self::new(speed);
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
+        let ago = now - epoch;
+        if ago.is_finite() && ago > 0.0 {
+            if let Some(e) = c.epoch.checked_sub(Duration::from_secs_f64(ago)) {
+                c.epoch = e;
+            }
+        }
+        c
+    }
+}
+
 impl Clock for ScaledClock {
     fn now(&self) -> f64 {
         self.epoch.elapsed().as_secs_f64() * self.speed
@@ -107,6 +128,19 @@ mod tests {
         let dt = c.now() - t0;
         assert!(dt >= 0.2, "slept {dt}");
         assert_eq!(c.to_wall(2.0), Duration::from_millis(100));
+    }
+
+    #[test]
+    fn clocks_from_one_unix_epoch_agree() {
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64();
+        let a = ScaledClock::since_unix(10.0, now - 3.0);
+        let b = ScaledClock::since_unix(10.0, now - 3.0);
+        assert!((a.now() - 30.0).abs() < 0.5, "{}", a.now());
+        assert!((a.now() - b.now()).abs() < 0.01);
+        assert!(ScaledClock::since_unix(10.0, now + 100.0).now() < 0.5);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::CliResult;
-use crate::clock::{MonotonicClock, SharedClock};
+use crate::clock::{MonotonicClock, ScaledClock, SharedClock};
 use crate::config::Config;
 use crate::daemon::{Daemon, DaemonSetup, MapFrame, Resume};
 use crate::geom::Pose;
@@ -21,6 +21,7 @@ use crate::grid::Grid;
 use crate::pipeline::checkpoint::{CheckpointStore, RunProgress};
 use crate::pipeline::notify::Notifier;
 use crate::pipeline::signals::SignalForwarder;
+use crate::plan::SweptFloor;
 use crate::report::run_folder::RunFolderHooks;
 use crate::serial::DeviceConnector;
 
@@ -106,10 +107,18 @@ fn resume_from(store: &CheckpointStore) -> Option<Resume> {
                         progress.coverage * 100.0,
                         progress.elapsed
                     );
+                    let swept = match cp.get::<SweptFloor>() {
+                        Ok(s) => s,
+                        Err(e) => {
+                            log::warn!("swept-floor record unreadable, covering again: {e}");
+                            None
+                        }
+                    };
                     Some(Resume {
                         pose,
                         grid,
                         progress,
+                        swept,
                     })
                 }
                 (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
@@ -153,7 +162,17 @@ pub fn run(args: Args) -> CliResult {
     }
     cfg.scanner.port = args.scanner.display().to_string();
     cfg.motor.device = args.base.display().to_string();
-    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let p = &cfg.pipeline;
+    let clock: SharedClock = if p.time_scale != 1.0 || p.clock_epoch > 0.0 {
+        log::info!(
+            "clock: {}x wall time since UNIX time {:.3}",
+            p.time_scale,
+            p.clock_epoch
+        );
+        Arc::new(ScaledClock::since_unix(p.time_scale, p.clock_epoch))
+    } else {
+        Arc::new(MonotonicClock::new())
+    };
     let base = crate::motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
     let start = resume
         .as_ref()

@@ -84,11 +84,16 @@ impl DaemonHooks {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
         let progress = self.progress();
-        let (pose, grid) = self.shared.with_status(|s| (s.pose, s.grid.clone()));
+        let (pose, grid, swept) = self
+            .shared
+            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone()));
         let mut cp = Checkpoint::new();
         let mut r = cp.put(&progress).and_then(|()| cp.put(&pose));
         if let Some(g) = grid {
             r = r.and_then(|()| cp.put(&*g));
+        }
+        if let Some(s) = swept {
+            r = r.and_then(|()| cp.put(&*s));
         }
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;

@@ -11,6 +11,7 @@
 
 pub mod hooks;
 pub mod messages;
+pub mod relocalise;
 pub mod shared;
 pub mod stages;
 
@@ -30,7 +31,7 @@ use crate::motor::DiffDriveBase;
 use crate::pipeline::checkpoint::RunProgress;
 use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
 use crate::pipeline::{latest, queue, Overflow, Pipeline};
-use crate::plan::CoveragePlanner;
+use crate::plan::{CoveragePlanner, SweptFloor};
 use crate::serial::Connector;
 use crate::urg::{UrgDriver, UrgHealth};
 
@@ -101,6 +102,9 @@ pub struct Resume {
     pub grid: Grid,
     /// Progress at the checkpoint.
     pub progress: RunProgress,
+    /// The planner's record of swept floor at the checkpoint (none: the
+    /// floor is covered again).
+    pub swept: Option<SweptFloor>,
 }
 
 /// Everything the daemon needs to start.
@@ -175,6 +179,13 @@ impl Daemon {
             s.pose = start;
             if let Some(r) = &setup.resume {
                 s.path_length = r.progress.path_length;
+                // Until the planner's first update, the checkpointed record
+                // stands (a checkpoint written meanwhile keeps it).
+                if let Some(sw) = &r.swept {
+                    s.covered_area = sw.area();
+                    s.swept = Some(Arc::new(sw.clone()));
+                }
+                s.grid = Some(Arc::new(r.grid.clone()));
             }
         });
 
@@ -199,6 +210,9 @@ impl Daemon {
             .map_err(|e| DaemonError::Config(e.to_string()))?;
         let mut planner = CoveragePlanner::new(&cfg.plan, &robot)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
+        if let Some(swept) = setup.resume.as_ref().and_then(|r| r.swept.clone()) {
+            planner.restore_swept(swept);
+        }
         planner.record_pose(&start);
         let follower = PathFollower::new(&cfg.control, &robot)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
@@ -281,6 +295,7 @@ impl Daemon {
                 shared: shared.clone(),
                 mount,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
+                relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
             },
         )?;
         pipeline.spawn(

@@ -124,6 +124,8 @@ pub struct LiveStatus {
     pub grid: Option<std::sync::Arc<crate::grid::Grid>>,
     /// The newest decomposition.
     pub decomposition: Option<std::sync::Arc<crate::decomp::Decomposition>>,
+    /// The planner's newest record of swept floor (checkpointed).
+    pub swept: Option<std::sync::Arc<crate::plan::SweptFloor>>,
 }
 
 impl Default for LiveStatus {
@@ -138,6 +140,7 @@ impl Default for LiveStatus {
             task: "starting".into(),
             grid: None,
             decomposition: None,
+            swept: None,
         }
     }
 }

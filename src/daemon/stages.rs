@@ -106,6 +106,9 @@ pub struct LocaliseStage {
     pub mount: Pose,
     /// Reused point buffer.
     pub points: Vec<IPoint>,
+    /// The restored map of a resumed run: the first scan is laid onto it
+    /// (see [`super::relocalise`]) before tracking starts.
+    pub relocalise_on: Option<Arc<Grid>>,
 }
 
 impl Stage for LocaliseStage {
@@ -125,6 +128,25 @@ impl Stage for LocaliseStage {
     fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         ctx.note_age(msg.t0);
         msg.scan.points_into(&mut self.points);
+        if let Some(grid) = self.relocalise_on.take() {
+            let guess = self.tracker.pose();
+            match super::relocalise::relocalise(&grid, &self.points, &guess) {
+                Some(r) if r.score >= 0.5 && r.score > r.guess_score => {
+                    let moved = (r.pose.translation.vector - guess.translation.vector).norm();
+                    log::info!(
+                        "resume: first scan laid onto the restored map {moved:.3} m from the checkpointed pose ({:.0} % of points on walls there, {:.0} % before)",
+                        r.score * 100.0,
+                        r.guess_score * 100.0
+                    );
+                    self.tracker = Tracker::new(self.tracker.params().clone(), r.pose)
+                        .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
+                }
+                r => log::warn!(
+                    "resume: first scan does not fit the restored map ({:?}); keeping the checkpointed pose",
+                    r.map(|r| r.score)
+                ),
+            }
+        }
         let step = self.tracker.step(&self.points, Some(&msg.odom));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
         let robot = step.pose * self.mount.inverse();
@@ -320,8 +342,12 @@ impl Stage for PlanStage {
             PlanStatus::Working { task, .. } => format!("{task:?}"),
             PlanStatus::Done(_) => "Done".into(),
         };
+        let swept = self.planner.swept().map(Arc::new);
         self.shared.with_status(|s| {
             s.covered_area = covered;
+            if swept.is_some() {
+                s.swept = swept;
+            }
             s.task = task;
             if let Some(d) = snapshot {
                 s.decomposition = Some(d);

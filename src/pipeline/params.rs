@@ -106,6 +106,13 @@ pub struct PipelineParams {
     pub checkpoint_period: f64,
     /// How often the metrics file of the run folder is rewritten (s).
     pub metrics_period: f64,
+    /// Speed of the daemon's clock against the wall clock: 1 on a robot;
+    /// a simulator driving `sweepline run` as a separate process sets its own
+    /// time scale so both read the same simulated time.
+    pub time_scale: f64,
+    /// UNIX time (s) at which the daemon's clock reads 0; 0 = when the daemon
+    /// starts. A simulator passes its own clock's epoch with `time_scale`.
+    pub clock_epoch: f64,
     /// Per-stage latency budgets.
     pub budget: StageBudgets,
 }
@@ -126,6 +133,8 @@ impl Default for PipelineParams {
             scan_queue: 4,
             checkpoint_period: 2.0,
             metrics_period: 5.0,
+            time_scale: 1.0,
+            clock_epoch: 0.0,
             budget: StageBudgets::default(),
         }
     }
@@ -148,6 +157,22 @@ impl PipelineParams {
                 &format!(
                     "must be a finite number >= 0, got {:?}",
                     self.watchdog_period
+                ),
+            ));
+        }
+        positive("pipeline.time_scale", self.time_scale)?;
+        if self.time_scale > 1000.0 {
+            return Err(invalid(
+                "pipeline.time_scale",
+                &format!("must be at most 1000, got {:?}", self.time_scale),
+            ));
+        }
+        if !(self.clock_epoch.is_finite() && self.clock_epoch >= 0.0) {
+            return Err(invalid(
+                "pipeline.clock_epoch",
+                &format!(
+                    "must be a UNIX time in seconds (>= 0), got {:?}",
+                    self.clock_epoch
                 ),
             ));
         }

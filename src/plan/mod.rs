@@ -11,8 +11,10 @@
 pub mod cspace;
 pub mod lanes;
 pub mod planner;
+pub mod swept;
 
 pub use planner::{CoveragePlanner, PlanError, PlanStatus, Task};
+pub use swept::SweptFloor;
 
 /// Coverage planner settings.
 /// Loaded from the `[plan]` table of the config file; every field is documented

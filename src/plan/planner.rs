@@ -30,6 +30,7 @@ use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::{lanes, variants, Axis, Lane, LaneInput, Variant};
+use super::swept::SweptFloor;
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
@@ -186,6 +187,7 @@ pub struct CoveragePlanner {
     planned_lanes: usize,
     owner: Vec<u32>,
     tries: Vec<u8>,
+    restored: Option<SweptFloor>,
 }
 
 /// Updates between re-evaluations while exploring (a cell may have become final).
@@ -246,6 +248,7 @@ impl CoveragePlanner {
             planned_lanes: 0,
             owner: Vec::new(),
             tries: Vec::new(),
+            restored: None,
         })
     }
 
@@ -299,6 +302,38 @@ impl CoveragePlanner {
             let res = self.cspace.frame.res;
             self.stamp = disk(self.stamp_radius + res, res);
             self.reach_disk = disk(self.reach, res);
+        }
+        if let Some(r) = self.restored.take() {
+            if r.frame == self.cspace.frame && r.covered.len() == n {
+                for (c, s) in self.covered.iter_mut().zip(&r.covered) {
+                    *c |= *s;
+                }
+            } else {
+                log::warn!("swept-floor record of a different map geometry ignored");
+            }
+        }
+    }
+
+    /// The record of swept floor with its grid geometry, for a checkpoint
+    /// (`None` before the first update, when there is no grid yet).
+    pub fn swept(&self) -> Option<SweptFloor> {
+        (!self.covered.is_empty()).then(|| SweptFloor {
+            frame: self.cspace.frame,
+            covered: self.covered.clone(),
+        })
+    }
+
+    /// Restores a record of swept floor saved by [`CoveragePlanner::swept`]:
+    /// it is merged into the planner's record on the next update, when the
+    /// map (restored from the same checkpoint) gives the grid geometry. A
+    /// record of another geometry is ignored with a warning.
+    pub fn restore_swept(&mut self, swept: SweptFloor) {
+        if self.cspace.frame == swept.frame && self.covered.len() == swept.covered.len() {
+            for (c, s) in self.covered.iter_mut().zip(&swept.covered) {
+                *c |= *s;
+            }
+        } else {
+            self.restored = Some(swept);
         }
     }
 

@@ -339,6 +339,17 @@ fn start_emulators(
     Ok((base, urg))
 }
 
+/// Starts only the two emulators of `opts` on ptys, on `clock`, with stable
+/// symlinks `links/urg` and `links/base`: for a test that runs the daemon as
+/// a separate `sweepline run` process (and kills it) against them.
+pub fn spawn_emulators(
+    opts: &SimOptions,
+    clock: &SharedClock,
+    links: &Path,
+) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
+    start_emulators(opts, clock, Arc::default(), links)
+}
+
 /// Runs one closed-loop coverage of `opts.world` and writes the report
 /// folder when `opts.out` is set.
 pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {

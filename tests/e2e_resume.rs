@@ -1,0 +1,251 @@
+//! Crash test: the daemon as a separate `sweepline run` process against the
+//! emulated URG-04LX and RoboClaw on ptys (in this test process, on one
+//! scaled clock whose epoch the child gets through `[pipeline] clock_epoch`),
+//! killed with SIGKILL at about 40 % ground-truth coverage and started again
+//! on the same state folder. The second daemon must resume from the last
+//! checkpoint (map, pose, swept floor), finish the coverage, and not have
+//! lost more than the last checkpoint period.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use sweepline::clock::{ScaledClock, SharedClock};
+use sweepline::config::Config;
+use sweepline::geom::Pose;
+use sweepline::motor::BaseKind;
+use sweepline::pipeline::checkpoint::{CheckpointStore, RunProgress};
+use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
+use sweepline::sim::coverage_metrics::CoverageTracker;
+use sweepline::sim::world::World;
+
+/// The in-process e2e world: 3.2 m × 2.6 m with a box.
+const SMALL: &str = "name e2e-small\nresolution 0.02\n\
+room 0 0 3.2 0 3.2 2.6 0 2.6 refl 0.55\n\
+box 1.8 1.0 2.3 1.5 refl 0.8\n\
+start 0.5 0.5 0.0\n";
+
+/// Simulated seconds per wall second.
+const SPEED: f64 = 10.0;
+/// Checkpoint period (wall s): one simulated second at [`SPEED`].
+const CHECKPOINT_WALL: f64 = 0.1;
+/// Ground-truth coverage at which the daemon is killed.
+const KILL_AT: f64 = 0.40;
+/// Coverage the whole run must reach (the in-process e2e test's bound).
+const MIN_COVERAGE: f64 = 0.97;
+/// True poses kept to match a checkpointed pose against (3 s simulated).
+const RECENT: usize = (3.0 / SAMPLE_PERIOD) as usize;
+/// Simulated time after which the test gives up (s).
+const TIME_CAP: f64 = 900.0;
+
+fn config() -> Config {
+    Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
+}
+
+fn unix_now() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
+/// Kills the child on drop (a failed assertion leaves no daemon behind).
+struct Daemon(Child);
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn spawn(dir: &Path, links: &Path, n: u32) -> Daemon {
+    let log = std::fs::File::create(dir.join(format!("daemon{n}.log"))).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_sweepline"))
+        .arg("run")
+        .arg("--config")
+        .arg(dir.join("robot.toml"))
+        .arg("--scanner")
+        .arg(links.join("urg"))
+        .arg("--base")
+        .arg(links.join("base"))
+        .arg("--state-dir")
+        .arg(dir.join("state"))
+        .env("RUST_LOG", "info")
+        .env_remove("NOTIFY_SOCKET")
+        .env_remove("WATCHDOG_USEC")
+        .stdout(Stdio::null())
+        .stderr(log)
+        .spawn()
+        .unwrap();
+    Daemon(child)
+}
+
+fn latest(store: &CheckpointStore) -> Option<RunProgress> {
+    latest_with_pose(store).map(|(p, _)| p)
+}
+
+fn latest_with_pose(store: &CheckpointStore) -> Option<(RunProgress, Pose)> {
+    let l = store.load().ok()??;
+    let p = l.checkpoint.get::<RunProgress>().ok()??;
+    let q = l.checkpoint.get::<Pose>().ok()??;
+    Some((p, q))
+}
+
+#[test]
+fn killed_daemon_resumes_its_coverage() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e_resume");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("state")).unwrap();
+    let links = dir.join("dev");
+
+    let world = World::parse(SMALL).unwrap();
+    let base_cfg = config();
+    let robot = base_cfg.robot.clone();
+    let mut tracker =
+        CoverageTracker::new(&world, robot.radius, robot.tool_width, &world.start).unwrap();
+    let opts = SimOptions::new(world.clone(), base_cfg.clone());
+
+    // One time base for the emulators here and the daemon in the child.
+    let epoch = unix_now();
+    let clock: SharedClock = Arc::new(ScaledClock::since_unix(SPEED, epoch));
+    let (base, urg) = closed_loop::spawn_emulators(&opts, &clock, &links).unwrap();
+
+    let mut cfg = base_cfg;
+    cfg.motor.kind = BaseKind::Roboclaw;
+    cfg.motor.deadman = cfg.motor.deadman.max(DEADMAN_WALL * SPEED);
+    cfg.pipeline.time_scale = SPEED;
+    cfg.pipeline.clock_epoch = epoch;
+    cfg.pipeline.checkpoint_period = CHECKPOINT_WALL;
+    std::fs::write(dir.join("robot.toml"), toml::to_string(&cfg).unwrap()).unwrap();
+
+    let store = CheckpointStore::new(&dir.join("state"));
+    let wall0 = Instant::now();
+    let t0 = clock.now();
+    let mut daemon = spawn(&dir, &links, 1);
+    // (sequence, daemon coverage, ground-truth coverage when first seen)
+    let mut last_seen: Option<(RunProgress, f64)> = None;
+    let mut killed: Option<(f64, f64)> = None; // (truth coverage, sim time) at the kill
+    let mut at_kill: Option<RunProgress> = None;
+    let mut first_resumed: Option<(RunProgress, f64)> = None;
+    let mut last_poll = Instant::now();
+    // Largest distance between a checkpointed pose and the nearest true pose
+    // of the last 3 s, before and after the kill.
+    let mut pose_err = [0.0f64; 2];
+    let mut recent = std::collections::VecDeque::with_capacity(RECENT);
+    // Ground-truth coverage every 20 s simulated, for the output.
+    let mut timeline = String::new();
+    let mut next_mark = 0.0;
+    let status = loop {
+        clock.sleep(SAMPLE_PERIOD);
+        let t = clock.now() - t0;
+        let truth_pose = base.truth();
+        tracker.record(&truth_pose, t);
+        if recent.len() == RECENT {
+            recent.pop_front();
+        }
+        recent.push_back(truth_pose);
+        let truth = tracker.metrics().coverage;
+        if t >= next_mark {
+            timeline += &format!(" {t:.0}s:{:.0}%", truth * 100.0);
+            next_mark += 20.0;
+        }
+        if last_poll.elapsed() >= Duration::from_millis(20) {
+            last_poll = Instant::now();
+            if let Some((p, est)) = latest_with_pose(&store) {
+                // The daemon's frame is the world frame moved to the start.
+                let est = world.start * est;
+                let e = recent
+                    .iter()
+                    .map(|q: &Pose| (est.translation.vector - q.translation.vector).norm())
+                    .fold(f64::INFINITY, f64::min);
+                // After the restart, from 5 s on: the first checkpoints
+                // still hold the pose restored before the first scan.
+                let k = usize::from(killed.is_some());
+                if killed.is_none_or(|(_, tk)| t > tk + 5.0) {
+                    pose_err[k] = pose_err[k].max(e);
+                }
+                match killed {
+                    None if last_seen.map(|(q, _)| q.sequence) != Some(p.sequence) => {
+                        last_seen = Some((p, truth));
+                    }
+                    Some(_) if p.resumes >= 1 && first_resumed.is_none() => {
+                        first_resumed = Some((p, truth));
+                    }
+                    _ => {}
+                }
+            }
+        }
+        if killed.is_none() && truth >= KILL_AT {
+            // SIGKILL: no final checkpoint, no stop command.
+            daemon.0.kill().unwrap();
+            daemon.0.wait().unwrap();
+            killed = Some((truth, t));
+            timeline += &format!(" [kill -9 at {t:.0}s:{:.0}%]", truth * 100.0);
+            at_kill = latest(&store);
+            std::thread::sleep(Duration::from_millis(200));
+            daemon = spawn(&dir, &links, 2);
+            continue;
+        }
+        if let Some(s) = daemon.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t < TIME_CAP, "no end after {t:.0} s simulated");
+    };
+    let sim_time = clock.now() - t0;
+    drop(urg);
+    let m = tracker.metrics();
+    let log2 = std::fs::read_to_string(dir.join("daemon2.log")).unwrap_or_default();
+    let (kill_truth, kill_t) = killed.expect("the daemon finished before it could be killed");
+    let at_kill = at_kill.expect("no checkpoint before the kill");
+    let (_seen, seen_truth) = last_seen.expect("no checkpoint seen");
+    let (resumed, resumed_truth) = first_resumed.expect("the second daemon wrote no checkpoint");
+    let final_progress = latest(&store).unwrap();
+    eprintln!(
+        "killed at {kill_t:.1} s sim with {:.1} % true coverage; last checkpoint #{} \
+         (written ~{:.1} s before): {:.1} % by the daemon's record, {:.1} % true when seen -> \
+         at most {:.1} points of true coverage to redo",
+        kill_truth * 100.0,
+        at_kill.sequence,
+        kill_t - at_kill.elapsed.min(kill_t),
+        at_kill.coverage * 100.0,
+        seen_truth * 100.0,
+        (kill_truth - seen_truth) * 100.0,
+    );
+    eprintln!(
+        "resumed: first checkpoint #{} of the second daemon {:.1} % by its record \
+         ({:.1} % true); finished at {:.1} % true coverage, {:.0} s sim in {:.1} s wall, \
+         exit {status}, {} resume(s)",
+        resumed.sequence,
+        resumed.coverage * 100.0,
+        resumed_truth * 100.0,
+        m.coverage * 100.0,
+        sim_time,
+        wall0.elapsed().as_secs_f64(),
+        final_progress.resumes
+    );
+    eprintln!(
+        "checkpointed pose vs truth: max {:.3} m before the kill, {:.3} m from 5 s after the restart",
+        pose_err[0], pose_err[1]
+    );
+    eprintln!(
+        "true coverage by simulated time:{timeline} end {sim_time:.0}s:{:.0}%",
+        m.coverage * 100.0
+    );
+    assert!(status.success(), "second daemon failed: {status}\n{log2}");
+    assert!(
+        log2.contains("resuming"),
+        "second daemon did not resume:\n{log2}"
+    );
+    assert_eq!(final_progress.resumes, 1);
+    assert!(final_progress.sequence > at_kill.sequence);
+    assert!(
+        resumed.coverage >= at_kill.coverage - 0.02,
+        "coverage lost on restart: {:.3} checkpointed, {:.3} after resume",
+        at_kill.coverage,
+        resumed.coverage
+    );
+    assert!(m.coverage >= MIN_COVERAGE, "coverage {:.3}", m.coverage);
+    assert_eq!(m.collisions, 0);
+}
