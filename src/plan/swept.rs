@@ -7,7 +7,7 @@
 use nalgebra::Point2;
 
 use super::cspace::Frame;
-use crate::pipeline::checkpoint::{CheckpointError, Decoder, Encoder, Section};
+use crate::pipeline::checkpoint::{CheckpointError, Decoder, Encoder, GridHeader, Section};
 
 /// Largest record a checkpoint may restore (cells), as for the map grid.
 const MAX_CELLS: u64 = 8192 * 8192;
@@ -33,11 +33,13 @@ impl Section for SweptFloor {
     const VERSION: u16 = 1;
 
     fn encode(&self, e: &mut Encoder) {
-        e.f64(self.frame.origin.x);
-        e.f64(self.frame.origin.y);
-        e.f64(self.frame.res);
-        e.u32(self.frame.w as u32);
-        e.u32(self.frame.h as u32);
+        e.grid_header(&GridHeader {
+            origin_x: self.frame.origin.x,
+            origin_y: self.frame.origin.y,
+            resolution: self.frame.res,
+            width: self.frame.w as u32,
+            height: self.frame.h as u32,
+        });
         let mut bits = vec![0u8; self.covered.len().div_ceil(8)];
         for (i, _) in self.covered.iter().enumerate().filter(|(_, c)| **c) {
             bits[i / 8] |= 1 << (i % 8);
@@ -46,22 +48,9 @@ impl Section for SweptFloor {
     }
 
     fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let ox = d.finite("origin x")?;
-        let oy = d.finite("origin y")?;
-        let res = d.finite("resolution")?;
-        if res <= 0.0 {
-            return Err(d.error(format!("resolution {res} is not > 0")));
-        }
-        let w = d.u32()?;
-        let h = d.u32()?;
-        let n = u64::from(w) * u64::from(h);
-        if n > MAX_CELLS {
-            return Err(d.error(format!(
-                "{w} x {h} cells, more than the {MAX_CELLS} allowed"
-            )));
-        }
+        let g = d.grid_header(MAX_CELLS)?;
         let bits = d.bytes()?;
-        let n = n as usize;
+        let (w, h, n) = (g.width, g.height, g.cells());
         if bits.len() != n.div_ceil(8) {
             return Err(d.error(format!(
                 "{} bytes of swept flags for a {w} x {h} grid",
@@ -71,8 +60,8 @@ impl Section for SweptFloor {
         let covered = (0..n).map(|i| bits[i / 8] & (1 << (i % 8)) != 0).collect();
         Ok(Self {
             frame: Frame {
-                origin: Point2::new(ox, oy),
-                res,
+                origin: Point2::new(g.origin_x, g.origin_y),
+                res: g.resolution,
                 w: w as usize,
                 h: h as usize,
             },

@@ -102,6 +102,16 @@ impl Encoder {
         self.buf.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// The geometry of a raster (origin, cell size, columns, rows), as
+    /// [`Decoder::grid_header`] reads it back.
+    pub fn grid_header(&mut self, h: &GridHeader) {
+        self.f64(h.origin_x);
+        self.f64(h.origin_y);
+        self.f64(h.resolution);
+        self.u32(h.width);
+        self.u32(h.height);
+    }
+
     /// A little-endian u64.
     pub fn u64(&mut self, v: u64) {
         self.buf.extend_from_slice(&v.to_le_bytes());
@@ -149,6 +159,29 @@ impl Encoder {
     }
 }
 
+/// The geometry of a raster stored in a checkpoint section (the explored
+/// grid, the planner's swept floor): one encoding and one validation for all.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridHeader {
+    /// World x of the lower-left corner (m).
+    pub origin_x: f64,
+    /// World y of the lower-left corner (m).
+    pub origin_y: f64,
+    /// Cell size (m), > 0.
+    pub resolution: f64,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+}
+
+impl GridHeader {
+    /// Number of cells.
+    pub fn cells(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+}
+
 /// Reads a section payload; every read is bounds-checked and returns a
 /// [`CheckpointError`] naming the section instead of panicking.
 #[derive(Debug)]
@@ -166,6 +199,31 @@ impl<'a> Decoder<'a> {
             buf,
             pos: 0,
         }
+    }
+
+    /// Reads a [`GridHeader`]: finite origin, positive cell size, and at
+    /// most `max_cells` cells, else an error naming what is wrong.
+    pub fn grid_header(&mut self, max_cells: u64) -> Result<GridHeader, CheckpointError> {
+        let origin_x = self.finite("origin x")?;
+        let origin_y = self.finite("origin y")?;
+        let resolution = self.finite("resolution")?;
+        if resolution <= 0.0 {
+            return Err(self.error(format!("resolution {resolution} is not > 0")));
+        }
+        let width = self.u32()?;
+        let height = self.u32()?;
+        if u64::from(width) * u64::from(height) > max_cells {
+            return Err(self.error(format!(
+                "{width} x {height} cells, more than the {max_cells} allowed"
+            )));
+        }
+        Ok(GridHeader {
+            origin_x,
+            origin_y,
+            resolution,
+            width,
+            height,
+        })
     }
 
     /// The error "section is malformed: `message`" for this section.

@@ -34,7 +34,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
-pub use codec::{crc32, Decoder, Encoder};
+pub use codec::{crc32, Decoder, Encoder, GridHeader};
 pub use sections::RunProgress;
 
 /// File magic.

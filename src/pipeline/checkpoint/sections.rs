@@ -4,7 +4,7 @@
 
 use nalgebra::Point2;
 
-use super::{CheckpointError, Decoder, Encoder, Section};
+use super::{CheckpointError, Decoder, Encoder, GridHeader, Section};
 use crate::geom::{heading, pose, Pose};
 use crate::grid::Grid;
 
@@ -35,38 +35,32 @@ impl Section for Grid {
     const VERSION: u16 = 1;
 
     fn encode(&self, e: &mut Encoder) {
-        e.f64(self.origin().x);
-        e.f64(self.origin().y);
-        e.f64(self.resolution());
-        e.u32(self.width() as u32);
-        e.u32(self.height() as u32);
+        e.grid_header(&GridHeader {
+            origin_x: self.origin().x,
+            origin_y: self.origin().y,
+            resolution: self.resolution(),
+            width: self.width() as u32,
+            height: self.height() as u32,
+        });
         e.bytes(self.raw_evidence());
     }
 
     fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let ox = d.finite("origin x")?;
-        let oy = d.finite("origin y")?;
-        let res = d.finite("resolution")?;
-        if res <= 0.0 {
-            return Err(d.error(format!("resolution {res} is not > 0")));
-        }
-        let w = d.u32()?;
-        let h = d.u32()?;
-        let n = u64::from(w) * u64::from(h);
-        if n > MAX_GRID_CELLS {
+        let g = d.grid_header(MAX_GRID_CELLS)?;
+        let cells = d.bytes()?;
+        if cells.len() != g.cells() {
             return Err(d.error(format!(
-                "{w} x {h} cells, more than the {MAX_GRID_CELLS} allowed"
+                "{} cell values for a {} x {} grid",
+                cells.len(),
+                g.width,
+                g.height
             )));
         }
-        let cells = d.bytes()?;
-        if cells.len() as u64 != n {
-            return Err(d.error(format!("{} cell values for a {w} x {h} grid", cells.len())));
-        }
         Grid::from_raw_evidence(
-            Point2::new(ox, oy),
-            res,
-            w as usize,
-            h as usize,
+            Point2::new(g.origin_x, g.origin_y),
+            g.resolution,
+            g.width as usize,
+            g.height as usize,
             cells.to_vec(),
         )
         .ok_or_else(|| d.error("grid geometry rejected"))
