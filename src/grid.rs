@@ -65,6 +65,19 @@ pub struct Grid {
     cells: Vec<u8>,
 }
 
+/// Offsets to the 8 neighbours of a cell, the 4 edge neighbours first: the
+/// order breadth-first searches over rasters (planner, floor-plan rooms) use.
+pub const NEIGHBOURS_8: [(i64, i64); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
+
 /// Integer cell coordinates (column, row); row 0 is the lowest y.
 pub type CellIndex = (usize, usize);
 

@@ -617,16 +617,7 @@ impl CoveragePlanner {
             let o = self.owner[i] as usize;
             let oc = f.centre(o);
             let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-            for (dx, dy) in [
-                (1, 0),
-                (-1, 0),
-                (0, 1),
-                (0, -1),
-                (1, 1),
-                (1, -1),
-                (-1, 1),
-                (-1, -1),
-            ] {
+            for (dx, dy) in crate::grid::NEIGHBOURS_8 {
                 let (nx, ny) = (x + dx, y + dy);
                 if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
                     continue;

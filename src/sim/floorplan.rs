@@ -247,16 +247,7 @@ pub fn farthest_from_obstacles(raster: &FreeRaster) -> Point2<f64> {
     }
     while let Some((x, y)) = queue.pop_front() {
         let src = near[y as usize * w + x as usize].unwrap_or((x, y));
-        for (dx, dy) in [
-            (1, 0),
-            (-1, 0),
-            (0, 1),
-            (0, -1),
-            (1, 1),
-            (1, -1),
-            (-1, 1),
-            (-1, -1),
-        ] {
+        for (dx, dy) in crate::grid::NEIGHBOURS_8 {
             let (nx, ny) = (x + dx, y + dy);
             if !free(nx, ny) {
                 continue;
