@@ -289,7 +289,6 @@ impl CSpace {
         if source >= self.frame.len() {
             return;
         }
-        let (w, h, r) = (self.frame.w as i64, self.frame.h as i64, self.frame.res);
         self.dist[source] = 0.0;
         self.heap.push(Entry {
             cost: 0.0,
@@ -300,25 +299,8 @@ impl CSpace {
             if cost > self.dist[i] {
                 continue;
             }
-            let (x, y) = ((i as i64) % w, (i as i64) / w);
-            for &(dx, dy, c) in &NEIGHBOURS {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                    continue;
-                }
-                let j = (ny * w + nx) as usize;
-                if !self.traversable[j] {
-                    continue;
-                }
-                // No corner cutting past a blocked cell.
-                if dx != 0
-                    && dy != 0
-                    && (!self.traversable[(y * w + nx) as usize]
-                        || !self.traversable[(ny * w + x) as usize])
-                {
-                    continue;
-                }
-                let nc = cost + c * r * (1.0 + self.extra[j] as f64);
+            for (j, step) in self.steps(i) {
+                let nc = cost + step;
                 if nc < self.dist[j] {
                     self.dist[j] = nc;
                     self.prev[j] = idx;
@@ -354,7 +336,7 @@ impl CSpace {
         if from >= n || to >= n || !self.traversable[to] {
             return None;
         }
-        let (w, h, r) = (self.frame.w as i64, self.frame.h as i64, self.frame.res);
+        let (w, r) = (self.frame.w as i64, self.frame.res);
         let goal = ((to as i64) % w, (to as i64) / w);
         let hfn = |i: usize| {
             let (x, y) = ((i as i64) % w, (i as i64) / w);
@@ -384,24 +366,8 @@ impl CSpace {
                 return Some(self.shorten(&cells));
             }
             let gi = g[&i].0;
-            let (x, y) = ((i as i64) % w, (i as i64) / w);
-            for &(dx, dy, c) in &NEIGHBOURS {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                    continue;
-                }
-                let j = (ny * w + nx) as usize;
-                if !self.traversable[j] {
-                    continue;
-                }
-                if dx != 0
-                    && dy != 0
-                    && (!self.traversable[(y * w + nx) as usize]
-                        || !self.traversable[(ny * w + x) as usize])
-                {
-                    continue;
-                }
-                let ng = gi + c * r * (1.0 + self.extra[j] as f64);
+            for (j, step) in self.steps(i) {
+                let ng = gi + step;
                 if g.get(&j).is_none_or(|&(old, _)| ng < old) {
                     g.insert(j, (ng, i));
                     heap.push(Entry {
@@ -436,6 +402,36 @@ impl CSpace {
             let p = a + d * (k as f64 / n as f64);
             self.frame.index_of(&p).is_some_and(|i| self.traversable[i])
         })
+    }
+
+    /// The cells one step from cell `i` that the robot may enter, each with
+    /// the cost of the step (m, weighted by the entered cell's extra cost);
+    /// a diagonal step never cuts past a blocked cell. Shared by
+    /// [`CSpace::distances_from`] and [`CSpace::astar`]; allocation-free.
+    fn steps(&self, i: usize) -> heapless::Vec<(usize, f64), 8> {
+        let (w, h, r) = (self.frame.w as i64, self.frame.h as i64, self.frame.res);
+        let (x, y) = ((i as i64) % w, (i as i64) / w);
+        let mut out = heapless::Vec::new();
+        for &(dx, dy, c) in &NEIGHBOURS {
+            let (nx, ny) = (x + dx, y + dy);
+            if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                continue;
+            }
+            let j = (ny * w + nx) as usize;
+            if !self.traversable[j] {
+                continue;
+            }
+            if dx != 0
+                && dy != 0
+                && (!self.traversable[(y * w + nx) as usize]
+                    || !self.traversable[(ny * w + x) as usize])
+            {
+                continue;
+            }
+            // At most 8 neighbours: the push cannot fail.
+            let _ = out.push((j, c * r * (1.0 + self.extra[j] as f64)));
+        }
+        out
     }
 
     fn extra_at(&self, i: usize) -> f32 {
