@@ -5,6 +5,7 @@
 
 use sweepline::cli::replay::replay_log;
 use sweepline::icp::eval::{evaluate, parse_relations, read_text};
+use sweepline::icp::truth_noise::truth_noise;
 use sweepline::icp::IcpParams;
 use sweepline::sim::carmen;
 
@@ -43,6 +44,15 @@ fn mit_csail_accuracy_with_default_parameters() {
         "<= 1 s: {} deg",
         r.local.rot_deg.mean
     );
+    // The annotation noise of the short relations, estimated from relation
+    // triangles without trusting them: a perfect matcher would be scored above
+    // 0.020 m in translation (the target), even at the low end of the
+    // bootstrap interval.
+    let noise = truth_noise(&rels, &res.trajectory, 500, 1).unwrap();
+    eprintln!("{noise}");
+    assert!(noise.triangles >= 50, "{noise}");
+    assert!(noise.floor_trans.low > 0.020, "{noise}");
+    assert!(noise.floor_rot_deg.value > 0.2, "{noise}");
 }
 
 // Reached: see README "Scan matching on real data".

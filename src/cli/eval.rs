@@ -2,6 +2,7 @@
 
 use super::CliResult;
 use crate::icp::eval::{evaluate, parse_relations, parse_trajectory, read_text};
+use crate::icp::truth_noise::truth_noise;
 
 /// Arguments of `sweepline eval`.
 #[derive(Debug, clap::Args)]
@@ -11,6 +12,10 @@ pub struct Args {
     pub relations: std::path::PathBuf,
     /// The trajectory (timestamp x y theta per line).
     pub trajectory: std::path::PathBuf,
+    /// Also estimate the annotation noise of the short relations from relation
+    /// triangles (three-cornered hat) and the score a perfect matcher would get.
+    #[arg(long)]
+    pub truth_noise: bool,
 }
 
 /// Runs `sweepline eval`.
@@ -21,5 +26,9 @@ pub fn run(args: Args) -> CliResult {
     let traj = parse_trajectory(&traj_text, &args.trajectory.display().to_string())?;
     let report = evaluate(&rels, &traj)?;
     print!("{report}");
+    if args.truth_noise {
+        let noise = truth_noise(&rels, &traj, 2000, 1)?;
+        print!("{noise}");
+    }
     Ok(())
 }

@@ -34,6 +34,12 @@ pub enum EvalError {
         /// What was expected.
         message: String,
     },
+    /// Too few relation triangles (a→b, a→c, short b→c) to estimate the ground truth's noise.
+    #[error("only {found} relation triangles (a→b, a→c and a short b→c) refer to the trajectory; at least 3 are needed")]
+    TooFewTriangles {
+        /// Triangles found.
+        found: usize,
+    },
     /// No relation could be matched to the trajectory.
     #[error("none of the {relations} relations refer to timestamps of the trajectory")]
     NothingToScore {

@@ -11,7 +11,8 @@
 //! - [`Matcher`]: one match, with gate, trimming, point-to-point or
 //!   point-to-line solve and a [`Quality`] report.
 //! - [`KeyframeMap`] and [`Tracker`]: scan-to-map tracking over a sequence.
-//! - [`eval`]: the Kümmerle et al. 2009 relative-pose metric.
+//! - [`eval`]: the Kümmerle et al. 2009 relative-pose metric; [`truth_noise`]:
+//!   how noisy its hand-made relations are, from relation triangles.
 
 mod error;
 pub mod eval;
@@ -21,6 +22,7 @@ mod params;
 mod reference;
 pub mod synth;
 mod tracker;
+pub mod truth_noise;
 
 pub use error::IcpError;
 pub use local_map::KeyframeMap;
