@@ -1,6 +1,7 @@
 //! `sweepline eval`: scores a trajectory against Kümmerle et al. relations.
 
 use super::CliResult;
+use crate::icp::breakdown::{breakdown, shared, short_errors};
 use crate::icp::eval::{evaluate, parse_relations, parse_trajectory, read_text};
 use crate::icp::truth_noise::truth_noise;
 
@@ -16,6 +17,13 @@ pub struct Args {
     /// triangles (three-cornered hat) and the score a perfect matcher would get.
     #[arg(long)]
     pub truth_noise: bool,
+    /// Also break the short relations' rotational error down (quantiles, bias, by size of the turn).
+    #[arg(long)]
+    pub breakdown: bool,
+    /// A second trajectory: report how much of the two trajectories' signed
+    /// errors on the short relations is common to both.
+    #[arg(long, value_name = "TRAJECTORY")]
+    pub against: Option<std::path::PathBuf>,
 }
 
 /// Runs `sweepline eval`.
@@ -26,6 +34,16 @@ pub fn run(args: Args) -> CliResult {
     let traj = parse_trajectory(&traj_text, &args.trajectory.display().to_string())?;
     let report = evaluate(&rels, &traj)?;
     print!("{report}");
+    if args.breakdown || args.against.is_some() {
+        let errors = short_errors(&rels, &traj);
+        if args.breakdown {
+            print!("{}", breakdown(&errors));
+        }
+        if let Some(other) = &args.against {
+            let other_traj = parse_trajectory(&read_text(other)?, &other.display().to_string())?;
+            print!("{}", shared(&errors, &short_errors(&rels, &other_traj)));
+        }
+    }
     if args.truth_noise {
         let noise = truth_noise(&rels, &traj, 2000, 1)?;
         print!("{noise}");

@@ -12,8 +12,10 @@
 //!   point-to-line solve and a [`Quality`] report.
 //! - [`KeyframeMap`] and [`Tracker`]: scan-to-map tracking over a sequence.
 //! - [`eval`]: the Kümmerle et al. 2009 relative-pose metric; [`truth_noise`]:
-//!   how noisy its hand-made relations are, from relation triangles.
+//!   how noisy its hand-made relations are, from relation triangles;
+//!   [`breakdown`]: where the short relations' error comes from.
 
+pub mod breakdown;
 mod error;
 pub mod eval;
 mod local_map;
