@@ -79,6 +79,11 @@ pub struct IcpParams {
     /// smoothing its translation gives a better prior along weakly constrained
     /// directions (corridors).
     pub odometry_smoothing: f64,
+    /// Share of the scan-to-scan estimate in the reported pose, in [0, 1): each
+    /// scan is also matched against the previous one and the reported pose is
+    /// this share of the way from the scan-to-map pose to the previous reported
+    /// pose moved by that match (a complementary filter); 0 = off.
+    pub scan_fusion: f64,
     /// Add a keyframe to the local map after this much travel (m).
     pub keyframe_distance: f64,
     /// ... or after this much rotation (rad).
@@ -116,6 +121,7 @@ impl Default for IcpParams {
             prior_weight: 0.0,
             prior: Prior::Odometry,
             odometry_smoothing: 0.5,
+            scan_fusion: 0.7,
             keyframe_distance: 0.3,
             keyframe_angle: 0.2,
             keyframe_window: 6,
@@ -185,6 +191,9 @@ impl IcpParams {
         }
         if !(0.0..1.0).contains(&self.odometry_smoothing) {
             return Err(invalid("icp.odometry_smoothing", "must be in [0, 1)"));
+        }
+        if !(0.0..1.0).contains(&self.scan_fusion) {
+            return Err(invalid("icp.scan_fusion", "must be in [0, 1)"));
         }
         positive("icp.keyframe_distance", self.keyframe_distance)?;
         positive("icp.keyframe_angle", self.keyframe_angle)?;

@@ -3,13 +3,16 @@
 //!
 //! Building the tree allocates (kiddo's `ImmutableKdTree` owns its storage), so
 //! a reference is rebuilt only when the reference changes (a new keyframe, a
-//! new map snapshot); matching against it never allocates.
+//! new map snapshot); matching against it never allocates. A single scan can
+//! instead be indexed by beam bearing ([`Reference::rebuild_scan`], the
+//! "projection" search of Censi's CSM, exact here): no tree, so rebuilding it
+//! every scan allocates nothing once its buffers have grown.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Matrix2, Vector2};
 
 use super::{IcpError, IcpParams};
-use crate::geom::IPoint;
+use crate::geom::{IPoint, Pose};
 
 /// A reference point set prepared for matching.
 pub struct Reference {
@@ -19,6 +22,10 @@ pub struct Reference {
     coords: Vec<[f64; 3]>,
     tree: Option<ImmutableKdTree<f64, 3>>,
     intensity_scale: f64,
+    /// Bearing index of a single scan: sensor pose and the sorted bearing of
+    /// every point in the sensor frame. Used instead of the tree when set.
+    fan: Option<Pose>,
+    bearings: Vec<f64>,
 }
 
 impl Default for Reference {
@@ -46,6 +53,8 @@ impl Reference {
             coords: Vec::new(),
             tree: None,
             intensity_scale: 0.0,
+            fan: None,
+            bearings: Vec::new(),
         }
     }
 
@@ -133,6 +142,58 @@ impl Reference {
         self.build_tree(params)
     }
 
+    /// Rebuilds from one scan: `points` in the sensor frame in beam order (as
+    /// a scanner delivers them), seen from `pose`. Points are stored in the
+    /// world frame with normals from their beam-order neighbours; nearest
+    /// neighbours are found by bearing from the sensor, exactly and without a
+    /// tree, so this allocates nothing once the buffers have grown. Points
+    /// whose bearings do not increase (not a scan) fall back to a k-d tree.
+    pub fn rebuild_scan(
+        &mut self,
+        points: &[IPoint],
+        pose: &Pose,
+        params: &IcpParams,
+    ) -> Result<(), IcpError> {
+        self.points.clear();
+        self.normals.clear();
+        self.edges.clear();
+        self.bearings.clear();
+        self.tree = None;
+        self.fan = None;
+        let rot = pose.rotation;
+        let mut sorted = true;
+        for (i, p) in points.iter().enumerate() {
+            if !finite_point(p) {
+                continue;
+            }
+            let (n, edge) = ordered_surface(points, i, params);
+            let b = p.y.atan2(p.x);
+            sorted &= self.bearings.last().is_none_or(|&last| b >= last);
+            self.bearings.push(b);
+            self.points.push(p.transformed(pose));
+            self.normals.push(rot * n);
+            self.edges.push(edge && params.intensity_weight > 0.0);
+        }
+        self.check_size(params)?;
+        self.intensity_scale = params.intensity_weight.max(0.0).sqrt();
+        if sorted && std::env::var("NOFAN").is_err() {
+            self.fan = Some(*pose);
+            Ok(())
+        } else {
+            self.build_tree(params)
+        }
+    }
+
+    /// Empties the reference (matching against it then fails with too few points).
+    pub fn clear(&mut self) {
+        self.points.clear();
+        self.normals.clear();
+        self.edges.clear();
+        self.bearings.clear();
+        self.tree = None;
+        self.fan = None;
+    }
+
     /// Number of usable points.
     pub fn len(&self) -> usize {
         self.points.len()
@@ -140,7 +201,7 @@ impl Reference {
 
     /// True when the reference holds no points (never built or emptied).
     pub fn is_empty(&self) -> bool {
-        self.points.is_empty() || self.tree.is_none()
+        self.points.is_empty() || (self.tree.is_none() && self.fan.is_none())
     }
 
     /// The usable points.
@@ -168,12 +229,73 @@ impl Reference {
     /// Nearest reference point to `q` (x, y, √w·l) and its squared distance.
     #[inline]
     pub(crate) fn nearest(&self, q: &[f64; 3]) -> Option<(usize, f64)> {
+        if let Some(origin) = &self.fan {
+            return self.nearest_by_bearing(origin, q);
+        }
         let tree = self.tree.as_ref()?;
         let r = tree
             .query(q)
             .nearest_one::<SquaredEuclidean<f64>>()
             .execute();
         Some((r.item as usize, r.distance))
+    }
+
+    /// Exact nearest neighbour in a bearing-sorted scan: walks outwards from
+    /// the query's bearing on both sides (round the circle) and stops a side
+    /// once the angle from the query's bearing alone puts the beam's ray
+    /// farther than the best distance found (`r·sin Δ > d` with Δ < 90°; no
+    /// bound when `d ≥ r`), or passes π (the other side is nearer from there).
+    fn nearest_by_bearing(&self, origin: &Pose, q: &[f64; 3]) -> Option<(usize, f64)> {
+        use std::f64::consts::{PI, TAU};
+        let (s, c) = (origin.rotation.im, origin.rotation.re);
+        let (dx, dy) = (q[0] - origin.translation.x, q[1] - origin.translation.y);
+        let (xs, ys) = (c * dx + s * dy, -s * dx + c * dy);
+        let r = xs.hypot(ys);
+        let phi = ys.atan2(xs);
+        let scale = self.intensity_scale;
+        let n = self.bearings.len();
+        // Largest angle from the query's bearing that can still hold a point
+        // within squared distance `d2` (π when any angle can).
+        let reach = |d2: f64| {
+            let d = d2.sqrt();
+            if d < r {
+                (d / r).asin()
+            } else {
+                PI
+            }
+        };
+        let mut best = (usize::MAX, f64::INFINITY);
+        let mut limit = PI;
+        let start = self.bearings.partition_point(|&b| b < phi);
+        for side in [true, false] {
+            for step in 0..n {
+                let j = if side {
+                    (start + step) % n
+                } else {
+                    (start + 2 * n - 1 - step) % n
+                };
+                let mut delta = if side {
+                    self.bearings[j] - phi
+                } else {
+                    phi - self.bearings[j]
+                };
+                if delta < 0.0 {
+                    delta += TAU;
+                }
+                if delta > limit {
+                    break;
+                }
+                let p = &self.points[j];
+                let d = (p.x - q[0]).powi(2)
+                    + (p.y - q[1]).powi(2)
+                    + (scale * p.intensity - q[2]).powi(2);
+                if d < best.1 {
+                    best = (j, d);
+                    limit = reach(d);
+                }
+            }
+        }
+        (best.0 != usize::MAX).then_some(best)
     }
 
     fn copy_finite(&mut self, points: &[IPoint]) {
@@ -185,6 +307,7 @@ impl Reference {
     fn check_size(&mut self, params: &IcpParams) -> Result<(), IcpError> {
         if self.points.len() < params.min_pairs {
             self.tree = None;
+            self.fan = None;
             return Err(IcpError::TooFewReferencePoints {
                 have: self.points.len(),
                 need: params.min_pairs,
@@ -194,6 +317,7 @@ impl Reference {
     }
 
     fn build_tree(&mut self, params: &IcpParams) -> Result<(), IcpError> {
+        self.fan = None;
         self.intensity_scale = params.intensity_weight.max(0.0).sqrt();
         let s = self.intensity_scale;
         self.coords.clear();
@@ -301,5 +425,64 @@ impl Accum {
         } else {
             Vector2::zeros()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    /// The bearing search finds exactly what an exhaustive search finds.
+    #[test]
+    fn bearing_index_is_exact() {
+        let params = IcpParams {
+            intensity_weight: 0.3,
+            ..IcpParams::default()
+        };
+        // A jagged 240° scan: ranges jump between near and far surfaces.
+        let scan: Vec<IPoint> = (0..400)
+            .map(|i| {
+                let a = -2.09 + 4.18 * i as f64 / 399.0;
+                let r = 1.0 + 0.8 * (a * 7.0).sin().abs() + if i % 37 < 5 { 2.0 } else { 0.0 };
+                IPoint::new(r * a.cos(), r * a.sin(), (i % 11) as f64 / 10.0)
+            })
+            .collect();
+        let at = pose(1.0, -2.0, 0.7);
+        let mut fan = Reference::new();
+        fan.rebuild_scan(&scan, &at, &params).unwrap();
+        assert!(fan.fan.is_some());
+        let s = fan.intensity_scale();
+        let mut state = 3u64;
+        let mut u = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..2000 {
+            let q = [1.0 + 8.0 * (u() - 0.5), -2.0 + 8.0 * (u() - 0.5), s * u()];
+            let (i, d) = fan.nearest(&q).unwrap();
+            let brute = fan
+                .points()
+                .iter()
+                .map(|p| {
+                    (p.x - q[0]).powi(2) + (p.y - q[1]).powi(2) + (s * p.intensity - q[2]).powi(2)
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                (d - brute).abs() < 1e-12,
+                "query {q:?}: got {i} at {d}, best {brute}"
+            );
+        }
+        // Points whose bearings do not increase are not a scan: a tree is built instead.
+        let mut shuffled = scan.clone();
+        shuffled.swap(10, 300);
+        let mut tree = Reference::new();
+        tree.rebuild_scan(&shuffled, &at, &params).unwrap();
+        assert!(tree.fan.is_none() && tree.tree.is_some());
+        // Too few points: an error, and an empty reference.
+        assert!(fan.rebuild_scan(&scan[..3], &at, &params).is_err());
+        assert!(fan.is_empty());
     }
 }

@@ -1,6 +1,13 @@
 //! Scan-to-map tracking over a sequence of scans: predict from odometry or a
 //! constant-velocity prior, match against the keyframe local map, accept or
 //! fall back to the prediction, add keyframes as the robot moves.
+//!
+//! With `scan_fusion` > 0 each scan is also matched against the previous scan
+//! and the reported pose is a complementary filter of the two: it moves with
+//! the scan-to-scan increments (locally the most consistent) and is pulled
+//! towards the scan-to-map pose (which does not drift). The keyframe map, the
+//! prior and the velocity keep following the scan-to-map pose, so the
+//! reported pose stays within a bounded offset of it.
 
 use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Reference, Rejection};
 
@@ -52,7 +59,7 @@ pub struct Step {
 pub struct Tracker {
     matcher: Matcher,
     map: KeyframeMap,
-    pose: Pose,
+    map_pose: Pose,
     velocity: Pose,
     /// The last distinct odometry reading, and our pose estimate at the scan
     /// where it first appeared (odometry in logs may stall, then jump).
@@ -62,6 +69,10 @@ pub struct Tracker {
     /// Smoothed odometry translation per scan, in the robot frame (m).
     odom_step: Option<Vector2<f64>>,
     started: bool,
+    /// The reported (fused) pose; equals `pose` when `scan_fusion` is 0.
+    reported: Pose,
+    /// The previous scan at its reported pose (scan-to-scan reference).
+    previous: Reference,
 }
 
 impl Tracker {
@@ -71,18 +82,26 @@ impl Tracker {
         Ok(Self {
             matcher: Matcher::new(params)?,
             map,
-            pose: start,
+            map_pose: start,
             velocity: Pose::identity(),
             odom_anchor: None,
             scans_since_anchor: 0,
             odom_step: None,
             started: false,
+            reported: start,
+            previous: Reference::new(),
         })
     }
 
-    /// The current pose estimate.
+    /// The current pose estimate (the reported pose of the last step).
     pub fn pose(&self) -> Pose {
-        self.pose
+        self.reported
+    }
+
+    /// The current scan-to-map pose: the reported pose before fusion with
+    /// scan-to-scan matching (the same when `scan_fusion` is 0).
+    pub fn map_pose(&self) -> Pose {
+        self.map_pose
     }
 
     /// The local map (keyframes and the reference built from them).
@@ -129,7 +148,7 @@ impl Tracker {
                 *now,
                 unit(at * self.smoothed_increment(&(before.inverse() * now))),
             )),
-            (Some(now), None) => Some((*now, self.pose)),
+            (Some(now), None) => Some((*now, self.map_pose)),
             _ => None,
         };
         let prepared = self.matcher.prepare_points(points);
@@ -137,14 +156,16 @@ impl Tracker {
             let step = match prepared {
                 Ok(_) => {
                     let params = self.matcher.params().clone();
-                    let kf = self
-                        .map
-                        .insert(&self.pose, self.matcher.prepared_points(), &params);
+                    let kf =
+                        self.map
+                            .insert(&self.map_pose, self.matcher.prepared_points(), &params);
                     match kf {
                         Ok(()) => {
                             self.started = true;
+                            self.reported = self.map_pose;
+                            self.remember_scan();
                             Step {
-                                pose: self.pose,
+                                pose: self.map_pose,
                                 outcome: Outcome::First,
                                 keyframe: true,
                             }
@@ -155,12 +176,12 @@ impl Tracker {
                 Err(e) => self.fallback(Outcome::Failed(e)),
             };
             if let Some((now, _)) = fresh_odom {
-                self.odom_anchor = Some((now, self.pose));
+                self.odom_anchor = Some((now, self.map_pose));
                 self.scans_since_anchor = 0;
             }
             return step;
         }
-        let cv_guess = unit(self.pose * self.velocity);
+        let cv_guess = unit(self.map_pose * self.velocity);
         let guess = match (self.matcher.params().prior, fresh_odom) {
             (Prior::Odometry, Some((_, g))) => g,
             _ => cv_guess,
@@ -171,7 +192,7 @@ impl Tracker {
         };
         let step = self.register(prepared.map(|_| ()), guess, weight, cv_guess, external);
         if let Some((now, _)) = fresh_odom {
-            self.odom_anchor = Some((now, step.pose));
+            self.odom_anchor = Some((now, self.map_pose));
             self.scans_since_anchor = 0;
         }
         step
@@ -220,11 +241,13 @@ impl Tracker {
         };
         match outcome {
             Ok(m) => {
-                self.velocity = unit(self.pose.inverse() * m.pose);
-                self.pose = unit(m.pose);
+                let before = self.map_pose;
+                self.velocity = unit(self.map_pose.inverse() * m.pose);
+                self.map_pose = unit(m.pose);
                 let keyframe = external.is_none() && self.maybe_keyframe();
+                let pose = self.fuse(&before, true);
                 Step {
-                    pose: self.pose,
+                    pose,
                     outcome: Outcome::Matched(m.quality),
                     keyframe,
                 }
@@ -255,10 +278,12 @@ impl Tracker {
     }
 
     fn predict(&mut self, guess: Pose, outcome: Outcome) -> Step {
-        self.velocity = unit(self.pose.inverse() * guess);
-        self.pose = unit(guess);
+        let before = self.map_pose;
+        self.velocity = unit(self.map_pose.inverse() * guess);
+        self.map_pose = unit(guess);
+        let pose = self.fuse(&before, false);
         Step {
-            pose: guess,
+            pose,
             outcome,
             keyframe: false,
         }
@@ -266,9 +291,64 @@ impl Tracker {
 
     fn fallback(&self, outcome: Outcome) -> Step {
         Step {
-            pose: self.pose,
+            pose: self.reported,
             outcome,
             keyframe: false,
+        }
+    }
+
+    /// The reported pose after the scan-to-map pose moved from `before` to
+    /// `self.map_pose`: the previous reported pose moved by the scan-to-scan match
+    /// (or, without one, by the scan-to-map increment), then pulled
+    /// `1 − scan_fusion` of the way to the scan-to-map pose. `matched` says
+    /// whether the prepared points are this scan's registered points.
+    fn fuse(&mut self, before: &Pose, matched: bool) -> Pose {
+        let share = self.matcher.params().scan_fusion;
+        if share <= 0.0 {
+            self.reported = self.map_pose;
+            return self.map_pose;
+        }
+        let follow = unit(self.reported * (before.inverse() * self.map_pose));
+        let local = if matched && !self.previous.is_empty() {
+            match self
+                .matcher
+                .match_prepared_weighted(&self.previous, &follow, 0.0)
+            {
+                Ok(m) if m.quality.check(self.matcher.params()).is_ok() => m.pose,
+                _ => follow,
+            }
+        } else {
+            follow
+        };
+        let d = self.map_pose.inverse() * local;
+        self.reported = unit(
+            self.map_pose
+                * crate::geom::pose(
+                    share * d.translation.x,
+                    share * d.translation.y,
+                    share * d.rotation.angle(),
+                ),
+        );
+        if matched {
+            self.remember_scan();
+        } else {
+            self.previous.clear();
+        }
+        self.reported
+    }
+
+    /// Keeps the prepared points at the reported pose as the next scan-to-scan reference.
+    fn remember_scan(&mut self) {
+        if self.matcher.params().scan_fusion <= 0.0 {
+            return;
+        }
+        let params = self.matcher.params().clone();
+        if self
+            .previous
+            .rebuild_scan(self.matcher.prepared_points(), &self.reported, &params)
+            .is_err()
+        {
+            self.previous.clear();
         }
     }
 
@@ -277,7 +357,7 @@ impl Tracker {
         let due = match self.map.last_pose() {
             None => true,
             Some(k) => {
-                let d = k.inverse() * self.pose;
+                let d = k.inverse() * self.map_pose;
                 d.translation.vector.norm() >= params.keyframe_distance
                     || d.rotation.angle().abs() >= params.keyframe_angle
             }
@@ -287,7 +367,7 @@ impl Tracker {
         }
         let params = params.clone();
         self.map
-            .insert(&self.pose, self.matcher.prepared_points(), &params)
+            .insert(&self.map_pose, self.matcher.prepared_points(), &params)
             .is_ok()
     }
 }
