@@ -4,7 +4,9 @@
 //!
 //! What is proven: once buffers have grown, (1) `Matcher::match_points` and
 //! `Matcher::match_scan` against a built `Reference` allocate nothing; (2) a
-//! `Tracker` step that does not add a keyframe allocates nothing. Adding a
+//! `Tracker` step that does not add a keyframe allocates nothing, including
+//! the scan-to-scan match of `scan_fusion` and the rebuild of its
+//! bearing-indexed reference from every scan. Adding a
 //! keyframe rebuilds the k-d tree, and kiddo's tree owns fresh storage: that
 //! step allocates (the tree, plus the keyframe's own buffers until the window
 //! is full and they start being recycled), which is measured and bounded here.
@@ -109,6 +111,10 @@ fn steady_state_matching_does_not_allocate() {
     assert_eq!(during, 0, "{during} allocations in 120 matches");
 
     // Tracker: steps without a new keyframe allocate nothing.
+    assert!(
+        params.scan_fusion > 0.0,
+        "the default fuses scan-to-scan matches"
+    );
     let mut t = Tracker::new(params, at).unwrap();
     let still = &scans[0];
     assert!(matches!(t.step(still, Some(&at)).outcome, Outcome::First));

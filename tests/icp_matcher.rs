@@ -232,3 +232,84 @@ fn smoothed_odometry_reduces_jitter_along_a_corridor() {
         "smoothed {smooth} m per step vs raw {raw} m"
     );
 }
+
+/// `scan_fusion`: against a noisy map (each wall point off by up to ±2 cm, as
+/// in a map built from many registered scans) every scan-to-map pose carries
+/// its own small error; matching each scan against the previous one as well
+/// makes consecutive poses more consistent, while the reported pose stays
+/// within a bounded offset of the scan-to-map pose.
+#[test]
+fn scan_fusion_makes_consecutive_poses_consistent() {
+    use sweepline::icp::{Outcome, Tracker};
+    let walls = scene();
+    let mut state = 5u64;
+    let mut noise = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.04
+    };
+    let mut map = Vec::new();
+    for w in &walls {
+        let n = (w.segment.length() / 0.05).ceil() as usize;
+        let d = w.segment.b - w.segment.a;
+        let normal = nalgebra::Vector2::new(-d.y, d.x) / d.norm();
+        for k in 0..=n {
+            let p = w.segment.a + d * (k as f64 / n as f64) + normal * noise();
+            map.push(IPoint::new(p.x, p.y, w.intensity));
+        }
+    }
+    let run = |share: f64| -> (f64, f64, f64) {
+        let params = IcpParams {
+            scan_fusion: share,
+            ..IcpParams::default()
+        };
+        let mut reference = Reference::new();
+        reference.rebuild(&map, &params).unwrap();
+        let start = pose(1.0, 0.8, 0.0);
+        let mut t = Tracker::new(params, start).unwrap();
+        let (mut truth, mut odom) = (start, pose(0.0, 0.0, 0.0));
+        let (mut last, mut last_truth) = (start, start);
+        let (mut et, mut er, mut offset) = (0.0, 0.0, 0.0f64);
+        for k in 0..40u64 {
+            let step = pose(0.08, 0.0, 0.03);
+            truth *= step;
+            odom *= pose(0.088, 0.0, 0.025);
+            let scan = cast(
+                &walls,
+                &truth,
+                &ScanSpec {
+                    seed: 500 + k,
+                    ..ScanSpec::default()
+                },
+            );
+            let s = t.step_with_reference(&scan, Some(&odom), &reference);
+            assert!(matches!(s.outcome, Outcome::Matched(_)), "{:?}", s.outcome);
+            assert_eq!(s.pose, t.pose());
+            if k > 0 {
+                let (dt, dr) = err(&(last_truth.inverse() * truth), &(last.inverse() * s.pose));
+                et += dt / 39.0;
+                er += dr / 39.0;
+            }
+            offset = offset.max(err(&s.pose, &t.map_pose()).0);
+            let (at, ar) = err(&s.pose, &truth);
+            assert!(at < 0.03 && ar < 0.02, "scan {k}: {at} m {ar} rad off");
+            (last, last_truth) = (s.pose, truth);
+        }
+        (et, er, offset)
+    };
+    let (t0, r0, off0) = run(0.0);
+    let (t1, r1, off1) = run(0.7);
+    eprintln!(
+        "step error: map only {t0:.4} m {:.3} deg; fused {t1:.4} m {:.3} deg; offset {off1:.4} m",
+        r0.to_degrees(),
+        r1.to_degrees()
+    );
+    assert_eq!(
+        off0, 0.0,
+        "without fusion the reported pose is the map pose"
+    );
+    assert!(off1 > 0.0 && off1 < 0.02, "offset {off1} m");
+    assert!(t1 < 0.8 * t0, "translation per step {t1} vs {t0}");
+    assert!(r1 < 0.8 * r0, "rotation per step {r1} vs {r0}");
+}
