@@ -78,6 +78,27 @@ fn bench(c: &mut Criterion) {
             m.match_points(&refs[k], &data[j].0, &guess)
         })
     });
+    // The same matches against the bearing-indexed reference that
+    // `scan_fusion` rebuilds from every scan (rebuild included).
+    let mut fan = Reference::new();
+    let prepared: Vec<Vec<IPoint>> = (250..260)
+        .map(|k| {
+            let mut pm = Matcher::new(params.clone()).unwrap();
+            pm.prepare_points(&data[k].0).unwrap();
+            pm.prepared_points().to_vec()
+        })
+        .collect();
+    g.bench_function("scan_to_scan_bearing_index_361_beams", |b| {
+        let mut k = 0;
+        b.iter(|| {
+            k = (k + 1) % prepared.len();
+            let j = 251 + k;
+            fan.rebuild_scan(&prepared[k], &poses[250 + k], &params)
+                .unwrap();
+            let guess = poses[j - 1] * (data[j - 1].1.inverse() * data[j].1);
+            m.match_points(&fan, &data[j].0, &guess)
+        })
+    });
     g.finish();
 
     let mut g = c.benchmark_group("icp_track");

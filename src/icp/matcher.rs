@@ -375,14 +375,12 @@ impl Matcher {
         for q in &self.scan {
             let x = cos * q.x - sin * q.y + t.x;
             let y = sin * q.x + cos * q.y + t.y;
-            if let Some((idx, d2)) = reference.nearest(&[x, y, s * q.intensity]) {
-                if d2 <= g2 {
-                    self.pairs.push(Pair {
-                        q: *q,
-                        p: idx as u32,
-                        d2,
-                    });
-                }
+            if let Some((idx, d2)) = reference.nearest_within(&[x, y, s * q.intensity], g2) {
+                self.pairs.push(Pair {
+                    q: *q,
+                    p: idx as u32,
+                    d2,
+                });
             }
         }
         self.pairs.len()

@@ -226,12 +226,17 @@ impl Reference {
         self.intensity_scale
     }
 
-    /// Nearest reference point to `q` (x, y, √w·l) and its squared distance.
+    /// Nearest reference point to `q` (x, y, √w·l) and its squared distance,
+    /// if that is at most `max_d2`.
     #[inline]
-    pub(crate) fn nearest(&self, q: &[f64; 3]) -> Option<(usize, f64)> {
+    pub(crate) fn nearest_within(&self, q: &[f64; 3], max_d2: f64) -> Option<(usize, f64)> {
         if let Some(origin) = &self.fan {
-            return self.nearest_by_bearing(origin, q);
+            return self.nearest_by_bearing(origin, q, max_d2);
         }
+        self.nearest_in_tree(q).filter(|&(_, d2)| d2 <= max_d2)
+    }
+
+    fn nearest_in_tree(&self, q: &[f64; 3]) -> Option<(usize, f64)> {
         let tree = self.tree.as_ref()?;
         let r = tree
             .query(q)
@@ -245,7 +250,7 @@ impl Reference {
     /// once the angle from the query's bearing alone puts the beam's ray
     /// farther than the best distance found (`r·sin Δ > d` with Δ < 90°; no
     /// bound when `d ≥ r`), or passes π (the other side is nearer from there).
-    fn nearest_by_bearing(&self, origin: &Pose, q: &[f64; 3]) -> Option<(usize, f64)> {
+    fn nearest_by_bearing(&self, origin: &Pose, q: &[f64; 3], max_d2: f64) -> Option<(usize, f64)> {
         use std::f64::consts::{PI, TAU};
         let (s, c) = (origin.rotation.im, origin.rotation.re);
         let (dx, dy) = (q[0] - origin.translation.x, q[1] - origin.translation.y);
@@ -264,8 +269,9 @@ impl Reference {
                 PI
             }
         };
-        let mut best = (usize::MAX, f64::INFINITY);
-        let mut limit = PI;
+        // Only points within `max_d2` count: the search starts with that bound.
+        let mut best = (usize::MAX, max_d2.next_up());
+        let mut limit = reach(best.1);
         let start = self.bearings.partition_point(|&b| b < phi);
         for side in [true, false] {
             for step in 0..n {
@@ -462,7 +468,7 @@ mod tests {
         };
         for _ in 0..2000 {
             let q = [1.0 + 8.0 * (u() - 0.5), -2.0 + 8.0 * (u() - 0.5), s * u()];
-            let (i, d) = fan.nearest(&q).unwrap();
+            let (i, d) = fan.nearest_within(&q, f64::INFINITY).unwrap();
             let brute = fan
                 .points()
                 .iter()
