@@ -139,6 +139,67 @@ pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayR
     Ok(res)
 }
 
+/// How much later the odd beams of the log's scans were measured than the
+/// even ones, estimated without ground truth. A SICK LMS 2xx in 0.5° mode
+/// builds a scan from two interleaved sweeps; while the robot turns, the odd
+/// beams then see the world rotated against the even ones. Per scan, the
+/// odd-beam points are matched against the even-beam points (rotation δ),
+/// and δ is regressed through the origin on the turn rate ω of `trajectory`
+/// at that scan (δ = lag · ω). Returns the lag (s) and the scans used; `None`
+/// when no scan turns.
+pub fn interlace_lag(
+    log: &carmen::CarmenLog,
+    trajectory: &[Stamped],
+    params: &IcpParams,
+) -> Option<(f64, usize)> {
+    let lasers: Vec<&carmen::LaserRecord> = log.lasers().collect();
+    if lasers.len() != trajectory.len() || lasers.len() < 3 {
+        return None;
+    }
+    let mut matcher = crate::icp::Matcher::new(params.clone()).ok()?;
+    let mut reference = crate::icp::Reference::new();
+    let (mut even, mut odd) = (Vec::new(), Vec::new());
+    let (mut swd, mut sww, mut used) = (0.0, 0.0, 0);
+    for k in 1..lasers.len() - 1 {
+        let (a, b) = (&trajectory[k - 1], &trajectory[k + 1]);
+        let dt = b.t - a.t;
+        if dt <= 0.0 {
+            continue;
+        }
+        let w = crate::geom::wrap_angle(b.pose.rotation.angle() - a.pose.rotation.angle()) / dt;
+        let l = lasers[k];
+        even.clear();
+        odd.clear();
+        for (i, &r) in l.ranges.iter().enumerate() {
+            if r.is_finite() && r > 0.0 && r < NO_RETURN_RANGE {
+                let (sn, cs) = l.beam_angle(i).sin_cos();
+                let p = IPoint::new(r * cs, r * sn, 0.0);
+                if i % 2 == 0 {
+                    even.push(p)
+                } else {
+                    odd.push(p)
+                }
+            }
+        }
+        if reference
+            .rebuild_scan(&even, &Pose::identity(), params)
+            .is_err()
+        {
+            continue;
+        }
+        let Ok(m) = matcher.match_points(&reference, &odd, &Pose::identity()) else {
+            continue;
+        };
+        if m.quality.check(params).is_err() || m.quality.degenerate {
+            continue;
+        }
+        swd += w * m.pose.rotation.angle();
+        sww += w * w;
+        used += 1;
+    }
+    (sww > 0.0).then(|| (swd / sww, used))
+}
+
 /// The text summary of a replay.
 pub fn summary(res: &ReplayResult) -> String {
     let mut t = res.step_times.clone();
@@ -281,7 +342,14 @@ pub fn run(args: Args) -> CliResult {
     let steps = args.out.join("steps.txt");
     std::fs::write(&steps, res.steps.join("\n") + "\n")
         .map_err(|e| format!("cannot write {}: {e}", steps.display()))?;
-    let text = summary(&res);
+    let mut text = summary(&res);
+    if let Some((lag, used)) = interlace_lag(&log, &res.trajectory, &params) {
+        let _ = writeln!(
+            text,
+            "interlace: odd beams measured {:.1} ms after even ones (odd-vs-even match rotation regressed on turn rate, {used} scans; 0 = one sweep)",
+            lag * 1e3
+        );
+    }
     let sum = args.out.join("summary.txt");
     std::fs::write(&sum, &text).map_err(|e| format!("cannot write {}: {e}", sum.display()))?;
     print!("{text}");
