@@ -232,13 +232,20 @@ mod tests {
 
     #[test]
     fn bad_values_name_their_key() {
-        let cases: [(IcpParams, &str); 5] = [
+        let cases: [(IcpParams, &str); 6] = [
             (
                 IcpParams {
                     odometry_smoothing: 1.0,
                     ..IcpParams::default()
                 },
                 "icp.odometry_smoothing",
+            ),
+            (
+                IcpParams {
+                    scan_fusion: 1.0,
+                    ..IcpParams::default()
+                },
+                "icp.scan_fusion",
             ),
             (
                 IcpParams {
