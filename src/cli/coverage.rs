@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use super::CliResult;
 use crate::config::Config;
-use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker};
+use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, OVERLAP_CAUSES};
 use crate::sim::coverage_svg;
 use crate::sim::floorplan;
 use crate::sim::lockstep::{self, LockstepOptions, Mode, RunResult};
@@ -250,6 +250,21 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
         "| planner update p99 (wall clock) | {:.2} ms | |",
         p99(&online.plan_seconds) * 1e3
     );
+    let _ = writeln!(
+        s,
+        "\nOverlap by what the robot was doing when floor was swept a second time (% of swept area):\n\n| cause | online | {} |\n|---|---|---|",
+        if offline.is_some() { "offline" } else { "" }
+    );
+    for (k, cause) in OVERLAP_CAUSES.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "| {cause} | {:.1} % | {} |",
+            online.metrics.overlap_by[k] * 100.0,
+            offline
+                .map(|o| format!("{:.1} %", o.metrics.overlap_by[k] * 100.0))
+                .unwrap_or_default()
+        );
+    }
     if let Some(o) = offline {
         let ratio = online.metrics.path_length / o.metrics.path_length.max(1e-9);
         let _ = writeln!(

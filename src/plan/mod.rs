@@ -13,7 +13,7 @@ pub mod lanes;
 pub mod planner;
 pub mod swept;
 
-pub use planner::{CoveragePlanner, PlanError, PlanStatus, Task};
+pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
 pub use swept::SweptFloor;
 
 /// Coverage planner settings.
