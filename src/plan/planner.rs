@@ -208,6 +208,8 @@ pub struct CoveragePlanner {
     owner: Vec<u32>,
     tries: Vec<u8>,
     restored: Option<SweptFloor>,
+    /// The current cover task drives only part of its region's lanes.
+    split_task: bool,
     /// Reachable centres inside some cell of the decomposition.
     in_cell: Vec<bool>,
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
@@ -276,6 +278,7 @@ impl CoveragePlanner {
             restored: None,
             phase: [None; 2],
             in_cell: Vec::new(),
+            split_task: false,
         })
     }
 
@@ -424,7 +427,8 @@ impl CoveragePlanner {
         }
         if progress.is_none() && matches!(self.task, Task::Cover(_)) {
             // Targets the finished lanes did not reach get one more try; after
-            // MAX_TRIES they are given up.
+            // MAX_TRIES they are given up (when the task was only part
+            // of its region's lanes: then only the floor near its lanes).
             for &i in &self.task_targets {
                 if !self.covered[i] {
                     self.tries[i] = self.tries[i].saturating_add(1);
@@ -586,7 +590,30 @@ impl CoveragePlanner {
         cands.truncate(TOUR_CANDIDATES);
         let (k, v) = best_tour_start(&cands, self.params.lookahead_weight);
         let chosen = cands.swap_remove(k);
-        let lanes = chosen.variants[v].lanes.clone();
+        let mut lanes = chosen.variants[v].lanes.clone();
+        // A long join between two lanes would drive over swept floor: the
+        // rest of the region waits for a later task (its floor is not
+        // charged a try for what this task leaves).
+        let m = self.params.max_lane_join;
+        self.split_task = false;
+        if m > 0.0 {
+            if let Some(k) = lanes.windows(2).position(|w| (w[1].a - w[0].b).norm() > m) {
+                lanes.truncate(k + 1);
+                self.split_task = true;
+            }
+        }
+        if std::env::var_os("DBG").is_some() {
+            eprintln!("COVER {:?} n {}", chosen.cell, lanes.len());
+            for w in lanes.windows(2) {
+                let d = (w[1].a - w[0].b).norm();
+                if d > 0.8 {
+                    eprintln!(
+                        "   long conn {:.2}: {:.2},{:.2} -> {:.2},{:.2}",
+                        d, w[0].b.x, w[0].b.y, w[1].a.x, w[1].a.y
+                    );
+                }
+            }
+        }
         let (path, motions) = self.cover_path(&lanes);
         self.motions = motions;
         match chosen.cell {
@@ -597,7 +624,21 @@ impl CoveragePlanner {
         self.planned_lanes = lanes.len();
         let task = Task::Cover(chosen.cell);
         self.set_task(task, path, None);
+        // The floor this task answers for: what its lanes pass within reach
+        // of (a split task leaves the rest of its region untouched).
+        let f = self.cspace.frame;
+        let near = self.reach + f.res;
         self.task_targets = chosen.targets;
+        if self.split_task {
+            self.task_targets.retain(|&i| {
+                let c = f.centre(i);
+                lanes.iter().any(|l| {
+                    let d = l.b - l.a;
+                    let t = ((c - l.a).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+                    (c - (l.a + d * t)).norm() <= near
+                })
+            });
+        }
         working(task)
     }
 
