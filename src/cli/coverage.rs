@@ -7,8 +7,10 @@
 //! ```
 //!
 //! Writes `metrics.md` and `metrics.csv` (one row per run: online, and with
-//! `--offline` the reference run with the room known in advance), `path.svg`
-//! (the final path over the world with pass counts) and `cells_NN.svg` (the
+//! `--offline` the reference run with the room known in advance; the overlap
+//! broken down by cause), `path_{online,offline}.svg` (the final path over
+//! the world with pass counts), `overlap_{online,offline}.svg` (floor swept
+//! again, coloured by what the robot was doing) and `cells_NN.svg` (the
 //! cells as they evolve) into `--out`.
 
 use std::fmt::Write as _;
@@ -142,6 +144,18 @@ fn write_pictures(
         &format!("{} ({tag})", world.name),
     );
     coverage_svg::save(&out.join(format!("path_{tag}.svg")), &doc)?;
+    let doc = coverage_svg::overlap_svg(
+        world,
+        &r.repeat_causes,
+        &r.trajectory,
+        &OVERLAP_CAUSES,
+        &format!(
+            "{} ({tag}): floor swept again ({:.1}% of swept), by what the robot was doing",
+            world.name,
+            r.metrics.overlap * 100.0
+        ),
+    );
+    coverage_svg::save(&out.join(format!("overlap_{tag}.svg")), &doc)?;
     if tag == "online" {
         for (k, s) in r.snapshots.iter().enumerate() {
             let n = r.trajectory.len().min((s.time / 0.05).round() as usize + 1);
