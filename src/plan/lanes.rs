@@ -557,6 +557,52 @@ mod tests {
     }
 
     #[test]
+    fn lanes_of_stacked_regions_lie_on_one_lattice_and_hug_only_walls() {
+        let f = frame();
+        // The 3 m x 2 m room cut by a virtual edge at y = 1.0; each region
+        // gets the floor its lattice lanes serve (lattice 0.225 + k 0.29).
+        let mut ys = Vec::new();
+        for (v0, v1, t0, t1) in [(0.2, 1.0, 0.07, 0.95), (1.0, 1.8, 0.95, 1.93)] {
+            let mut adm = vec![false; f.len()];
+            let mut tgt = vec![false; f.len()];
+            let mut all = vec![false; f.len()];
+            for i in 0..f.len() {
+                let c = f.centre(i);
+                let inside = c.x > 0.2 && c.x < 2.8;
+                all[i] = inside && c.y > 0.2 && c.y < 1.8;
+                adm[i] = inside && c.y > v0 && c.y < v1;
+                tgt[i] = c.x > 0.07 && c.x < 2.93 && c.y > t0 && c.y < t1;
+            }
+            let input = LaneInput {
+                frame: f,
+                admissible: &adm,
+                drivable: &all,
+                targets: &tgt,
+                bbox: (0, 0, 59, 39),
+                axis: Axis::X,
+                spacing: 0.29,
+                reach: 0.145,
+                phase: 0.225,
+            };
+            let mut region: Vec<f64> = lanes(&input).iter().map(|l| l.a.y).collect();
+            region.sort_by(f64::total_cmp);
+            ys.push(region);
+        }
+        // Below the edge: the lattice only (no lane pulled back to hug it).
+        assert_eq!(ys[0].len(), 3, "{:?}", ys[0]);
+        for (y, want) in ys[0].iter().zip([0.225, 0.515, 0.805]) {
+            assert!((y - want).abs() < 1e-9, "{:?}", ys[0]);
+        }
+        // Above it: the lattice, then one lane hugging the real wall.
+        assert_eq!(ys[1].len(), 4, "{:?}", ys[1]);
+        for (y, want) in ys[1].iter().zip([1.095, 1.385, 1.675]) {
+            assert!((y - want).abs() < 1e-9, "{:?}", ys[1]);
+        }
+        assert!(ys[1][3] > 1.74 && ys[1][3] < 1.8, "{:?}", ys[1]);
+        assert!((lattice_position(0.225, 0.29, 1.0) - 1.095).abs() < 1e-9);
+    }
+
+    #[test]
     fn covered_rows_get_no_lane_and_lanes_are_trimmed() {
         let f = frame();
         let (adm, mut tgt) = rect_masks(&f);

@@ -521,6 +521,49 @@ mod tests {
         assert!(m.overlap > 0.75 && m.overlap < 0.9, "{}", m.overlap);
         assert_eq!(m.turns, 1);
         assert!((m.rotation - std::f64::consts::PI).abs() < 1e-6);
+        // Recorded without knowing what the robot did: all of it "other".
+        assert_eq!(m.overlap_by[6], m.overlap);
+    }
+
+    #[test]
+    fn the_overlap_breakdown_names_what_swept_again() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let mut k = 0.0;
+        // A lane of task 1, then a transit of task 2 back over its first
+        // half, then a lane of task 2 over its second half.
+        for i in 0..=100 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.02, 0.5, 0.0), k, Motion::Lane, 1);
+            k += 0.1;
+        }
+        k += 5.0;
+        for i in 0..=50 {
+            t.record_doing(
+                &pose(0.5 + i as f64 * 0.02, 0.5, 0.0),
+                k,
+                Motion::Transit,
+                2,
+            );
+            k += 0.1;
+        }
+        k += 5.0;
+        for i in 50..=100 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.02, 0.5, 0.0), k, Motion::Lane, 2);
+            k += 0.1;
+        }
+        let m = t.metrics();
+        let sum: f64 = m.overlap_by.iter().sum();
+        assert!((sum - m.overlap).abs() < 1e-12, "{sum} vs {}", m.overlap);
+        // Both halves were swept again, the transit's half first.
+        assert!(m.overlap > 0.9, "{}", m.overlap);
+        assert!(
+            m.overlap_by[4] > 0.4 && m.overlap_by[1] > 0.4,
+            "{:?}",
+            m.overlap_by
+        );
+        assert_eq!(m.overlap_by[0], 0.0);
+        let causes = t.repeat_causes();
+        assert!(causes.contains(&4) && causes.contains(&1));
     }
 
     #[test]
