@@ -857,6 +857,9 @@ impl CoveragePlanner {
                         continue;
                     }
                     let j = ny as usize * f.w + nx as usize;
+                    if !self.targets[j] || self.scratch_t[j] {
+                        continue;
+                    }
                     // Floor belongs to the region holding its nearest
                     // lattice lane (across a virtual edge: the neighbour's);
                     // where that lane lies in a wall, to the region whose
@@ -869,7 +872,7 @@ impl CoveragePlanner {
                                 o < f.len() && self.scratch_a[o]
                             }
                         };
-                    if self.targets[j] && own && !self.scratch_t[j] {
+                    if own {
                         self.scratch_t[j] = true;
                         targets.push(j);
                     }
