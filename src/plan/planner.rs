@@ -428,9 +428,11 @@ impl CoveragePlanner {
         if progress.is_none() && matches!(self.task, Task::Cover(_)) {
             // Targets the finished lanes did not reach get one more try; after
             // MAX_TRIES they are given up (when the task was only part
-            // of its region's lanes: then only the floor near its lanes).
+            // of its region's lanes: only the floor near its lanes, and
+            // only when it swept none of it).
+            let spared = self.split_task && self.task_targets.iter().any(|&i| self.covered[i]);
             for &i in &self.task_targets {
-                if !self.covered[i] {
+                if !self.covered[i] && !spared {
                     self.tries[i] = self.tries[i].saturating_add(1);
                     if self.tries[i] >= MAX_TRIES {
                         self.abandoned[i] = true;
