@@ -39,8 +39,8 @@ const TURN_ANGLE: f64 = 0.52;
 
 /// Causes of repeat sweeping, in the order of [`CoverageMetrics::overlap_by`].
 pub const OVERLAP_CAUSES: [&str; 7] = [
-    "lane over its own region's earlier lanes",
-    "lane over floor swept by an earlier task",
+    "lane over an earlier lane of its own task",
+    "lane over floor swept otherwise (earlier task, transit, connection)",
     "fix-up lane",
     "connection between lanes",
     "transit to a region",
@@ -106,6 +106,8 @@ pub struct CoverageTracker {
     unreachable_cells: usize,
     passes: Vec<u16>,
     last_seen: Vec<f64>,
+    /// Per cell: the task whose lane swept it first (`u32::MAX`: swept
+    /// first by something else, or never).
     first_task: Vec<u32>,
     repeat_cause: Vec<u8>,
     repeats: [usize; 7],
@@ -380,7 +382,13 @@ impl CoverageTracker {
             if time - self.last_seen[j] > SAME_PASS {
                 self.passes[j] = self.passes[j].saturating_add(1);
                 match self.passes[j] {
-                    1 => self.first_task[j] = task,
+                    // The task of a first pass by a lane (`u32::MAX` otherwise).
+                    1 => {
+                        self.first_task[j] = match motion {
+                            Motion::Lane | Motion::FixUp => task,
+                            _ => u32::MAX,
+                        }
+                    }
                     2 => {
                         let cause = match motion {
                             Motion::Lane if self.first_task[j] == task => 0,
@@ -562,6 +570,25 @@ mod tests {
             m.overlap_by
         );
         assert_eq!(m.overlap_by[0], 0.0);
+        // A task's transit, then its own lane over it: not "its own lanes".
+        k += 5.0;
+        for i in 0..=50 {
+            t.record_doing(
+                &pose(0.5 + i as f64 * 0.02, 1.5, 0.0),
+                k,
+                Motion::Transit,
+                3,
+            );
+            k += 0.1;
+        }
+        k += 5.0;
+        for i in 0..=50 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.02, 1.5, 0.0), k, Motion::Lane, 3);
+            k += 0.1;
+        }
+        let m2 = t.metrics();
+        assert_eq!(m2.overlap_by[0], 0.0, "{:?}", m2.overlap_by);
+        assert!(m2.overlap_by[1] > m.overlap_by[1]);
         let causes = t.repeat_causes();
         assert!(causes.contains(&4) && causes.contains(&1));
     }
