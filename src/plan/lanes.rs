@@ -1,10 +1,12 @@
 //! Back-and-forth lanes inside one region (a decomposition cell, or a
-//! leftover patch): parallel to the sweep direction, at most one lane
-//! spacing apart, the first and last lanes placed so the tool reaches the
-//! region's first and last uncovered rows (so along walls nothing is
-//! dropped), each lane trimmed to the stretch that still has uncovered floor
-//! within the tool's reach, and chained in the order with the fewest and
-//! shortest connections.
+//! leftover patch): parallel to the sweep direction, on one lane lattice
+//! shared by all regions (one lane spacing apart, so lanes of neighbouring
+//! regions line up and nothing beside a virtual edge is swept twice), plus
+//! one lane hugging a wall where the lattice leaves floor along it (so along
+//! walls nothing is dropped) and fix-up lanes for stretches the lattice
+//! lanes could not drive; each lane trimmed to the stretch that still has
+//! uncovered floor within the tool's reach, and chained in the order with
+//! the fewest and shortest connections.
 
 use nalgebra::Point2;
 
