@@ -48,17 +48,20 @@ fn paper_workspace_online_against_offline() {
     // Target: >= 99 % of the reachable area.
     assert!(m.coverage >= 0.99, "online coverage {}", m.coverage);
     assert!(o.coverage >= 0.99, "offline coverage {}", o.coverage);
-    // Target: online path <= 1.25 x offline (measured 1.10 when written;
+    // Target: online path <= 1.25 x offline (measured 1.01 when written;
     // the bound leaves room for changes in the decomposition).
     let ratio = m.path_length / o.path_length;
     assert!(ratio <= 1.3, "online/offline path {ratio}");
-    // Target: overlap <= 15 %; not reached (measured 0.339 offline, 0.476
-    // online): about two thirds of the repeat sweeping is lane over lane
-    // (each cell's last lane hugging its far side re-sweeps part of the one
-    // before), the rest transits between cells with the tool on. See the
-    // README's coverage section.
-    assert!(o.overlap <= 0.37, "offline overlap {}", o.overlap);
-    assert!(m.overlap <= 0.52, "online overlap {}", m.overlap);
+    // Target: overlap <= 15 %; not reached (measured 0.281 offline, 0.298
+    // online; 0.339 / 0.476 before the lane lattice): what is left is mostly
+    // transits between cells and lane connections with the tool always on,
+    // the seam between neighbouring lanes and the one lane hugging the far
+    // wall. See the README's coverage section for the breakdown.
+    assert!(o.overlap <= 0.31, "offline overlap {}", o.overlap);
+    assert!(m.overlap <= 0.33, "online overlap {}", m.overlap);
+    // The breakdown by cause adds up to the overlap.
+    let sum: f64 = m.overlap_by.iter().sum();
+    assert!((sum - m.overlap).abs() < 1e-9, "{sum} vs {}", m.overlap);
     // The swept area is the reachable floor plus the tool's reach beyond it.
     assert!(m.covered_area >= m.reachable_area * 0.99);
     assert!(

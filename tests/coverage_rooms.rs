@@ -52,11 +52,12 @@ fn five_floor_plan_rooms() {
             o.coverage
         );
         assert!(ratio <= 1.3, "{spec}: online/offline path {ratio}");
-        // Target <= 15 %, not reached: measured 0.53-0.62 online and
-        // 0.48-0.64 offline, most of it transits between cells and short
-        // lanes among furniture with the tool always on.
-        assert!(m.overlap <= 0.66, "{spec}: online overlap {}", m.overlap);
-        assert!(o.overlap <= 0.68, "{spec}: offline overlap {}", o.overlap);
+        // Target <= 15 %, not reached: measured 0.28-0.59 online and
+        // 0.26-0.51 offline (0.53-0.62 / 0.48-0.64 before the lane
+        // lattice), most of it transits between cells and lane connections
+        // among furniture with the tool always on.
+        assert!(m.overlap <= 0.62, "{spec}: online overlap {}", m.overlap);
+        assert!(o.overlap <= 0.54, "{spec}: offline overlap {}", o.overlap);
         sum_cov += m.coverage;
     }
     let mean = sum_cov / ROOMS.len() as f64;

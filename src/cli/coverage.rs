@@ -7,8 +7,10 @@
 //! ```
 //!
 //! Writes `metrics.md` and `metrics.csv` (one row per run: online, and with
-//! `--offline` the reference run with the room known in advance), `path.svg`
-//! (the final path over the world with pass counts) and `cells_NN.svg` (the
+//! `--offline` the reference run with the room known in advance; the overlap
+//! broken down by cause), `path_{online,offline}.svg` (the final path over
+//! the world with pass counts), `overlap_{online,offline}.svg` (floor swept
+//! again, coloured by what the robot was doing) and `cells_NN.svg` (the
 //! cells as they evolve) into `--out`.
 
 use std::fmt::Write as _;
@@ -16,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use super::CliResult;
 use crate::config::Config;
-use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker};
+use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, OVERLAP_CAUSES};
 use crate::sim::coverage_svg;
 use crate::sim::floorplan;
 use crate::sim::lockstep::{self, LockstepOptions, Mode, RunResult};
@@ -142,6 +144,18 @@ fn write_pictures(
         &format!("{} ({tag})", world.name),
     );
     coverage_svg::save(&out.join(format!("path_{tag}.svg")), &doc)?;
+    let doc = coverage_svg::overlap_svg(
+        world,
+        &r.repeat_causes,
+        &r.trajectory,
+        &OVERLAP_CAUSES,
+        &format!(
+            "{} ({tag}): floor swept again ({:.1}% of swept), by what the robot was doing",
+            world.name,
+            r.metrics.overlap * 100.0
+        ),
+    );
+    coverage_svg::save(&out.join(format!("overlap_{tag}.svg")), &doc)?;
     if tag == "online" {
         for (k, s) in r.snapshots.iter().enumerate() {
             let n = r.trajectory.len().min((s.time / 0.05).round() as usize + 1);
@@ -250,6 +264,21 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
         "| planner update p99 (wall clock) | {:.2} ms | |",
         p99(&online.plan_seconds) * 1e3
     );
+    let _ = writeln!(
+        s,
+        "\nOverlap by what the robot was doing when floor was swept a second time (% of swept area):\n\n| cause | online | {} |\n|---|---|---|",
+        if offline.is_some() { "offline" } else { "" }
+    );
+    for (k, cause) in OVERLAP_CAUSES.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "| {cause} | {:.1} % | {} |",
+            online.metrics.overlap_by[k] * 100.0,
+            offline
+                .map(|o| format!("{:.1} %", o.metrics.overlap_by[k] * 100.0))
+                .unwrap_or_default()
+        );
+    }
     if let Some(o) = offline {
         let ratio = online.metrics.path_length / o.metrics.path_length.max(1e-9);
         let _ = writeln!(

@@ -1,10 +1,12 @@
 //! Back-and-forth lanes inside one region (a decomposition cell, or a
-//! leftover patch): parallel to the sweep direction, at most one lane
-//! spacing apart, the first and last lanes placed so the tool reaches the
-//! region's first and last uncovered rows (so along walls nothing is
-//! dropped), each lane trimmed to the stretch that still has uncovered floor
-//! within the tool's reach, and chained in the order with the fewest and
-//! shortest connections.
+//! leftover patch): parallel to the sweep direction, on one lane lattice
+//! shared by all regions (one lane spacing apart, so lanes of neighbouring
+//! regions line up and nothing beside a virtual edge is swept twice), plus
+//! one lane hugging a wall where the lattice leaves floor along it (so along
+//! walls nothing is dropped) and fix-up lanes for stretches the lattice
+//! lanes could not drive; each lane trimmed to the stretch that still has
+//! uncovered floor within the tool's reach, and chained in the order with
+//! the fewest and shortest connections.
 
 use nalgebra::Point2;
 
@@ -38,6 +40,8 @@ pub struct Lane {
     pub a: Point2<f64>,
     /// End (m).
     pub b: Point2<f64>,
+    /// True for a fix-up lane (floor the evenly spaced lanes missed).
+    pub fixup: bool,
 }
 
 impl Lane {
@@ -46,6 +50,7 @@ impl Lane {
         Lane {
             a: self.b,
             b: self.a,
+            fixup: self.fixup,
         }
     }
 
@@ -56,12 +61,15 @@ impl Lane {
 }
 
 /// What the lane generator needs: the region's admissible centres, the
-/// uncovered floor to reach, and the tool.
+/// uncovered floor to reach, the tool, and the lane lattice.
 pub struct LaneInput<'a> {
     /// Grid geometry.
     pub frame: Frame,
     /// Cells where the robot centre may drive in this region.
     pub admissible: &'a [bool],
+    /// Cells where the robot centre may drive at all (any region): a lane
+    /// whose position lies in this region may pass beside it over these.
+    pub drivable: &'a [bool],
     /// Uncovered floor cells this region must reach.
     pub targets: &'a [bool],
     /// Bounding box (x0, y0, x1, y1) inclusive of admissible and target cells.
@@ -72,6 +80,16 @@ pub struct LaneInput<'a> {
     pub spacing: f64,
     /// How far across a lane the tool surely reaches (m).
     pub reach: f64,
+    /// Phase of the lane lattice (m across the lanes: y for [`Axis::X`], x
+    /// for [`Axis::Y`]): lanes lie at `phase + k * spacing`, the same for
+    /// every region, so lanes of neighbouring regions line up and floor
+    /// beside a virtual edge is swept by one lattice lane only.
+    pub phase: f64,
+}
+
+/// The lattice lane position (m across) nearest to `v_m`.
+pub fn lattice_position(phase: f64, spacing: f64, v_m: f64) -> f64 {
+    phase + ((v_m - phase) / spacing).round() * spacing
 }
 
 /// (u, v) of cell (x, y) for the axis: u along lanes, v across.
@@ -97,172 +115,261 @@ fn point(axis: Axis, u_m: f64, v_m: f64) -> Point2<f64> {
     }
 }
 
-/// The lanes covering the region's targets (unordered, each from low u to high u).
-pub fn lanes(input: &LaneInput) -> Vec<Lane> {
-    let f = &input.frame;
-    let axis = input.axis;
-    let (x0, y0, x1, y1) = input.bbox;
-    let (u_lo, v_lo) = uv(axis, x0, y0);
-    let (u_hi, v_hi) = uv(axis, x1, y1);
-    let (ou, ov) = match axis {
-        Axis::X => (f.origin.x, f.origin.y),
-        Axis::Y => (f.origin.y, f.origin.x),
-    };
-    let res = f.res;
-    let coord = |k: usize, o: f64| o + (k as f64 + 0.5) * res;
-    let at = |mask: &[bool], u: usize, v: usize| {
-        let (x, y) = xy(axis, u, v);
-        mask[y * f.w + x]
-    };
-    // Ranges across the lanes.
-    let (mut a_min, mut a_max, mut t_min, mut t_max) = (usize::MAX, 0, usize::MAX, 0);
-    for v in v_lo..=v_hi {
-        for u in u_lo..=u_hi {
-            if at(input.admissible, u, v) {
-                a_min = a_min.min(v);
-                a_max = a_max.max(v);
-            }
-            if at(input.targets, u, v) {
-                t_min = t_min.min(v);
-                t_max = t_max.max(v);
-            }
-        }
+/// The region in lane coordinates, with the record of floor its lanes serve.
+struct Sweep<'a> {
+    input: &'a LaneInput<'a>,
+    u_lo: usize,
+    u_hi: usize,
+    v_lo: usize,
+    v_hi: usize,
+    /// Origin along (u) and across (v) the lanes (m).
+    ou: f64,
+    ov: f64,
+    reach: f64,
+    served: Vec<bool>,
+    out: Vec<Lane>,
+}
+
+impl Sweep<'_> {
+    fn coord(&self, k: usize, o: f64) -> f64 {
+        o + (k as f64 + 0.5) * self.input.frame.res
     }
-    if a_min == usize::MAX || t_min == usize::MAX {
-        return Vec::new();
+
+    fn at(&self, mask: &[bool], u: usize, v: usize) -> bool {
+        let (x, y) = xy(self.input.axis, u, v);
+        mask[y * self.input.frame.w + x]
     }
-    let (a_lo, a_hi) = (coord(a_min, ov), coord(a_max, ov));
-    let (t_lo, t_hi) = (coord(t_min, ov), coord(t_max, ov));
-    // A hair of tolerance: rows exactly half a spacing away count as reached.
-    let reach = input.reach.max(res) + 1e-6;
-    // The tool must reach the outer edge of the extreme target rows.
-    let c_lo = (t_lo - res / 2.0 + reach).clamp(a_lo, a_hi);
-    let c_hi = (t_hi + res / 2.0 - reach).clamp(a_lo, a_hi);
-    // Lanes exactly one spacing apart from the low side; the last one is
-    // pulled back to hug the far side, and only keeps what the others left.
-    let mut positions = vec![c_lo];
-    while let Some(&last) = positions.last() {
-        if last >= c_hi - 1e-9 {
-            break;
-        }
-        positions.push((last + input.spacing).min(c_hi));
+
+    fn slot(&self, u: usize, v: usize) -> usize {
+        (v - self.v_lo) * (self.u_hi - self.u_lo + 1) + (u - self.u_lo)
     }
-    let (nu, nv) = (u_hi - u_lo + 1, v_hi - v_lo + 1);
-    let mut served = vec![false; nu * nv];
-    let mut out = Vec::new();
-    for &pos in &positions {
-        // Rows bracketing the lane position: the centre passes between them.
-        let fv = (pos - ov) / res - 0.5;
-        let r1 = fv.floor().max(0.0) as usize;
-        let r2 = if fv - fv.floor() < 1e-6 { r1 } else { r1 + 1 };
-        if r2 > v_hi.max(a_max) {
-            continue;
+
+    fn unserved(&self, u: usize, v: usize) -> bool {
+        self.at(self.input.targets, u, v) && !self.served[self.slot(u, v)]
+    }
+
+    /// Grid rows (v) bracketing the lane position `pos`: the centre passes
+    /// between them (one row when `pos` is a row centre), and the one of the
+    /// two holding `pos` (the lane's home row).
+    fn rows(&self, pos: f64) -> Option<(usize, usize, usize)> {
+        let fv = (pos - self.ov) / self.input.frame.res - 0.5;
+        if fv < -1e-6 {
+            return None;
         }
-        let needs = |u: usize, v: usize, served: &[bool]| {
-            (coord(v, ov) - pos).abs() <= reach
-                && at(input.targets, u, v)
-                && !served[(v - v_lo) * nu + (u - u_lo)]
+        let near = fv.round();
+        let (r1, r2) = if (fv - near).abs() < 1e-6 {
+            (near.max(0.0) as usize, near.max(0.0) as usize)
+        } else {
+            (fv.floor() as usize, fv.floor() as usize + 1)
         };
-        // Runs of admissible u.
-        let mut u = u_lo;
-        while u <= u_hi {
-            let ok = |u: usize| at(input.admissible, u, r1) && at(input.admissible, u, r2);
-            if !ok(u) {
+        let home = if fv - fv.floor() >= 0.5 { r2 } else { r1 };
+        (r2 <= self.v_hi).then_some((r1, r2, home))
+    }
+
+    /// Marks the floor the tool reaches driving from `a` to `b` (m along)
+    /// at `pos` (m across) as served.
+    fn mark(&mut self, a: f64, b: f64, pos: f64) {
+        for v in self.v_lo..=self.v_hi {
+            let dv = (self.coord(v, self.ov) - pos).abs();
+            if dv > self.reach {
+                continue;
+            }
+            let half = (self.reach * self.reach - dv * dv).max(0.0).sqrt();
+            for uu in self.u_lo..=self.u_hi {
+                let c = self.coord(uu, self.ou);
+                if c >= a - half && c <= b + half {
+                    let k = self.slot(uu, v);
+                    self.served[k] = true;
+                }
+            }
+        }
+    }
+
+    /// Lanes at `pos` (m across): along every admissible stretch, trimmed
+    /// to the columns with unserved floor in the tool's reach, split where
+    /// such columns are more than `gap` apart. Returns how many were added.
+    fn lanes_at(&mut self, pos: f64, gap: f64, fixup: bool) -> usize {
+        let Some((r1, r2, home)) = self.rows(pos) else {
+            return 0;
+        };
+        let reach = self.reach;
+        let before = self.out.len();
+        let ok = |s: &Self, u: usize| {
+            s.at(s.input.admissible, u, home)
+                && s.at(s.input.drivable, u, r1)
+                && s.at(s.input.drivable, u, r2)
+        };
+        let mut u = self.u_lo;
+        while u <= self.u_hi {
+            if !ok(self, u) {
                 u += 1;
                 continue;
             }
             let start = u;
-            while u <= u_hi && ok(u) {
+            while u <= self.u_hi && ok(self, u) {
                 u += 1;
             }
-            let end = u - 1;
-            let (s_m, e_m) = (coord(start, ou), coord(end, ou));
-            // Columns with targets still unserved in reach of this stretch,
-            // grouped into pieces: a lane does not drive past long gaps.
-            let mut cols: Vec<f64> = Vec::new();
-            for uu in u_lo..=u_hi {
-                let c = coord(uu, ou);
+            let (s_m, e_m) = (self.coord(start, self.ou), self.coord(u - 1, self.ou));
+            let mut pieces: Vec<(f64, f64)> = Vec::new();
+            for uu in self.u_lo..=self.u_hi {
+                let c = self.coord(uu, self.ou);
                 if c < s_m - reach || c > e_m + reach {
                     continue;
                 }
-                if (v_lo..=v_hi).any(|v| needs(uu, v, &served)) {
-                    cols.push(c);
+                let du = c - c.clamp(s_m, e_m);
+                let hit = (self.v_lo..=self.v_hi).any(|v| {
+                    let dv = self.coord(v, self.ov) - pos;
+                    dv * dv + du * du <= reach * reach && self.unserved(uu, v)
+                });
+                if !hit {
+                    continue;
                 }
-            }
-            let mut pieces: Vec<(f64, f64)> = Vec::new();
-            for c in cols {
                 match pieces.last_mut() {
-                    Some((_, hi)) if c - *hi <= 2.0 * input.spacing => *hi = c,
+                    Some((_, hi)) if c - *hi <= gap => *hi = c,
                     _ => pieces.push((c, c)),
                 }
             }
             for (lo_t, hi_t) in pieces {
                 let a = lo_t.clamp(s_m, e_m);
                 let b = hi_t.clamp(s_m, e_m);
-                // Mark what the tool reaches along this piece.
-                for v in v_lo..=v_hi {
-                    let dv = (coord(v, ov) - pos).abs();
-                    if dv > reach {
-                        continue;
-                    }
-                    let half = (reach * reach - dv * dv).max(0.0).sqrt();
-                    for uu in u_lo..=u_hi {
-                        let c = coord(uu, ou);
-                        if c >= a - half && c <= b + half {
-                            served[(v - v_lo) * nu + (uu - u_lo)] = true;
-                        }
-                    }
-                }
-                out.push(Lane {
-                    a: point(axis, a, pos),
-                    b: point(axis, b, pos),
+                self.mark(a, b, pos);
+                self.out.push(Lane {
+                    a: point(self.input.axis, a, pos),
+                    b: point(self.input.axis, b, pos),
+                    fixup,
                 });
             }
         }
+        self.out.len() - before
     }
-    // Connections between neighbouring lanes sweep the floor between their
-    // ends (one side or the other, whatever the order): count both as swept.
-    let main = out.len();
-    for k in 1..main {
-        for (p, q) in [(out[k - 1].a, out[k].a), (out[k - 1].b, out[k].b)] {
-            if (q - p).norm() > 2.0 * input.spacing {
-                continue;
-            }
-            for v in v_lo..=v_hi {
-                for uu in u_lo..=u_hi {
-                    let c = point(axis, coord(uu, ou), coord(v, ov));
-                    let d = q - p;
-                    let t = ((c - p).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
-                    if (c - (p + d * t)).norm() <= reach {
-                        served[(v - v_lo) * nu + (uu - u_lo)] = true;
+
+    /// Connections between lanes neighbouring across (ends at most `join`
+    /// apart) sweep the floor between their ends (one side or the other,
+    /// whatever the order): counts both as served.
+    fn mark_connections(&mut self, join: f64) {
+        let axis = self.input.axis;
+        let across = |l: &Lane| match axis {
+            Axis::X => l.a.y,
+            Axis::Y => l.a.x,
+        };
+        let mut order: Vec<Lane> = self.out.clone();
+        order.sort_by(|l, m| across(l).total_cmp(&across(m)));
+        for w in order.windows(2) {
+            for (p, q) in [(w[0].a, w[1].a), (w[0].b, w[1].b)] {
+                if (q - p).norm() > join {
+                    continue;
+                }
+                let d = q - p;
+                for v in self.v_lo..=self.v_hi {
+                    for uu in self.u_lo..=self.u_hi {
+                        let c = point(axis, self.coord(uu, self.ou), self.coord(v, self.ov));
+                        let t = ((c - p).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+                        if (c - (p + d * t)).norm() <= self.reach {
+                            let i = self.slot(uu, v);
+                            self.served[i] = true;
+                        }
                     }
                 }
             }
         }
     }
-    // Fix-up: floor the evenly spaced lanes could not reach (their path
-    // between two rows was blocked there) gets short lanes along single
-    // admissible rows, the row reaching most of it first.
-    let unserved = |u: usize, v: usize, served: &[bool]| {
-        at(input.targets, u, v) && !served[(v - v_lo) * nu + (u - u_lo)]
+
+    /// The extreme rows (v) with unserved floor: (lowest, highest).
+    fn unserved_span(&self) -> Option<(usize, usize)> {
+        let mut span: Option<(usize, usize)> = None;
+        for v in self.v_lo..=self.v_hi {
+            if (self.u_lo..=self.u_hi).any(|u| self.unserved(u, v)) {
+                span = Some(span.map_or((v, v), |(lo, _)| (lo, v)));
+            }
+        }
+        span
+    }
+}
+
+/// The lanes covering the region's targets (unordered, each from low u to
+/// high u): the lattice lanes inside the region; then, where floor along a
+/// wall is still out of reach, one lane hugging that wall on either side;
+/// then fix-up lanes along single rows for what blocked stretches left.
+pub fn lanes(input: &LaneInput) -> Vec<Lane> {
+    let f = &input.frame;
+    let (x0, y0, x1, y1) = input.bbox;
+    let (u_lo, v_lo) = uv(input.axis, x0, y0);
+    let (u_hi, v_hi) = uv(input.axis, x1, y1);
+    let (ou, ov) = match input.axis {
+        Axis::X => (f.origin.x, f.origin.y),
+        Axis::Y => (f.origin.y, f.origin.x),
     };
+    let res = f.res;
+    let mut sw = Sweep {
+        input,
+        u_lo,
+        u_hi,
+        v_lo,
+        v_hi,
+        ou,
+        ov,
+        // A hair of tolerance: rows exactly half a spacing away count as reached.
+        reach: input.reach.max(res) + 1e-6,
+        served: vec![false; (u_hi - u_lo + 1) * (v_hi - v_lo + 1)],
+        out: Vec::new(),
+    };
+    // Range of admissible rows.
+    let (mut a_min, mut a_max) = (usize::MAX, 0);
+    for v in v_lo..=v_hi {
+        if (u_lo..=u_hi).any(|u| sw.at(input.admissible, u, v)) {
+            a_min = a_min.min(v);
+            a_max = a_max.max(v);
+        }
+    }
+    if a_min == usize::MAX || sw.unserved_span().is_none() {
+        return Vec::new();
+    }
+    let (a_lo, a_hi) = (sw.coord(a_min, ov), sw.coord(a_max, ov));
+    let join = 2.0 * input.spacing;
+    // Lattice lanes.
+    // Lattice lanes whose home row is admissible (a lane may lie up to half
+    // a grid cell beyond the outermost admissible row centres).
+    let (p_lo, p_hi) = (a_lo - res / 2.0, a_hi + res / 2.0);
+    let mut pos = lattice_position(input.phase, input.spacing, p_lo);
+    if pos < p_lo - 1e-9 {
+        pos += input.spacing;
+    }
+    while pos < p_hi - 1e-9 {
+        sw.lanes_at(pos, join, false);
+        pos += input.spacing;
+    }
+    // Walls: floor beyond the outermost lattice lanes gets a lane hugging it.
+    let reach = sw.reach;
+    sw.mark_connections(join);
+    if let Some((lo, _)) = sw.unserved_span() {
+        let p = (sw.coord(lo, ov) - res / 2.0 + reach).clamp(a_lo, a_hi);
+        sw.lanes_at(p, join, false);
+    }
+    if let Some((_, hi)) = sw.unserved_span() {
+        let p = (sw.coord(hi, ov) + res / 2.0 - reach).clamp(a_lo, a_hi);
+        sw.lanes_at(p, join, false);
+    }
+    sw.mark_connections(join);
+    // Fix-up: floor the lanes could not reach (their path between two rows
+    // was blocked there) gets short lanes along single admissible rows, the
+    // row reaching most of it first.
     for _ in 0..16 {
         let mut best: Option<(usize, usize)> = None;
         for row in a_min..=a_max {
             let mut count = 0;
             for v in v_lo..=v_hi {
-                let dv = (coord(v, ov) - coord(row, ov)).abs();
+                let dv = (sw.coord(v, ov) - sw.coord(row, ov)).abs();
                 if dv > reach {
                     continue;
                 }
                 let half = ((reach * reach - dv * dv).max(0.0).sqrt() / res).floor() as i64;
                 for u in u_lo..=u_hi {
-                    if !unserved(u, v, &served) {
+                    if !sw.unserved(u, v) {
                         continue;
                     }
                     let lo = (u as i64 - half).max(u_lo as i64) as usize;
                     let hi = ((u as i64 + half) as usize).min(u_hi);
-                    if (lo..=hi).any(|uu| at(input.admissible, uu, row)) {
+                    if (lo..=hi).any(|uu| sw.at(input.admissible, uu, row)) {
                         count += 1;
                     }
                 }
@@ -272,68 +379,11 @@ pub fn lanes(input: &LaneInput) -> Vec<Lane> {
             }
         }
         let Some((_, row)) = best else { break };
-        let pos = coord(row, ov);
-        let mut u = u_lo;
-        let before = out.len();
-        while u <= u_hi {
-            if !at(input.admissible, u, row) {
-                u += 1;
-                continue;
-            }
-            let start = u;
-            while u <= u_hi && at(input.admissible, u, row) {
-                u += 1;
-            }
-            let (s_m, e_m) = (coord(start, ou), coord(u - 1, ou));
-            let mut cols: Vec<f64> = Vec::new();
-            for uu in u_lo..=u_hi {
-                let c = coord(uu, ou);
-                if c < s_m - reach || c > e_m + reach {
-                    continue;
-                }
-                let hit = (v_lo..=v_hi).any(|v| {
-                    let dv = (coord(v, ov) - pos).abs();
-                    let du = (c - c.clamp(s_m, e_m)).abs();
-                    dv * dv + du * du <= reach * reach && unserved(uu, v, &served)
-                });
-                if hit {
-                    cols.push(c);
-                }
-            }
-            let mut pieces: Vec<(f64, f64)> = Vec::new();
-            for c in cols {
-                match pieces.last_mut() {
-                    Some((_, hi)) if c - *hi <= input.spacing / 2.0 => *hi = c,
-                    _ => pieces.push((c, c)),
-                }
-            }
-            for (lo_t, hi_t) in pieces {
-                let a = lo_t.clamp(s_m, e_m);
-                let b = hi_t.clamp(s_m, e_m);
-                for v in v_lo..=v_hi {
-                    let dv = (coord(v, ov) - pos).abs();
-                    if dv > reach {
-                        continue;
-                    }
-                    let half = (reach * reach - dv * dv).max(0.0).sqrt();
-                    for uu in u_lo..=u_hi {
-                        let c = coord(uu, ou);
-                        if c >= a - half && c <= b + half {
-                            served[(v - v_lo) * nu + (uu - u_lo)] = true;
-                        }
-                    }
-                }
-                out.push(Lane {
-                    a: point(axis, a, pos),
-                    b: point(axis, b, pos),
-                });
-            }
-        }
-        if out.len() == before {
+        if sw.lanes_at(sw.coord(row, ov), input.spacing / 2.0, true) == 0 {
             break;
         }
     }
-    out
+    sw.out
 }
 
 /// One way to drive a region's lanes: the lanes in order and the length
@@ -476,11 +526,13 @@ mod tests {
         let input = LaneInput {
             frame: f,
             admissible: &adm,
+            drivable: &adm,
             targets: &tgt,
             bbox: (0, 0, 59, 39),
             axis: Axis::X,
             spacing: 0.29,
             reach: 0.145,
+            phase: 0.225,
         };
         let ls = lanes(&input);
         // Targets 0.075..1.925 → centres 0.205..1.795 → ceil(1.59/0.29)+1 = 7 lanes.
@@ -507,6 +559,52 @@ mod tests {
     }
 
     #[test]
+    fn lanes_of_stacked_regions_lie_on_one_lattice_and_hug_only_walls() {
+        let f = frame();
+        // The 3 m x 2 m room cut by a virtual edge at y = 1.0; each region
+        // gets the floor its lattice lanes serve (lattice 0.225 + k 0.29).
+        let mut ys = Vec::new();
+        for (v0, v1, t0, t1) in [(0.2, 1.0, 0.07, 0.95), (1.0, 1.8, 0.95, 1.93)] {
+            let mut adm = vec![false; f.len()];
+            let mut tgt = vec![false; f.len()];
+            let mut all = vec![false; f.len()];
+            for i in 0..f.len() {
+                let c = f.centre(i);
+                let inside = c.x > 0.2 && c.x < 2.8;
+                all[i] = inside && c.y > 0.2 && c.y < 1.8;
+                adm[i] = inside && c.y > v0 && c.y < v1;
+                tgt[i] = c.x > 0.07 && c.x < 2.93 && c.y > t0 && c.y < t1;
+            }
+            let input = LaneInput {
+                frame: f,
+                admissible: &adm,
+                drivable: &all,
+                targets: &tgt,
+                bbox: (0, 0, 59, 39),
+                axis: Axis::X,
+                spacing: 0.29,
+                reach: 0.145,
+                phase: 0.225,
+            };
+            let mut region: Vec<f64> = lanes(&input).iter().map(|l| l.a.y).collect();
+            region.sort_by(f64::total_cmp);
+            ys.push(region);
+        }
+        // Below the edge: the lattice only (no lane pulled back to hug it).
+        assert_eq!(ys[0].len(), 3, "{:?}", ys[0]);
+        for (y, want) in ys[0].iter().zip([0.225, 0.515, 0.805]) {
+            assert!((y - want).abs() < 1e-9, "{:?}", ys[0]);
+        }
+        // Above it: the lattice, then one lane hugging the real wall.
+        assert_eq!(ys[1].len(), 4, "{:?}", ys[1]);
+        for (y, want) in ys[1].iter().zip([1.095, 1.385, 1.675]) {
+            assert!((y - want).abs() < 1e-9, "{:?}", ys[1]);
+        }
+        assert!(ys[1][3] > 1.74 && ys[1][3] < 1.8, "{:?}", ys[1]);
+        assert!((lattice_position(0.225, 0.29, 1.0) - 1.095).abs() < 1e-9);
+    }
+
+    #[test]
     fn covered_rows_get_no_lane_and_lanes_are_trimmed() {
         let f = frame();
         let (adm, mut tgt) = rect_masks(&f);
@@ -518,11 +616,13 @@ mod tests {
         let input = LaneInput {
             frame: f,
             admissible: &adm,
+            drivable: &adm,
             targets: &tgt,
             bbox: (0, 0, 59, 39),
             axis: Axis::Y,
             spacing: 0.29,
             reach: 0.145,
+            phase: 0.225,
         };
         let ls = lanes(&input);
         assert!(!ls.is_empty() && ls.len() <= 3, "{ls:?}");
@@ -540,11 +640,13 @@ mod tests {
         let input = LaneInput {
             frame: f,
             admissible: &adm,
+            drivable: &adm,
             targets: &none,
             bbox: (0, 0, 59, 39),
             axis: Axis::X,
             spacing: 0.29,
             reach: 0.145,
+            phase: 0.225,
         };
         assert!(lanes(&input).is_empty());
         assert!(order(&[], |_| 0.0).0.is_empty());

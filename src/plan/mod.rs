@@ -13,7 +13,7 @@ pub mod lanes;
 pub mod planner;
 pub mod swept;
 
-pub use planner::{CoveragePlanner, PlanError, PlanStatus, Task};
+pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
 pub use swept::SweptFloor;
 
 /// Coverage planner settings.
@@ -41,6 +41,11 @@ pub struct PlanParams {
     /// over the paper world and five rooms, and 1.0 once left 10 % of a
     /// room uncovered online.
     pub swept_travel_cost: f64,
+    /// Longest connection between two consecutive lanes of one cover task
+    /// (m): a region whose next lane is farther is finished in a later task,
+    /// chosen again with the whole tour in view, instead of by a long drive
+    /// over swept floor (0 = never split a region's lanes).
+    pub max_lane_join: f64,
     /// Uncovered patches smaller than this are left alone (m²).
     pub min_patch_area: f64,
     /// A frontier within this distance of a reachable place counts as
@@ -63,6 +68,7 @@ impl Default for PlanParams {
             reach_margin: 0.005,
             lookahead_weight: 1.0,
             swept_travel_cost: 0.0,
+            max_lane_join: 0.7,
             min_patch_area: 0.05,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
@@ -82,6 +88,7 @@ impl PlanParams {
             ("lookahead_weight", self.lookahead_weight),
             ("min_patch_area", self.min_patch_area),
             ("swept_travel_cost", self.swept_travel_cost),
+            ("max_lane_join", self.max_lane_join),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PlanError::BadParam {

@@ -29,7 +29,7 @@
 use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
-use super::lanes::{lanes, variants, Axis, Lane, LaneInput, Variant};
+use super::lanes::{lanes, lattice_position, variants, Axis, Lane, LaneInput, Variant};
 use super::swept::SweptFloor;
 use super::PlanParams;
 use crate::config::RobotParams;
@@ -81,6 +81,25 @@ pub enum Task {
     Explore,
     /// Nothing reachable is left.
     Done,
+}
+
+/// What the robot does on its way to one waypoint of the path (for the
+/// overlap breakdown of the metrics).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Motion {
+    /// Turning in place, looking around, escaping, or nothing planned.
+    #[default]
+    Other,
+    /// Driving a lane of the evenly spaced set.
+    Lane,
+    /// Driving a fix-up lane (floor the evenly spaced lanes missed).
+    FixUp,
+    /// Joining two lanes of the same region.
+    Connection,
+    /// Travelling to a region's first lane.
+    Transit,
+    /// Driving toward unexplored space.
+    Explore,
 }
 
 /// The planner's answer to one update.
@@ -170,6 +189,7 @@ pub struct CoveragePlanner {
     reach_disk: Vec<(i64, i64)>,
     task: Task,
     path: Vec<Point2<f64>>,
+    motions: Vec<Motion>,
     final_heading: Option<f64>,
     task_targets: Vec<usize>,
     explore_goal: Option<Point2<f64>>,
@@ -188,6 +208,12 @@ pub struct CoveragePlanner {
     owner: Vec<u32>,
     tries: Vec<u8>,
     restored: Option<SweptFloor>,
+    /// The current cover task drives only part of its region's lanes.
+    split_task: bool,
+    /// Reachable centres inside some cell of the decomposition.
+    in_cell: Vec<bool>,
+    /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
+    phase: [Option<f64>; 2],
 }
 
 /// Updates between re-evaluations while exploring (a cell may have become final).
@@ -231,6 +257,7 @@ impl CoveragePlanner {
             reach_disk: Vec::new(),
             task: Task::Idle,
             path: Vec::new(),
+            motions: Vec::new(),
             final_heading: None,
             task_targets: Vec::new(),
             explore_goal: None,
@@ -249,6 +276,9 @@ impl CoveragePlanner {
             owner: Vec::new(),
             tries: Vec::new(),
             restored: None,
+            phase: [None; 2],
+            in_cell: Vec::new(),
+            split_task: false,
         })
     }
 
@@ -265,6 +295,12 @@ impl CoveragePlanner {
     /// The path to follow now and the heading to turn to at its end.
     pub fn path(&self) -> (&[Point2<f64>], Option<f64>) {
         (&self.path, self.final_heading)
+    }
+
+    /// What the robot does on its way to waypoint `next` of [`Self::path`]
+    /// ([`Motion::Other`] past its end).
+    pub fn motion(&self, next: usize) -> Motion {
+        self.motions.get(next).copied().unwrap_or_default()
     }
 
     /// The current task.
@@ -298,6 +334,7 @@ impl CoveragePlanner {
             self.scratch_a = vec![false; n];
             self.scratch_t = vec![false; n];
             self.owner = vec![u32::MAX; n];
+            self.in_cell = vec![false; n];
             self.tries = vec![0; n];
             let res = self.cspace.frame.res;
             self.stamp = disk(self.stamp_radius + res, res);
@@ -390,9 +427,12 @@ impl CoveragePlanner {
         }
         if progress.is_none() && matches!(self.task, Task::Cover(_)) {
             // Targets the finished lanes did not reach get one more try; after
-            // MAX_TRIES they are given up.
+            // MAX_TRIES they are given up (when the task was only part
+            // of its region's lanes: only the floor near its lanes, and
+            // only when it swept none of it).
+            let spared = self.split_task && self.task_targets.iter().any(|&i| self.covered[i]);
             for &i in &self.task_targets {
-                if !self.covered[i] {
+                if !self.covered[i] && !spared {
                     self.tries[i] = self.tries[i].saturating_add(1);
                     if self.tries[i] >= MAX_TRIES {
                         self.abandoned[i] = true;
@@ -451,6 +491,15 @@ impl CoveragePlanner {
             }
         }
         self.task = task;
+        let m = match task {
+            Task::Explore => Motion::Explore,
+            _ => Motion::Other,
+        };
+        self.motions = match task {
+            Task::Cover(_) => std::mem::take(&mut self.motions),
+            _ => vec![m; path.len()],
+        };
+        self.motions.resize(path.len(), m);
         self.path = path;
         self.final_heading = final_heading;
         self.updates_in_task = 0;
@@ -501,6 +550,7 @@ impl CoveragePlanner {
             .set_extra_cost(|i| if covered[i] { w } else { 0.0 });
         self.cspace.distances_from(robot);
         self.compute_targets();
+        self.mark_cells(decomp);
         let mut cands = self.cell_candidates(decomp, CellStatus::Final);
         if cands.is_empty() && self.params.cover_settling_cells && !keep_exploring {
             cands = self.cell_candidates(decomp, CellStatus::Settling);
@@ -542,8 +592,32 @@ impl CoveragePlanner {
         cands.truncate(TOUR_CANDIDATES);
         let (k, v) = best_tour_start(&cands, self.params.lookahead_weight);
         let chosen = cands.swap_remove(k);
-        let lanes = chosen.variants[v].lanes.clone();
-        let path = self.cover_path(&lanes);
+        let mut lanes = chosen.variants[v].lanes.clone();
+        // A long join between two lanes would drive over swept floor: the
+        // rest of the region waits for a later task (its floor is not
+        // charged a try for what this task leaves).
+        let m = self.params.max_lane_join;
+        self.split_task = false;
+        if m > 0.0 {
+            if let Some(k) = lanes.windows(2).position(|w| (w[1].a - w[0].b).norm() > m) {
+                lanes.truncate(k + 1);
+                self.split_task = true;
+            }
+        }
+        if std::env::var_os("DBG").is_some() {
+            eprintln!("COVER {:?} n {}", chosen.cell, lanes.len());
+            for w in lanes.windows(2) {
+                let d = (w[1].a - w[0].b).norm();
+                if d > 0.8 {
+                    eprintln!(
+                        "   long conn {:.2}: {:.2},{:.2} -> {:.2},{:.2}",
+                        d, w[0].b.x, w[0].b.y, w[1].a.x, w[1].a.y
+                    );
+                }
+            }
+        }
+        let (path, motions) = self.cover_path(&lanes);
+        self.motions = motions;
         match chosen.cell {
             Some(_) => self.stats.cells += 1,
             None => self.stats.patches += 1,
@@ -552,17 +626,33 @@ impl CoveragePlanner {
         self.planned_lanes = lanes.len();
         let task = Task::Cover(chosen.cell);
         self.set_task(task, path, None);
+        // The floor this task answers for: what its lanes pass within reach
+        // of (a split task leaves the rest of its region untouched).
+        let f = self.cspace.frame;
+        let near = self.reach + f.res;
         self.task_targets = chosen.targets;
+        if self.split_task {
+            self.task_targets.retain(|&i| {
+                let c = f.centre(i);
+                lanes.iter().any(|l| {
+                    let d = l.b - l.a;
+                    let t = ((c - l.a).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+                    (c - (l.a + d * t)).norm() <= near
+                })
+            });
+        }
         working(task)
     }
 
     /// Transit to the first lane, then the lanes joined by straight
-    /// connections where clear, A* elsewhere.
-    fn cover_path(&self, ls: &[Lane]) -> Vec<Point2<f64>> {
+    /// connections where clear, A* elsewhere; with the motion toward each
+    /// waypoint.
+    fn cover_path(&self, ls: &[Lane]) -> (Vec<Point2<f64>>, Vec<Motion>) {
         let f = self.cspace.frame;
         let mut path = Vec::new();
+        let mut motions = Vec::new();
         let Some(first) = ls.first() else {
-            return path;
+            return (path, motions);
         };
         if let Some(entry) = f.index_of(&first.a) {
             if let Some(mut t) = self.cspace.path_to(entry) {
@@ -570,11 +660,17 @@ impl CoveragePlanner {
                     t.remove(0);
                 }
                 t.pop();
+                motions.resize(t.len(), Motion::Transit);
                 path.extend(t);
             }
         }
         let mut prev: Option<Point2<f64>> = None;
         for l in ls {
+            let join = if prev.is_some() {
+                Motion::Connection
+            } else {
+                Motion::Transit
+            };
             if let Some(q) = prev {
                 if !self.cspace.segment_clear(&q, &l.a) {
                     if let (Some(a), Some(b)) = (f.index_of(&q), f.index_of(&l.a)) {
@@ -582,6 +678,7 @@ impl CoveragePlanner {
                             if t.len() >= 2 {
                                 t.remove(0);
                                 t.pop();
+                                motions.resize(motions.len() + t.len(), join);
                                 path.extend(t);
                             }
                         }
@@ -589,11 +686,24 @@ impl CoveragePlanner {
                 }
             }
             path.push(l.a);
+            motions.push(join);
             path.push(l.b);
+            motions.push(if l.fixup { Motion::FixUp } else { Motion::Lane });
             prev = Some(l.b);
         }
-        path.dedup_by(|a, b| (*a - *b).norm() < 1e-9);
-        path
+        // Drop repeated waypoints (and their motions).
+        let mut k = 0;
+        for i in 0..path.len() {
+            if k > 0 && (path[i] - path[k - 1]).norm() < 1e-9 {
+                continue;
+            }
+            path[k] = path[i];
+            motions[k] = motions[i];
+            k += 1;
+        }
+        path.truncate(k);
+        motions.truncate(k);
+        (path, motions)
     }
 
     /// Marks reachable centres, the uncovered floor they reach, and for every
@@ -649,6 +759,71 @@ impl CoveragePlanner {
         }
     }
 
+    /// The phase of the lane lattice along `axis`, fixed for the whole run
+    /// at its first use: a lane hugs the lowest wall (across the lanes) of
+    /// the space reachable then.
+    fn lattice_phase(&mut self, axis: Axis) -> f64 {
+        let k = axis as usize;
+        if let Some(p) = self.phase[k] {
+            return p;
+        }
+        let f = self.cspace.frame;
+        let lowest = (0..f.len())
+            .filter(|&i| self.reachable_mask[i])
+            .map(|i| {
+                let c = f.centre(i);
+                match axis {
+                    Axis::X => c.y,
+                    Axis::Y => c.x,
+                }
+            })
+            .fold(f64::INFINITY, f64::min);
+        let p = if lowest.is_finite() { lowest } else { 0.0 };
+        self.phase[k] = Some(p);
+        p
+    }
+
+    /// The reachable centre on floor cell `j`'s nearest lattice lane (same
+    /// position along the lanes), `None` when that lane lies in a wall.
+    fn lattice_owner(&self, j: usize, axis: Axis, phase: f64) -> Option<usize> {
+        let f = self.cspace.frame;
+        let c = f.centre(j);
+        let (across, o, n) = match axis {
+            Axis::X => (c.y, f.origin.y, f.h),
+            Axis::Y => (c.x, f.origin.x, f.w),
+        };
+        let p = lattice_position(phase, self.spacing, across);
+        let row = ((p - o) / f.res).floor();
+        if row < 0.0 || row >= n as f64 {
+            return None;
+        }
+        let row = row as usize;
+        let k = match axis {
+            Axis::X => row * f.w + j % f.w,
+            Axis::Y => (j / f.w) * f.w + row,
+        };
+        self.in_cell[k].then_some(k)
+    }
+
+    /// Marks the reachable centres that lie inside a cell (any status).
+    fn mark_cells(&mut self, decomp: &Decomposition) {
+        let f = self.cspace.frame;
+        self.in_cell.fill(false);
+        for cell in decomp.cells.iter().filter(|c| c.polygon.len() >= 3) {
+            let Some((x0, y0, x1, y1)) = cell_bbox(cell, &f) else {
+                continue;
+            };
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let i = y * f.w + x;
+                    if self.reachable_mask[i] && !self.in_cell[i] {
+                        self.in_cell[i] = cell.contains(&f.centre(i));
+                    }
+                }
+            }
+        }
+    }
+
     fn min_patch_cells(&self) -> usize {
         let a = self.cspace.frame.res * self.cspace.frame.res;
         ((self.params.min_patch_area / a).ceil() as usize).max(1)
@@ -663,6 +838,7 @@ impl CoveragePlanner {
         axis: Axis,
     ) -> Option<Candidate> {
         let f = self.cspace.frame;
+        let phase = self.lattice_phase(axis);
         let r = (self.reach / f.res).ceil() as usize + 1;
         let (x0, y0) = (bbox.0.saturating_sub(r), bbox.1.saturating_sub(r));
         let (x1, y1) = ((bbox.2 + r).min(f.w - 1), (bbox.3 + r).min(f.h - 1));
@@ -683,11 +859,22 @@ impl CoveragePlanner {
                         continue;
                     }
                     let j = ny as usize * f.w + nx as usize;
-                    // Across a virtual edge the floor belongs to the
-                    // neighbouring region: only walls get hugged.
-                    let o = self.owner[j] as usize;
-                    let own = cell.is_none() || (o < f.len() && self.scratch_a[o]);
-                    if self.targets[j] && own && !self.scratch_t[j] {
+                    if !self.targets[j] || self.scratch_t[j] {
+                        continue;
+                    }
+                    // Floor belongs to the region holding its nearest
+                    // lattice lane (across a virtual edge: the neighbour's);
+                    // where that lane lies in a wall, to the region whose
+                    // reachable centre is nearest (that region hugs the wall).
+                    let own = cell.is_none()
+                        || match self.lattice_owner(j, axis, phase) {
+                            Some(k) => self.scratch_a[k],
+                            None => {
+                                let o = self.owner[j] as usize;
+                                o < f.len() && self.scratch_a[o]
+                            }
+                        };
+                    if own {
                         self.scratch_t[j] = true;
                         targets.push(j);
                     }
@@ -700,11 +887,13 @@ impl CoveragePlanner {
         let input = LaneInput {
             frame: f,
             admissible: &self.scratch_a,
+            drivable: &self.reachable_mask,
             targets: &self.scratch_t,
             bbox: (x0, y0, x1, y1),
             axis,
             spacing: self.spacing,
             reach: self.reach,
+            phase,
         };
         let ls = lanes(&input);
         let dist = &self.cspace.dist;
@@ -742,23 +931,9 @@ impl CoveragePlanner {
             if cell.polygon.len() < 3 {
                 continue;
             }
-            let (mut lo, mut hi) = (
-                Point2::new(f64::INFINITY, f64::INFINITY),
-                Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
-            );
-            for q in &cell.polygon {
-                lo = lo.inf(q);
-                hi = hi.sup(q);
-            }
-            let cx = |v: f64, o: f64, n: usize| {
-                (((v - o) / f.res).floor().max(0.0) as usize).min(n.saturating_sub(1))
+            let Some(bbox) = cell_bbox(cell, &f) else {
+                continue;
             };
-            let bbox = (
-                cx(lo.x, f.origin.x, f.w),
-                cx(lo.y, f.origin.y, f.h),
-                cx(hi.x, f.origin.x, f.w),
-                cx(hi.y, f.origin.y, f.h),
-            );
             let mut any = false;
             for y in bbox.1..=bbox.3 {
                 for x in bbox.0..=bbox.2 {
@@ -1041,6 +1216,30 @@ fn best_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
         }
     }
     nodes.get(best.1).copied().unwrap_or((0, 0))
+}
+
+/// Grid bounding box (x0, y0, x1, y1) of a cell's polygon, clamped to the frame.
+fn cell_bbox(cell: &crate::decomp::Cell, f: &Frame) -> Option<(usize, usize, usize, usize)> {
+    if f.is_empty() {
+        return None;
+    }
+    let (mut lo, mut hi) = (
+        Point2::new(f64::INFINITY, f64::INFINITY),
+        Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
+    for q in &cell.polygon {
+        lo = lo.inf(q);
+        hi = hi.sup(q);
+    }
+    let cx = |v: f64, o: f64, n: usize| {
+        (((v - o) / f.res).floor().max(0.0) as usize).min(n.saturating_sub(1))
+    };
+    Some((
+        cx(lo.x, f.origin.x, f.w),
+        cx(lo.y, f.origin.y, f.h),
+        cx(hi.x, f.origin.x, f.w),
+        cx(hi.y, f.origin.y, f.h),
+    ))
 }
 
 /// Frontier cells in 8-connected clusters of at least `min` cells.

@@ -24,6 +24,7 @@
 use nalgebra::Point2;
 
 use crate::geom::{heading, wrap_angle, Pose};
+use crate::plan::Motion;
 use crate::sim::world::{FreeRaster, World};
 
 /// Distance of travel between two samples of the travel direction (m).
@@ -35,6 +36,17 @@ const TURN_SAMPLE: f64 = 0.05;
 const SAME_PASS: f64 = 1.0;
 /// Heading change that counts as a turn (rad), 30° as in the IPA evaluation.
 const TURN_ANGLE: f64 = 0.52;
+
+/// Causes of repeat sweeping, in the order of [`CoverageMetrics::overlap_by`].
+pub const OVERLAP_CAUSES: [&str; 7] = [
+    "lane over an earlier lane of its own task",
+    "lane over floor swept otherwise (earlier task, transit, connection)",
+    "fix-up lane",
+    "connection between lanes",
+    "transit to a region",
+    "exploration",
+    "turns in place, look-around, escape",
+];
 
 /// Why metrics cannot be set up.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -70,6 +82,9 @@ pub struct CoverageMetrics {
     pub covered_area: f64,
     /// Area swept in more than one pass / area swept (0..).
     pub overlap: f64,
+    /// `overlap` split by what the robot was doing when a cell's second pass
+    /// began (see [`OVERLAP_CAUSES`]); sums to `overlap`.
+    pub overlap_by: [f64; 7],
     /// Path length driven (m).
     pub path_length: f64,
     /// Number of heading changes above 30°.
@@ -91,6 +106,11 @@ pub struct CoverageTracker {
     unreachable_cells: usize,
     passes: Vec<u16>,
     last_seen: Vec<f64>,
+    /// Per cell: the task whose lane swept it first (`u32::MAX`: swept
+    /// first by something else, or never).
+    first_task: Vec<u32>,
+    repeat_cause: Vec<u8>,
+    repeats: [usize; 7],
     tool_radius: f64,
     tool: Vec<(i64, i64)>,
     robot_radius: f64,
@@ -249,6 +269,9 @@ impl CoverageTracker {
         Ok(Self {
             passes: vec![0; w * h],
             last_seen: vec![f64::NEG_INFINITY; w * h],
+            first_task: vec![u32::MAX; w * h],
+            repeat_cause: vec![u8::MAX; w * h],
+            repeats: [0; 7],
             raster,
             reachable,
             footprint,
@@ -285,6 +308,12 @@ impl CoverageTracker {
         &self.passes
     }
 
+    /// Per-cell cause of the second pass (index into [`OVERLAP_CAUSES`];
+    /// `u8::MAX`: swept at most once), row-major.
+    pub fn repeat_causes(&self) -> &[u8] {
+        &self.repeat_cause
+    }
+
     /// Per-cell reachability (row-major).
     pub fn reachable(&self) -> &[bool] {
         &self.reachable
@@ -293,6 +322,12 @@ impl CoverageTracker {
     /// Records the robot at `pose` at simulated time `time` (s): sweeps the
     /// tool, adds path length and rotation, counts turns and collisions.
     pub fn record(&mut self, pose: &Pose, time: f64) {
+        self.record_doing(pose, time, Motion::Other, 0);
+    }
+
+    /// [`Self::record`], knowing what the robot was doing (`motion`, as part
+    /// of the planner's task number `task`), for the overlap breakdown.
+    pub fn record_doing(&mut self, pose: &Pose, time: f64, motion: Motion, task: u32) {
         let p: Point2<f64> = pose.translation.vector.into();
         let th = heading(pose);
         self.time = time;
@@ -346,6 +381,29 @@ impl CoverageTracker {
             // (A never-seen cell has last_seen = -inf: always a new pass.)
             if time - self.last_seen[j] > SAME_PASS {
                 self.passes[j] = self.passes[j].saturating_add(1);
+                match self.passes[j] {
+                    // The task of a first pass by a lane (`u32::MAX` otherwise).
+                    1 => {
+                        self.first_task[j] = match motion {
+                            Motion::Lane | Motion::FixUp => task,
+                            _ => u32::MAX,
+                        }
+                    }
+                    2 => {
+                        let cause = match motion {
+                            Motion::Lane if self.first_task[j] == task => 0,
+                            Motion::Lane => 1,
+                            Motion::FixUp => 2,
+                            Motion::Connection => 3,
+                            Motion::Transit => 4,
+                            Motion::Explore => 5,
+                            Motion::Other => 6,
+                        };
+                        self.repeats[cause] += 1;
+                        self.repeat_cause[j] = cause as u8;
+                    }
+                    _ => {}
+                }
             }
             self.last_seen[j] = time;
         }
@@ -413,6 +471,7 @@ impl CoverageTracker {
             unreachable_area: self.unreachable_cells as f64 * a,
             covered_area: cov as f64 * a,
             overlap: ratio(multi, cov),
+            overlap_by: self.repeats.map(|n| ratio(n, cov)),
             path_length: self.path_length,
             turns: self.turns,
             rotation: self.rotation,
@@ -470,6 +529,68 @@ mod tests {
         assert!(m.overlap > 0.75 && m.overlap < 0.9, "{}", m.overlap);
         assert_eq!(m.turns, 1);
         assert!((m.rotation - std::f64::consts::PI).abs() < 1e-6);
+        // Recorded without knowing what the robot did: all of it "other".
+        assert_eq!(m.overlap_by[6], m.overlap);
+    }
+
+    #[test]
+    fn the_overlap_breakdown_names_what_swept_again() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let mut k = 0.0;
+        // A lane of task 1, then a transit of task 2 back over its first
+        // half, then a lane of task 2 over its second half.
+        for i in 0..=100 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.02, 0.5, 0.0), k, Motion::Lane, 1);
+            k += 0.1;
+        }
+        k += 5.0;
+        for i in 0..=50 {
+            t.record_doing(
+                &pose(0.5 + i as f64 * 0.02, 0.5, 0.0),
+                k,
+                Motion::Transit,
+                2,
+            );
+            k += 0.1;
+        }
+        k += 5.0;
+        for i in 50..=100 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.02, 0.5, 0.0), k, Motion::Lane, 2);
+            k += 0.1;
+        }
+        let m = t.metrics();
+        let sum: f64 = m.overlap_by.iter().sum();
+        assert!((sum - m.overlap).abs() < 1e-12, "{sum} vs {}", m.overlap);
+        // Both halves were swept again, the transit's half first.
+        assert!(m.overlap > 0.9, "{}", m.overlap);
+        assert!(
+            m.overlap_by[4] > 0.4 && m.overlap_by[1] > 0.4,
+            "{:?}",
+            m.overlap_by
+        );
+        assert_eq!(m.overlap_by[0], 0.0);
+        // A task's transit, then its own lane over it: not "its own lanes".
+        k += 5.0;
+        for i in 0..=50 {
+            t.record_doing(
+                &pose(0.5 + i as f64 * 0.02, 1.5, 0.0),
+                k,
+                Motion::Transit,
+                3,
+            );
+            k += 0.1;
+        }
+        k += 5.0;
+        for i in 0..=50 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.02, 1.5, 0.0), k, Motion::Lane, 3);
+            k += 0.1;
+        }
+        let m2 = t.metrics();
+        assert_eq!(m2.overlap_by[0], 0.0, "{:?}", m2.overlap_by);
+        assert!(m2.overlap_by[1] > m.overlap_by[1]);
+        let causes = t.repeat_causes();
+        assert!(causes.contains(&4) && causes.contains(&1));
     }
 
     #[test]

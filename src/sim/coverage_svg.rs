@@ -210,6 +210,77 @@ pub fn path_svg(
     doc.add(label(8.0, v.h + 22.0, caption, 14))
 }
 
+/// Colours of the overlap causes (index as in `coverage_metrics::OVERLAP_CAUSES`).
+const CAUSE_COLOURS: [&str; 7] = [
+    "#e41a1c", "#ff7f00", "#984ea3", "#4daf4a", "#377eb8", "#17becf", "#404040",
+];
+
+/// Where floor was swept a second time, coloured by what the robot was
+/// doing then (`causes`: per ground-truth cell, an index into `legend`, or
+/// `u8::MAX` for floor swept at most once), with the path and a legend.
+pub fn overlap_svg(
+    world: &World,
+    causes: &[u8],
+    trajectory: &[Pose],
+    legend: &[&str],
+    title: &str,
+) -> Document {
+    let r = &world.free;
+    let v = View::of(r);
+    let line = 18.0;
+    let mut doc = v.doc(30.0 + line * legend.len() as f64);
+    let colour = |i: usize| -> Option<&'static str> {
+        if !r.free[i] {
+            return Some("#bdbdbd");
+        }
+        causes
+            .get(i)
+            .and_then(|&c| CAUSE_COLOURS.get(c as usize).copied())
+    };
+    let mut cells = Group::new().set("shape-rendering", "crispEdges");
+    for y in 0..r.height {
+        let mut x = 0;
+        while x < r.width {
+            let c = colour(y * r.width + x);
+            let start = x;
+            while x < r.width && colour(y * r.width + x) == c {
+                x += 1;
+            }
+            if let Some(col) = c {
+                let x0 = r.origin.x + start as f64 * r.resolution;
+                let y0 = r.origin.y + (y + 1) as f64 * r.resolution;
+                cells = cells.add(
+                    Rectangle::new()
+                        .set("x", v.x(x0))
+                        .set("y", v.y(y0))
+                        .set("width", (x - start) as f64 * r.resolution * SCALE)
+                        .set("height", r.resolution * SCALE)
+                        .set("fill", col),
+                );
+            }
+        }
+    }
+    doc = doc
+        .add(cells)
+        .add(walls(world, &v))
+        .add(track(trajectory, &v, "#08306b", 0.8))
+        .add(label(8.0, v.h + 22.0, title, 14));
+    for (k, name) in legend.iter().enumerate() {
+        let y = v.h + 30.0 + line * k as f64;
+        doc = doc
+            .add(
+                Rectangle::new()
+                    .set("x", 8.0)
+                    .set("y", y)
+                    .set("width", 14.0)
+                    .set("height", 14.0)
+                    .set("fill", CAUSE_COLOURS[k % CAUSE_COLOURS.len()]),
+            )
+            .add(label(28.0, y + 12.0, *name, 13));
+    }
+    doc
+}
+
 /// Writes `doc` to `path`.
 pub fn save(path: &Path, doc: &Document) -> std::io::Result<()> {
     svg::save(path, doc)

@@ -131,6 +131,8 @@ pub struct RunResult {
     pub plan_seconds: Vec<f64>,
     /// Per-cell pass counts on the ground-truth raster.
     pub passes: Vec<u16>,
+    /// Per-cell cause of the second pass (see `coverage_metrics::OVERLAP_CAUSES`).
+    pub repeat_causes: Vec<u8>,
     /// Every task the planner planned, in order.
     pub tasks: Vec<crate::plan::planner::TaskRecord>,
 }
@@ -261,7 +263,12 @@ pub fn run(
         pose = integrate(&pose, &twist, opts.dt);
         t += opts.dt;
         trajectory.push(pose);
-        tracker.record(&pose, t);
+        let motion = if follower.is_done() {
+            crate::plan::Motion::Other
+        } else {
+            planner.motion(follower.next_index())
+        };
+        tracker.record_doing(&pose, t, motion, planner.stats().tasks as u32);
         planner.record_pose(&pose);
     }
     snapshots.push(Snapshot {
@@ -280,6 +287,7 @@ pub fn run(
         decomp_seconds,
         plan_seconds,
         passes: tracker.passes().to_vec(),
+        repeat_causes: tracker.repeat_causes().to_vec(),
         tasks: planner.history().to_vec(),
     })
 }
