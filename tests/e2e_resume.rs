@@ -4,7 +4,10 @@
 //! killed with SIGKILL at about 40 % ground-truth coverage and started again
 //! on the same state folder. The second daemon must resume from the last
 //! checkpoint (map, pose, swept floor), finish the coverage, and not have
-//! lost more than the last checkpoint period.
+//! lost more than the last checkpoint period. Its report (`state/run/
+//! report.md`) must say which checkpoint it resumed from, how old it was at
+//! the crash and how much progress that lost, consistently with what this
+//! test saw.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -15,7 +18,7 @@ use sweepline::clock::{ScaledClock, SharedClock};
 use sweepline::config::Config;
 use sweepline::geom::Pose;
 use sweepline::motor::BaseKind;
-use sweepline::pipeline::checkpoint::{CheckpointStore, RunProgress};
+use sweepline::pipeline::checkpoint::{CheckpointStore, ResumeLog, RunProgress};
 use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
 use sweepline::sim::coverage_metrics::CoverageTracker;
 use sweepline::sim::world::World;
@@ -30,6 +33,8 @@ start 0.5 0.5 0.0\n";
 const SPEED: f64 = 10.0;
 /// Checkpoint period (wall s): one simulated second at [`SPEED`].
 const CHECKPOINT_WALL: f64 = 0.1;
+/// Heartbeat and supervision period (wall s): 0.2 s simulated.
+const HEARTBEAT_WALL: f64 = 0.02;
 /// Ground-truth coverage at which the daemon is killed.
 const KILL_AT: f64 = 0.40;
 /// Coverage the whole run must reach (the in-process e2e test's bound).
@@ -118,6 +123,8 @@ fn killed_daemon_resumes_its_coverage() {
     cfg.pipeline.time_scale = SPEED;
     cfg.pipeline.clock_epoch = epoch;
     cfg.pipeline.checkpoint_period = CHECKPOINT_WALL;
+    cfg.pipeline.heartbeat_period = HEARTBEAT_WALL;
+    cfg.pipeline.supervise_period = HEARTBEAT_WALL;
     std::fs::write(dir.join("robot.toml"), toml::to_string(&cfg).unwrap()).unwrap();
 
     let store = CheckpointStore::new(&dir.join("state"));
@@ -248,4 +255,51 @@ fn killed_daemon_resumes_its_coverage() {
     );
     assert!(m.coverage >= MIN_COVERAGE, "coverage {:.3}", m.coverage);
     assert_eq!(m.collisions, 0);
+    check_report(&dir.join("state/run"), &at_kill, kill_t);
+}
+
+/// The resumed run's report says what the crash lost, consistently with the
+/// checkpoint this test saw last before the kill at `kill_t` (run clock).
+fn check_report(run: &Path, at_kill: &RunProgress, kill_t: f64) {
+    let md = std::fs::read_to_string(run.join("report.md")).expect("no report.md");
+    let section = &md[md
+        .find("## Checkpoint and resume")
+        .expect("no resume section")..];
+    eprintln!("{section}");
+    let log = ResumeLog::read(run).unwrap().expect("no resume.toml");
+    assert_eq!(log.resume.len(), 1, "{log:?}");
+    let e = &log.resume[0];
+    assert_eq!(e.restart, 1);
+    assert_eq!(e.checkpoint.sequence, at_kill.sequence);
+    assert_eq!(e.checkpoint.coverage, at_kill.coverage);
+    assert!(e.checkpoint.unix.is_some(), "checkpoint without wall time");
+    let alive = e.last_alive.expect("no heartbeat after the checkpoint");
+    let age = e.checkpoint_age().unwrap();
+    let lost = e.coverage_lost().unwrap();
+    // The last heartbeat lies between the checkpoint and the kill.
+    assert!(alive.elapsed >= at_kill.elapsed && alive.elapsed <= kill_t + 1e-6);
+    assert!(age <= kill_t - at_kill.elapsed + 1e-6, "age {age:.2} s");
+    assert!((0.0..=0.05).contains(&lost), "lost {lost:.3}");
+    assert!(alive.scans >= at_kill.scans);
+    for line in [
+        "Restarts: **1**".to_string(),
+        format!(
+            "- checkpoint: #{}, written at {}, run clock {:.1} s",
+            at_kill.sequence,
+            sweepline::report::resume::utc(e.checkpoint.unix.unwrap()),
+            at_kill.elapsed
+        ),
+        format!(
+            "- coverage at checkpoint: {:.1} %",
+            at_kill.coverage * 100.0
+        ),
+        format!("- coverage at crash: {:.1} %", alive.coverage * 100.0),
+        format!("- checkpoint age at crash: {age:.1} s run clock"),
+        format!(
+            "- progress lost: **{:.1} points of coverage**",
+            lost * 100.0
+        ),
+    ] {
+        assert!(section.contains(&line), "report lacks {line:?}:\n{section}");
+    }
 }

@@ -1,6 +1,7 @@
 //! The daemon's supervisor hooks: the `STATUS=` line with the coverage
 //! estimate, a checkpoint (progress, pose, map) every
-//! `pipeline.checkpoint_period`, and the ordered shutdown (wheels stopped
+//! `pipeline.checkpoint_period`, a heartbeat (progress, wall time) every
+//! `pipeline.heartbeat_period`, and the ordered shutdown (wheels stopped
 //! first, then the stages joined, then the final checkpoint).
 
 use std::path::Path;
@@ -9,7 +10,7 @@ use std::sync::Arc;
 
 use super::shared::Shared;
 use crate::clock::SharedClock;
-use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress};
+use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress, WrittenAt};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::periodic::Every;
@@ -22,21 +23,27 @@ pub struct DaemonHooks {
     clock: SharedClock,
     store: Option<CheckpointStore>,
     every: Every,
+    heartbeat: Option<CheckpointStore>,
+    beat: Every,
     started: f64,
     base: RunProgress,
     sequence: u64,
     /// Checkpoints that could not be written.
     pub checkpoint_errors: u64,
+    /// Heartbeats that could not be written.
+    pub heartbeat_errors: u64,
 }
 
 impl DaemonHooks {
     /// Hooks checkpointing into `state_dir` (none: no checkpoints) every
-    /// `period` seconds, continuing the progress of `resumed` if given.
+    /// `period` seconds and noting a heartbeat there every `heartbeat`
+    /// seconds, continuing the progress of `resumed` if given.
     pub fn new(
         shared: Arc<Shared>,
         clock: SharedClock,
         state_dir: Option<&Path>,
         period: f64,
+        heartbeat: f64,
         resumed: Option<RunProgress>,
     ) -> Self {
         let base = resumed
@@ -51,9 +58,12 @@ impl DaemonHooks {
             clock,
             store: state_dir.map(CheckpointStore::new),
             every: Every::new(period, Stamp::now()),
+            heartbeat: state_dir.map(super::resume::heartbeat_store),
+            beat: Every::new(heartbeat, Stamp::now()),
             sequence: base.sequence,
             base,
             checkpoint_errors: 0,
+            heartbeat_errors: 0,
         }
     }
 
@@ -88,7 +98,10 @@ impl DaemonHooks {
             .shared
             .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone()));
         let mut cp = Checkpoint::new();
-        let mut r = cp.put(&progress).and_then(|()| cp.put(&pose));
+        let mut r = cp
+            .put(&progress)
+            .and_then(|()| cp.put(&WrittenAt::now()))
+            .and_then(|()| cp.put(&pose));
         if let Some(g) = grid {
             r = r.and_then(|()| cp.put(&*g));
         }
@@ -99,6 +112,21 @@ impl DaemonHooks {
             self.checkpoint_errors += 1;
             if self.checkpoint_errors <= 3 {
                 log::warn!("checkpoint not written: {e}");
+            }
+        }
+    }
+
+    /// Notes the run's progress and the wall time in the heartbeat file now
+    /// (when a state folder is set): what a resumed daemon compares its
+    /// checkpoint with to tell how much progress the crash lost.
+    pub fn heartbeat(&mut self) {
+        let Some(store) = &self.heartbeat else { return };
+        let r = super::resume::heartbeat(&self.progress(), WrittenAt::now())
+            .and_then(|cp| store.save_unsynced(&cp));
+        if let Err(e) = r {
+            self.heartbeat_errors += 1;
+            if self.heartbeat_errors <= 3 {
+                log::warn!("heartbeat not written: {e}");
             }
         }
     }
@@ -120,6 +148,9 @@ impl Hooks for DaemonHooks {
         if self.every.due(now) {
             self.checkpoint();
         }
+        if self.beat.due(now) {
+            self.heartbeat();
+        }
     }
 
     fn before_stop(&mut self, _reason: &StopReason, _pipeline: &Pipeline) {
@@ -128,5 +159,6 @@ impl Hooks for DaemonHooks {
 
     fn after_stop(&mut self, _reason: &StopReason, _final: &MetricsSnapshot) {
         self.checkpoint();
+        self.heartbeat();
     }
 }

@@ -12,6 +12,7 @@
 pub mod hooks;
 pub mod messages;
 pub mod relocalise;
+pub mod resume;
 pub mod shared;
 pub mod stages;
 
@@ -28,7 +29,7 @@ use crate::geom::{pose, Pose};
 use crate::grid::Grid;
 use crate::icp::Tracker;
 use crate::motor::DiffDriveBase;
-use crate::pipeline::checkpoint::RunProgress;
+use crate::pipeline::checkpoint::{ResumeEntry, RunProgress};
 use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
 use crate::pipeline::{latest, queue, Overflow, Pipeline};
 use crate::plan::{CoveragePlanner, SweptFloor};
@@ -105,6 +106,8 @@ pub struct Resume {
     /// The planner's record of swept floor at the checkpoint (none: the
     /// floor is covered again).
     pub swept: Option<SweptFloor>,
+    /// What the restart lost, for the run's report.
+    pub entry: ResumeEntry,
 }
 
 /// Everything the daemon needs to start.
@@ -158,6 +161,8 @@ pub struct Daemon {
     resume: Option<RunProgress>,
     state_dir: Option<PathBuf>,
     checkpoint_period: f64,
+    heartbeat_period: f64,
+    resume_entry: Option<ResumeEntry>,
 }
 
 impl Daemon {
@@ -313,9 +318,11 @@ impl Daemon {
             shared,
             urg_health,
             clock,
+            resume_entry: setup.resume.as_ref().map(|r| r.entry.clone()),
             resume: setup.resume.map(|r| r.progress),
             state_dir: setup.state_dir,
             checkpoint_period: cfg.pipeline.checkpoint_period,
+            heartbeat_period: cfg.pipeline.heartbeat_period,
         })
     }
 
@@ -341,8 +348,15 @@ impl Daemon {
             self.clock.clone(),
             self.state_dir.as_deref(),
             self.checkpoint_period,
+            self.heartbeat_period,
             self.resume,
         )
+    }
+
+    /// What the resume this daemon started from lost (none: a fresh start),
+    /// for the run folder's report.
+    pub fn resume_entry(&self) -> Option<ResumeEntry> {
+        self.resume_entry.clone()
     }
 
     /// Supervises the stages until coverage is done, a signal, a stop request

@@ -106,6 +106,10 @@ pub struct PipelineParams {
     pub checkpoint_period: f64,
     /// How often the metrics file of the run folder is rewritten (s).
     pub metrics_period: f64,
+    /// How often the daemon notes its progress in `heartbeat.swc` of the
+    /// state folder (s): unsynced and cheap, it tells a resumed daemon how
+    /// far the crashed one had got after its last checkpoint.
+    pub heartbeat_period: f64,
     /// Speed of the daemon's clock against the wall clock: 1 on a robot;
     /// a simulator driving `sweepline run` as a separate process sets its own
     /// time scale so both read the same simulated time.
@@ -133,6 +137,7 @@ impl Default for PipelineParams {
             scan_queue: 4,
             checkpoint_period: 2.0,
             metrics_period: 5.0,
+            heartbeat_period: 0.5,
             time_scale: 1.0,
             clock_epoch: 0.0,
             budget: StageBudgets::default(),
@@ -151,6 +156,7 @@ impl PipelineParams {
         positive("pipeline.late_after", self.late_after)?;
         positive("pipeline.checkpoint_period", self.checkpoint_period)?;
         positive("pipeline.metrics_period", self.metrics_period)?;
+        positive("pipeline.heartbeat_period", self.heartbeat_period)?;
         if !(self.watchdog_period.is_finite() && self.watchdog_period >= 0.0) {
             return Err(invalid(
                 "pipeline.watchdog_period",
