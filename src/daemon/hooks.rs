@@ -94,9 +94,9 @@ impl DaemonHooks {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
         let progress = self.progress();
-        let (pose, grid, swept) = self
+        let (pose, grid, swept, keyframes) = self
             .shared
-            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone()));
+            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone(), s.keyframes.clone()));
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)
@@ -107,6 +107,9 @@ impl DaemonHooks {
         }
         if let Some(s) = swept {
             r = r.and_then(|()| cp.put(&*s));
+        }
+        if let Some(k) = keyframes {
+            r = r.and_then(|()| cp.put(&*k));
         }
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;

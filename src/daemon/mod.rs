@@ -27,7 +27,7 @@ use crate::control::PathFollower;
 use crate::decomp::Decomposer;
 use crate::geom::{pose, Pose};
 use crate::grid::Grid;
-use crate::icp::Tracker;
+use crate::icp::{Tracker, TrackerState};
 use crate::motor::DiffDriveBase;
 use crate::pipeline::checkpoint::{ResumeEntry, RunProgress};
 use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
@@ -106,6 +106,9 @@ pub struct Resume {
     /// The planner's record of swept floor at the checkpoint (none: the
     /// floor is covered again).
     pub swept: Option<SweptFloor>,
+    /// The scan tracker's keyframes at the checkpoint (none: a new local
+    /// map is started at the resume pose).
+    pub tracker: Option<TrackerState>,
     /// What the restart lost, for the run's report.
     pub entry: ResumeEntry,
 }
@@ -191,6 +194,7 @@ impl Daemon {
                     s.swept = Some(Arc::new(sw.clone()));
                 }
                 s.grid = Some(Arc::new(r.grid.clone()));
+                s.keyframes = r.tracker.clone().map(Arc::new);
             }
         });
 
@@ -209,8 +213,26 @@ impl Daemon {
         pipeline.register_edge(&pose_tx);
         pipeline.register_edge(&cmd_tx);
 
-        let tracker = Tracker::new(cfg.icp.clone(), start * mount)
-            .map_err(|e| DaemonError::Config(e.to_string()))?;
+        let restored = setup.resume.as_ref().and_then(|r| r.tracker.as_ref());
+        let (tracker, refused) = Tracker::restore(
+            cfg.icp.clone(),
+            start * mount,
+            restored.unwrap_or(&TrackerState::default()),
+        )
+        .map_err(|e| DaemonError::Config(e.to_string()))?;
+        match (restored, refused) {
+            (Some(k), None) => log::info!(
+                "resume: scan tracker restored with {} keyframe(s)",
+                k.keyframes.len()
+            ),
+            (Some(_), Some(e)) => {
+                log::warn!("resume: checkpointed keyframes unusable ({e}); new local map")
+            }
+            (None, _) if setup.resume.is_some() => {
+                log::info!("resume: no keyframes checkpointed; new local map")
+            }
+            _ => {}
+        }
         let decomposer = Decomposer::new(&cfg.decomp, robot.radius)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
         let mut planner = CoveragePlanner::new(&cfg.plan, &robot)
@@ -301,6 +323,7 @@ impl Daemon {
                 mount,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
+                publish_keyframes: setup.state_dir.is_some(),
             },
         )?;
         pipeline.spawn(

@@ -5,6 +5,7 @@
 use super::Resume;
 use crate::geom::Pose;
 use crate::grid::Grid;
+use crate::icp::TrackerState;
 use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointError, CheckpointStore, ProgressMark, ResumeEntry, RunProgress, WrittenAt,
 };
@@ -108,11 +109,19 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             None
         }
     };
+    let tracker = match cp.get::<TrackerState>() {
+        Ok(t) => t,
+        Err(e) => {
+            log::warn!("tracker keyframes unreadable, starting a new local map: {e}");
+            None
+        }
+    };
     Some(Resume {
         pose,
         grid,
         progress,
         swept,
+        tracker,
         entry,
     })
 }

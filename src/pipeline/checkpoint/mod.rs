@@ -1,6 +1,7 @@
 //! Crash-safe checkpoints: a versioned, checksummed container of named,
-//! typed sections (pose, explored grid, run progress; the map, cells and
-//! planner add their own by implementing [`Section`]), written atomically
+//! typed sections (pose, explored grid, run progress, the tracker's
+//! keyframes, the planner's swept floor: each implements [`Section`] here in
+//! the pipeline layer, over the algorithm modules' plain data), written atomically
 //! (tmp file + fsync + rename + fsync of the folder) so that after a crash or
 //! `kill -9` the daemon resumes from the last good checkpoint.
 //!
@@ -28,8 +29,10 @@
 //! `<name>.prev`, which [`CheckpointStore::load`] falls back to.
 
 pub mod codec;
+pub mod keyframes;
 pub mod resume_log;
 mod sections;
+mod swept;
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Write};
