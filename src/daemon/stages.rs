@@ -158,6 +158,7 @@ impl Stage for LocaliseStage {
             }
         }
         let before = self.tracker.pose();
+        let restored = self.tracker.map().len();
         let step = self.tracker.step(&self.points, Some(&msg.odom));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
         if resuming {
@@ -167,13 +168,12 @@ impl Stage for LocaliseStage {
                     q.pairs,
                     q.residual_rms * 1e3
                 ),
-                Outcome::First => "started a new local map".into(),
+                Outcome::First => "(none) started a new local map".into(),
                 Outcome::Failed(e) => format!("failed ({e})"),
                 Outcome::Rejected(r, _) => format!("rejected ({r:?})"),
             };
             log::info!(
-                "resume: first scan against {} restored keyframe(s) {how}, {:.3} m from its start pose",
-                self.tracker.map().len(),
+                "resume: first scan against {restored} restored keyframe(s) {how}, {:.3} m from its start pose",
                 (step.pose.translation.vector - before.translation.vector).norm()
             );
         }
