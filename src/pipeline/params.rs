@@ -117,6 +117,11 @@ pub struct PipelineParams {
     /// UNIX time (s) at which the daemon's clock reads 0; 0 = when the daemon
     /// starts. A simulator passes its own clock's epoch with `time_scale`.
     pub clock_epoch: f64,
+    /// Real-time (`SCHED_FIFO`) priority for the threads of
+    /// [`PipelineParams::realtime_stages`], 1..=99; 0 = normal scheduling.
+    pub realtime_priority: u8,
+    /// Stages whose thread asks for `realtime_priority` (the scan path).
+    pub realtime_stages: Vec<String>,
     /// Per-stage latency budgets.
     pub budget: StageBudgets,
 }
@@ -140,6 +145,10 @@ impl Default for PipelineParams {
             heartbeat_period: 0.5,
             time_scale: 1.0,
             clock_epoch: 0.0,
+            realtime_priority: 0,
+            realtime_stages: ["scanner", "localise", "control", "motor"]
+                .map(String::from)
+                .to_vec(),
             budget: StageBudgets::default(),
         }
     }
@@ -157,6 +166,25 @@ impl PipelineParams {
         positive("pipeline.checkpoint_period", self.checkpoint_period)?;
         positive("pipeline.metrics_period", self.metrics_period)?;
         positive("pipeline.heartbeat_period", self.heartbeat_period)?;
+        if self.realtime_priority > 99 {
+            return Err(invalid(
+                "pipeline.realtime_priority",
+                &format!(
+                    "must be 0 (off) or a SCHED_FIFO priority 1..=99, got {}",
+                    self.realtime_priority
+                ),
+            ));
+        }
+        if let Some(bad) = self
+            .realtime_stages
+            .iter()
+            .find(|s| self.budget.get(s).is_none())
+        {
+            return Err(invalid(
+                "pipeline.realtime_stages",
+                &format!("`{bad}` is not a stage (scanner, localise, map, plan, control, motor)"),
+            ));
+        }
         if !(self.watchdog_period.is_finite() && self.watchdog_period >= 0.0) {
             return Err(invalid(
                 "pipeline.watchdog_period",
@@ -226,5 +254,29 @@ impl PipelineParams {
             }
         }
         self.budget.validate()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn realtime_settings_are_checked() {
+        let mut p = PipelineParams::default();
+        assert_eq!(p.realtime_priority, 0, "off by default");
+        p.validate().unwrap();
+        p.realtime_priority = 20;
+        p.validate().unwrap();
+        p.realtime_priority = 100;
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("pipeline.realtime_priority"), "{e}");
+        p.realtime_priority = 20;
+        p.realtime_stages.push("vacuum".into());
+        let e = p.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("pipeline.realtime_stages") && e.contains("vacuum"),
+            "{e}"
+        );
     }
 }
