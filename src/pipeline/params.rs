@@ -120,7 +120,8 @@ pub struct PipelineParams {
     /// Real-time (`SCHED_FIFO`) priority for the threads of
     /// [`PipelineParams::realtime_stages`], 1..=99; 0 = normal scheduling.
     pub realtime_priority: u8,
-    /// Stages whose thread asks for `realtime_priority` (the scan path).
+    /// Stages whose thread asks for `realtime_priority` (the scan path; the
+    /// motor stage waits on its device and is left out by default).
     pub realtime_stages: Vec<String>,
     /// Per-stage latency budgets.
     pub budget: StageBudgets,
@@ -146,7 +147,7 @@ impl Default for PipelineParams {
             time_scale: 1.0,
             clock_epoch: 0.0,
             realtime_priority: 0,
-            realtime_stages: ["scanner", "localise", "control", "motor"]
+            realtime_stages: ["scanner", "localise", "control"]
                 .map(String::from)
                 .to_vec(),
             budget: StageBudgets::default(),
