@@ -32,6 +32,8 @@ pub struct DaemonHooks {
     pub checkpoint_errors: u64,
     /// Heartbeats that could not be written.
     pub heartbeat_errors: u64,
+    /// Kind of the planner's task last logged.
+    task_kind: String,
 }
 
 impl DaemonHooks {
@@ -64,6 +66,7 @@ impl DaemonHooks {
             base,
             checkpoint_errors: 0,
             heartbeat_errors: 0,
+            task_kind: String::new(),
         }
     }
 
@@ -135,6 +138,22 @@ impl DaemonHooks {
     }
 }
 
+impl DaemonHooks {
+    /// Logs the planner's task when its kind changes (a stalled run then
+    /// shows in the log what the planner was doing).
+    fn log_task_change(&mut self) {
+        let task = self.shared.with_status(|s| s.task.clone());
+        let kind = task
+            .split(|c: char| !c.is_alphanumeric())
+            .next()
+            .unwrap_or("");
+        if kind != self.task_kind {
+            self.task_kind = kind.to_string();
+            log::info!("planner: {task}");
+        }
+    }
+}
+
 impl Hooks for DaemonHooks {
     fn status(&mut self) -> String {
         let p = self.progress();
@@ -153,6 +172,7 @@ impl Hooks for DaemonHooks {
         }
         if self.beat.due(now) {
             self.heartbeat();
+            self.log_task_change();
         }
     }
 
