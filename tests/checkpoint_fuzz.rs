@@ -5,14 +5,34 @@
 //! field claims.
 
 use nalgebra::Point2;
+use nalgebra::Vector2;
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sweepline::geom::{pose, Pose};
+use sweepline::geom::{pose, IPoint, Pose};
 use sweepline::grid::Grid;
+use sweepline::icp::{KeyframeState, TrackerState};
 use sweepline::pipeline::checkpoint::{
-    crc32, Checkpoint, CheckpointError, RunProgress, FORMAT_VERSION, MAGIC,
+    crc32, Checkpoint, CheckpointError, Encoder, RunProgress, WrittenAt, FORMAT_VERSION, MAGIC,
 };
+use sweepline::plan::cspace::Frame;
+use sweepline::plan::SweptFloor;
+
+/// Two small keyframes: enough to cover every field, small enough that the
+/// every-bit-flip test stays quick.
+fn keyframes() -> TrackerState {
+    let kf = |x: f64| KeyframeState {
+        pose: pose(x, 0.2, 0.1),
+        points: (0..4)
+            .map(|i| IPoint::new(x, f64::from(i) * 0.1, 0.5))
+            .collect(),
+        normals: vec![Vector2::new(1.0, 0.0); 4],
+        edges: vec![false, true, false, false],
+    };
+    TrackerState {
+        keyframes: vec![kf(1.0), kf(1.5)],
+    }
+}
 
 fn sample() -> Checkpoint {
     let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 12, 9);
@@ -29,6 +49,18 @@ fn sample() -> Checkpoint {
         resumes: 1,
     })
     .unwrap();
+    cp.put(&WrittenAt { unix: 1.8e9 }).unwrap();
+    cp.put(&SweptFloor {
+        frame: Frame {
+            origin: Point2::new(0.0, 0.0),
+            res: 0.1,
+            w: 5,
+            h: 3,
+        },
+        covered: (0..15).map(|i| i % 4 == 0).collect(),
+    })
+    .unwrap();
+    cp.put(&keyframes()).unwrap();
     cp
 }
 
@@ -39,6 +71,9 @@ fn read_all(bytes: &[u8]) -> Result<(), CheckpointError> {
     cp.get::<Pose>()?;
     cp.get::<Grid>()?;
     cp.get::<RunProgress>()?;
+    cp.get::<WrittenAt>()?;
+    cp.get::<SweptFloor>()?;
+    cp.get::<TrackerState>()?;
     Ok(())
 }
 
@@ -118,7 +153,14 @@ fn random_payloads_with_valid_checksums_never_panic() {
     for _ in 0..3000 {
         let len = rng.random_range(0..96);
         let payload: Vec<u8> = (0..len).map(|_| rng.random()).collect();
-        for name in [&b"pose"[..], b"grid", b"progress"] {
+        for name in [
+            &b"pose"[..],
+            b"grid",
+            b"progress",
+            b"written",
+            b"plan.swept",
+            b"icp.keyframes",
+        ] {
             let b = craft(&[(name, 1, &payload, None)], None);
             let _ = read_all(&b); // Ok or Err, never a panic
         }
@@ -245,6 +287,59 @@ fn hostile_files_give_clear_errors() {
             "unknown flags",
         ),
     ];
+    // Keyframes: too many, a point count larger than the bytes present,
+    // more points than a scan has, a NaN point, an edge flag that is no bool.
+    let kf = |count: u32, points: u64, point: &[f64], flag: u8| {
+        let mut e = Encoder::new();
+        e.u32(count);
+        for v in [0.5, 0.5, 0.0] {
+            e.f64(v);
+        }
+        e.u64(points);
+        for v in point {
+            e.f32(*v);
+        }
+        e.u8(flag);
+        e.into_bytes()
+    };
+    let ok_point = [1.0, 1.0, 0.5, 0.3];
+    let big = {
+        let mut e = Encoder::new();
+        e.u32(1);
+        for v in [0.5, 0.5, 0.0] {
+            e.f64(v);
+        }
+        e.u64(2000);
+        for _ in 0..2000 {
+            for v in ok_point {
+                e.f32(v);
+            }
+            e.u8(0);
+        }
+        e.into_bytes()
+    };
+    let hostile_kf: Vec<(Vec<u8>, &str)> = vec![
+        (kf(1_000_000, 1, &ok_point, 0), "more than the 64 allowed"),
+        (kf(1, u64::MAX / 2, &ok_point, 0), "cannot fit"),
+        (big, "more than the 1440 allowed"),
+        (kf(1, 1, &[1.0, f64::NAN, 0.5, 0.0], 0), "point y"),
+        (
+            kf(1, 1, &[1.0, 1.0, 0.5, f64::INFINITY], 2),
+            "normal direction",
+        ),
+        (kf(1, 1, &ok_point, 7), "unknown bits"),
+        (kf(2, 1, &ok_point, 0), "ends early"),
+    ];
+    for (payload, want) in hostile_kf {
+        let b = craft(&[(b"icp.keyframes", 1, &payload, None)], None);
+        let e = read_all(&b).expect_err(want);
+        assert!(e.to_string().contains(want), "want {want:?}, got: {e}");
+        assert!(e.to_string().contains("icp.keyframes"), "{e}");
+    }
+    let newer = craft(&[(b"icp.keyframes", 2, &[], None)], None);
+    let e = read_all(&newer).expect_err("version 2");
+    assert!(e.to_string().contains("has version 2"), "{e}");
+
     for (bytes, want) in cases {
         let e = read_all(&bytes).expect_err(want);
         assert!(e.to_string().contains(want), "want {want:?}, got: {e}");

@@ -15,13 +15,11 @@ use std::sync::Arc;
 use super::CliResult;
 use crate::clock::{MonotonicClock, ScaledClock, SharedClock};
 use crate::config::Config;
-use crate::daemon::{Daemon, DaemonSetup, MapFrame, Resume};
+use crate::daemon::{Daemon, DaemonSetup, MapFrame};
 use crate::geom::Pose;
-use crate::grid::Grid;
-use crate::pipeline::checkpoint::{CheckpointStore, RunProgress};
+use crate::pipeline::checkpoint::CheckpointStore;
 use crate::pipeline::notify::Notifier;
 use crate::pipeline::signals::SignalForwarder;
-use crate::plan::SweptFloor;
 use crate::report::run_folder::RunFolderHooks;
 use crate::serial::DeviceConnector;
 
@@ -87,57 +85,6 @@ fn check_device(what: &str, path: &Path) -> Result<(), String> {
     }
 }
 
-/// Loads what a checkpoint in `store` holds to resume from, if anything.
-fn resume_from(store: &CheckpointStore) -> Option<Resume> {
-    match store.load() {
-        Ok(None) => {
-            log::info!("no checkpoint: fresh start");
-            None
-        }
-        Ok(Some(l)) => {
-            if let Some(why) = &l.fell_back {
-                log::warn!("latest checkpoint unusable ({why}); using the previous copy");
-            }
-            let cp = &l.checkpoint;
-            match (cp.get::<RunProgress>(), cp.get::<Pose>(), cp.get::<Grid>()) {
-                (Ok(Some(progress)), Ok(Some(pose)), Ok(Some(grid))) => {
-                    log::info!(
-                        "checkpoint #{} found: ~{:.1} % covered after {:.0} s; resuming",
-                        progress.sequence,
-                        progress.coverage * 100.0,
-                        progress.elapsed
-                    );
-                    let swept = match cp.get::<SweptFloor>() {
-                        Ok(s) => s,
-                        Err(e) => {
-                            log::warn!("swept-floor record unreadable, covering again: {e}");
-                            None
-                        }
-                    };
-                    Some(Resume {
-                        pose,
-                        grid,
-                        progress,
-                        swept,
-                    })
-                }
-                (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
-                    log::warn!("checkpoint unreadable, starting fresh: {e}");
-                    None
-                }
-                _ => {
-                    log::info!("checkpoint without map or pose: fresh start");
-                    None
-                }
-            }
-        }
-        Err(e) => {
-            log::warn!("no usable checkpoint, starting fresh: {e}");
-            None
-        }
-    }
-}
-
 /// Runs `sweepline run`.
 pub fn run(args: Args) -> CliResult {
     let mut cfg = Config::load(&args.config)?;
@@ -152,7 +99,7 @@ pub fn run(args: Args) -> CliResult {
     std::fs::create_dir_all(&dir)
         .map_err(|e| format!("cannot create state folder {}: {e}", dir.display()))?;
     let store = CheckpointStore::new(&dir);
-    let resume = resume_from(&store);
+    let resume = crate::daemon::resume::load(&store, &crate::daemon::resume::heartbeat_store(&dir));
 
     let devices = check_device("scanner", &args.scanner)
         .and_then(|()| check_device("wheel-base", &args.base));
@@ -195,7 +142,8 @@ pub fn run(args: Args) -> CliResult {
     })?;
     let _signals = SignalForwarder::install(daemon.control())
         .map_err(|e| format!("cannot install signal handlers: {e}"))?;
-    let mut hooks = RunFolderHooks::new(daemon.hooks(), &dir.join("run"), &cfg.pipeline);
+    let mut hooks = RunFolderHooks::new(daemon.hooks(), &dir.join("run"), &cfg.pipeline)
+        .with_resume(daemon.resume_entry());
     let outcome = daemon.run(&mut hooks);
     log::info!("stopped: {}", outcome.reason);
     if outcome.reason.is_failure() {

@@ -1,6 +1,7 @@
 //! The daemon's supervisor hooks: the `STATUS=` line with the coverage
 //! estimate, a checkpoint (progress, pose, map) every
-//! `pipeline.checkpoint_period`, and the ordered shutdown (wheels stopped
+//! `pipeline.checkpoint_period`, a heartbeat (progress, wall time) every
+//! `pipeline.heartbeat_period`, and the ordered shutdown (wheels stopped
 //! first, then the stages joined, then the final checkpoint).
 
 use std::path::Path;
@@ -9,7 +10,7 @@ use std::sync::Arc;
 
 use super::shared::Shared;
 use crate::clock::SharedClock;
-use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress};
+use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress, WrittenAt};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::periodic::Every;
@@ -22,21 +23,29 @@ pub struct DaemonHooks {
     clock: SharedClock,
     store: Option<CheckpointStore>,
     every: Every,
+    heartbeat: Option<CheckpointStore>,
+    beat: Every,
     started: f64,
     base: RunProgress,
     sequence: u64,
     /// Checkpoints that could not be written.
     pub checkpoint_errors: u64,
+    /// Heartbeats that could not be written.
+    pub heartbeat_errors: u64,
+    /// Kind of the planner's task last logged.
+    task_kind: String,
 }
 
 impl DaemonHooks {
     /// Hooks checkpointing into `state_dir` (none: no checkpoints) every
-    /// `period` seconds, continuing the progress of `resumed` if given.
+    /// `period` seconds and noting a heartbeat there every `heartbeat`
+    /// seconds, continuing the progress of `resumed` if given.
     pub fn new(
         shared: Arc<Shared>,
         clock: SharedClock,
         state_dir: Option<&Path>,
         period: f64,
+        heartbeat: f64,
         resumed: Option<RunProgress>,
     ) -> Self {
         let base = resumed
@@ -51,9 +60,13 @@ impl DaemonHooks {
             clock,
             store: state_dir.map(CheckpointStore::new),
             every: Every::new(period, Stamp::now()),
+            heartbeat: state_dir.map(super::resume::heartbeat_store),
+            beat: Every::new(heartbeat, Stamp::now()),
             sequence: base.sequence,
             base,
             checkpoint_errors: 0,
+            heartbeat_errors: 0,
+            task_kind: String::new(),
         }
     }
 
@@ -84,22 +97,59 @@ impl DaemonHooks {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
         let progress = self.progress();
-        let (pose, grid, swept) = self
+        let (pose, grid, swept, keyframes) = self
             .shared
-            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone()));
+            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone(), s.keyframes.clone()));
         let mut cp = Checkpoint::new();
-        let mut r = cp.put(&progress).and_then(|()| cp.put(&pose));
+        let mut r = cp
+            .put(&progress)
+            .and_then(|()| cp.put(&WrittenAt::now()))
+            .and_then(|()| cp.put(&pose));
         if let Some(g) = grid {
             r = r.and_then(|()| cp.put(&*g));
         }
         if let Some(s) = swept {
             r = r.and_then(|()| cp.put(&*s));
         }
+        if let Some(k) = keyframes {
+            r = r.and_then(|()| cp.put(&*k));
+        }
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;
             if self.checkpoint_errors <= 3 {
                 log::warn!("checkpoint not written: {e}");
             }
+        }
+    }
+
+    /// Notes the run's progress and the wall time in the heartbeat file now
+    /// (when a state folder is set): what a resumed daemon compares its
+    /// checkpoint with to tell how much progress the crash lost.
+    pub fn heartbeat(&mut self) {
+        let Some(store) = &self.heartbeat else { return };
+        let r = super::resume::heartbeat(&self.progress(), WrittenAt::now())
+            .and_then(|cp| store.save_unsynced(&cp));
+        if let Err(e) = r {
+            self.heartbeat_errors += 1;
+            if self.heartbeat_errors <= 3 {
+                log::warn!("heartbeat not written: {e}");
+            }
+        }
+    }
+}
+
+impl DaemonHooks {
+    /// Logs the planner's task when its kind changes (a stalled run then
+    /// shows in the log what the planner was doing).
+    fn log_task_change(&mut self) {
+        let task = self.shared.with_status(|s| s.task.clone());
+        let kind = task
+            .split(|c: char| !c.is_alphanumeric())
+            .next()
+            .unwrap_or("");
+        if kind != self.task_kind {
+            self.task_kind = kind.to_string();
+            log::info!("planner: {task}");
         }
     }
 }
@@ -120,6 +170,10 @@ impl Hooks for DaemonHooks {
         if self.every.due(now) {
             self.checkpoint();
         }
+        if self.beat.due(now) {
+            self.heartbeat();
+            self.log_task_change();
+        }
     }
 
     fn before_stop(&mut self, _reason: &StopReason, _pipeline: &Pipeline) {
@@ -128,5 +182,6 @@ impl Hooks for DaemonHooks {
 
     fn after_stop(&mut self, _reason: &StopReason, _final: &MetricsSnapshot) {
         self.checkpoint();
+        self.heartbeat();
     }
 }

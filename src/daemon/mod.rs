@@ -12,6 +12,7 @@
 pub mod hooks;
 pub mod messages;
 pub mod relocalise;
+pub mod resume;
 pub mod shared;
 pub mod stages;
 
@@ -26,9 +27,9 @@ use crate::control::PathFollower;
 use crate::decomp::Decomposer;
 use crate::geom::{pose, Pose};
 use crate::grid::Grid;
-use crate::icp::Tracker;
+use crate::icp::{Tracker, TrackerState};
 use crate::motor::DiffDriveBase;
-use crate::pipeline::checkpoint::RunProgress;
+use crate::pipeline::checkpoint::{ResumeEntry, RunProgress};
 use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
 use crate::pipeline::{latest, queue, Overflow, Pipeline};
 use crate::plan::{CoveragePlanner, SweptFloor};
@@ -105,6 +106,11 @@ pub struct Resume {
     /// The planner's record of swept floor at the checkpoint (none: the
     /// floor is covered again).
     pub swept: Option<SweptFloor>,
+    /// The scan tracker's keyframes at the checkpoint (none: a new local
+    /// map is started at the resume pose).
+    pub tracker: Option<TrackerState>,
+    /// What the restart lost, for the run's report.
+    pub entry: ResumeEntry,
 }
 
 /// Everything the daemon needs to start.
@@ -158,6 +164,8 @@ pub struct Daemon {
     resume: Option<RunProgress>,
     state_dir: Option<PathBuf>,
     checkpoint_period: f64,
+    heartbeat_period: f64,
+    resume_entry: Option<ResumeEntry>,
 }
 
 impl Daemon {
@@ -186,6 +194,7 @@ impl Daemon {
                     s.swept = Some(Arc::new(sw.clone()));
                 }
                 s.grid = Some(Arc::new(r.grid.clone()));
+                s.keyframes = r.tracker.clone().map(Arc::new);
             }
         });
 
@@ -204,8 +213,26 @@ impl Daemon {
         pipeline.register_edge(&pose_tx);
         pipeline.register_edge(&cmd_tx);
 
-        let tracker = Tracker::new(cfg.icp.clone(), start * mount)
-            .map_err(|e| DaemonError::Config(e.to_string()))?;
+        let restored = setup.resume.as_ref().and_then(|r| r.tracker.as_ref());
+        let (tracker, refused) = Tracker::restore(
+            cfg.icp.clone(),
+            start * mount,
+            restored.unwrap_or(&TrackerState::default()),
+        )
+        .map_err(|e| DaemonError::Config(e.to_string()))?;
+        match (restored, refused) {
+            (Some(k), None) => log::info!(
+                "resume: scan tracker restored with {} keyframe(s)",
+                k.keyframes.len()
+            ),
+            (Some(_), Some(e)) => {
+                log::warn!("resume: checkpointed keyframes unusable ({e}); new local map")
+            }
+            (None, _) if setup.resume.is_some() => {
+                log::info!("resume: no keyframes checkpointed; new local map")
+            }
+            _ => {}
+        }
         let decomposer = Decomposer::new(&cfg.decomp, robot.radius)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
         let mut planner = CoveragePlanner::new(&cfg.plan, &robot)
@@ -296,6 +323,7 @@ impl Daemon {
                 mount,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
+                publish_keyframes: setup.state_dir.is_some(),
             },
         )?;
         pipeline.spawn(
@@ -313,9 +341,11 @@ impl Daemon {
             shared,
             urg_health,
             clock,
+            resume_entry: setup.resume.as_ref().map(|r| r.entry.clone()),
             resume: setup.resume.map(|r| r.progress),
             state_dir: setup.state_dir,
             checkpoint_period: cfg.pipeline.checkpoint_period,
+            heartbeat_period: cfg.pipeline.heartbeat_period,
         })
     }
 
@@ -341,8 +371,15 @@ impl Daemon {
             self.clock.clone(),
             self.state_dir.as_deref(),
             self.checkpoint_period,
+            self.heartbeat_period,
             self.resume,
         )
+    }
+
+    /// What the resume this daemon started from lost (none: a fresh start),
+    /// for the run folder's report.
+    pub fn resume_entry(&self) -> Option<ResumeEntry> {
+        self.resume_entry.clone()
     }
 
     /// Supervises the stages until coverage is done, a signal, a stop request

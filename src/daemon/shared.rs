@@ -126,6 +126,9 @@ pub struct LiveStatus {
     pub decomposition: Option<std::sync::Arc<crate::decomp::Decomposition>>,
     /// The planner's newest record of swept floor (checkpointed).
     pub swept: Option<std::sync::Arc<crate::plan::SweptFloor>>,
+    /// The scan tracker's keyframes as of its newest one (checkpointed;
+    /// published only when checkpoints are written).
+    pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
 }
 
 impl Default for LiveStatus {
@@ -141,6 +144,7 @@ impl Default for LiveStatus {
             grid: None,
             decomposition: None,
             swept: None,
+            keyframes: None,
         }
     }
 }

@@ -109,6 +109,9 @@ pub struct LocaliseStage {
     /// The restored map of a resumed run: the first scan is laid onto it
     /// (see [`super::relocalise`]) before tracking starts.
     pub relocalise_on: Option<Arc<Grid>>,
+    /// Whether to publish the tracker's keyframes for checkpoints (each
+    /// time one is added).
+    pub publish_keyframes: bool,
 }
 
 impl Stage for LocaliseStage {
@@ -128,6 +131,7 @@ impl Stage for LocaliseStage {
     fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         ctx.note_age(msg.t0);
         msg.scan.points_into(&mut self.points);
+        let resuming = self.relocalise_on.is_some();
         if let Some(grid) = self.relocalise_on.take() {
             let guess = self.tracker.pose();
             match super::relocalise::relocalise(&grid, &self.points, &guess) {
@@ -138,8 +142,14 @@ impl Stage for LocaliseStage {
                         r.score * 100.0,
                         r.guess_score * 100.0
                     );
-                    self.tracker = Tracker::new(self.tracker.params().clone(), r.pose)
-                        .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
+                    if self.tracker.map().is_empty() {
+                        self.tracker = Tracker::new(self.tracker.params().clone(), r.pose)
+                            .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
+                    } else {
+                        // The restored keyframes stay: the first scan is
+                        // matched against them from here.
+                        self.tracker.set_pose(r.pose);
+                    }
                 }
                 r => log::warn!(
                     "resume: first scan does not fit the restored map ({:?}); keeping the checkpointed pose",
@@ -147,8 +157,30 @@ impl Stage for LocaliseStage {
                 ),
             }
         }
+        let before = self.tracker.pose();
+        let restored = self.tracker.map().len();
         let step = self.tracker.step(&self.points, Some(&msg.odom));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        if resuming {
+            let how = match step.outcome {
+                Outcome::Matched(q) => format!(
+                    "matched ({} pairs, residual {:.1} mm)",
+                    q.pairs,
+                    q.residual_rms * 1e3
+                ),
+                Outcome::First => "(none) started a new local map".into(),
+                Outcome::Failed(e) => format!("failed ({e})"),
+                Outcome::Rejected(r, _) => format!("rejected ({r:?})"),
+            };
+            log::info!(
+                "resume: first scan against {restored} restored keyframe(s) {how}, {:.3} m from its start pose",
+                (step.pose.translation.vector - before.translation.vector).norm()
+            );
+        }
+        if step.keyframe && self.publish_keyframes {
+            let kf = Arc::new(self.tracker.state());
+            self.shared.with_status(|s| s.keyframes = Some(kf));
+        }
         let robot = step.pose * self.mount.inverse();
         let robot_odom = msg.odom * self.mount.inverse();
         self.shared.with_status(|s| {

@@ -24,6 +24,21 @@ struct Keyframe {
     edges: Vec<bool>,
 }
 
+/// One keyframe as plain data, for a checkpoint: the scanner pose it was
+/// taken from and its points in the world frame, with their surface normals
+/// (world frame; zero = unknown) and intensity-edge flags, index for index.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KeyframeState {
+    /// Scanner pose of the keyframe (world frame).
+    pub pose: Pose,
+    /// Points, world frame.
+    pub points: Vec<IPoint>,
+    /// Unit surface normal of each point (world frame), zero when unknown.
+    pub normals: Vec<Vector2<f64>>,
+    /// Whether each point sits on an intensity edge.
+    pub edges: Vec<bool>,
+}
+
 /// A sliding window of keyframes and the reference built from them.
 #[derive(Debug)]
 pub struct KeyframeMap {
@@ -111,6 +126,63 @@ impl KeyframeMap {
             &self.merged_edges,
             params,
         )
+    }
+
+    /// The keyframes, oldest first, as plain data (allocates: for
+    /// checkpoints, once per new keyframe at most).
+    pub fn export(&self) -> Vec<KeyframeState> {
+        self.keyframes
+            .iter()
+            .map(|k| KeyframeState {
+                pose: k.pose,
+                points: k.points.clone(),
+                normals: k.normals.clone(),
+                edges: k.edges.clone(),
+            })
+            .collect()
+    }
+
+    /// Replaces the keyframes by `keyframes` (oldest first; only the newest
+    /// `keyframe_window` are kept, each read up to its shortest list) and
+    /// rebuilds the reference. On error (e.g. too few usable points) the
+    /// map is left empty.
+    pub fn restore(
+        &mut self,
+        keyframes: &[KeyframeState],
+        params: &IcpParams,
+    ) -> Result<(), IcpError> {
+        self.clear();
+        let skip = keyframes.len().saturating_sub(self.window);
+        for k in &keyframes[skip..] {
+            let n = k.points.len().min(k.normals.len()).min(k.edges.len());
+            let mut kf = self.spare.take().unwrap_or_default();
+            kf.pose = k.pose;
+            kf.points.clear();
+            kf.points.extend_from_slice(&k.points[..n]);
+            kf.normals.clear();
+            kf.normals.extend_from_slice(&k.normals[..n]);
+            kf.edges.clear();
+            kf.edges.extend_from_slice(&k.edges[..n]);
+            self.keyframes.push_back(kf);
+        }
+        self.merged.clear();
+        self.merged_normals.clear();
+        self.merged_edges.clear();
+        for k in &self.keyframes {
+            self.merged.extend_from_slice(&k.points);
+            self.merged_normals.extend_from_slice(&k.normals);
+            self.merged_edges.extend_from_slice(&k.edges);
+        }
+        let r = self.reference.rebuild_with_normals(
+            &self.merged,
+            &self.merged_normals,
+            &self.merged_edges,
+            params,
+        );
+        if r.is_err() {
+            self.clear();
+        }
+        r
     }
 
     /// Forgets every keyframe (e.g. after the robot was carried away).

@@ -27,8 +27,8 @@ mod tracker;
 pub mod truth_noise;
 
 pub use error::IcpError;
-pub use local_map::KeyframeMap;
+pub use local_map::{KeyframeMap, KeyframeState};
 pub use matcher::{Match, Matcher, Quality, Rejection};
 pub use params::{IcpParams, Metric, Prior};
 pub use reference::Reference;
-pub use tracker::{Outcome, Step, Tracker};
+pub use tracker::{Outcome, Step, Tracker, TrackerState};

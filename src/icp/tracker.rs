@@ -9,7 +9,9 @@
 //! prior and the velocity keep following the scan-to-map pose, so the
 //! reported pose stays within a bounded offset of it.
 
-use super::{IcpError, IcpParams, KeyframeMap, Matcher, Prior, Quality, Reference, Rejection};
+use super::{
+    IcpError, IcpParams, KeyframeMap, KeyframeState, Matcher, Prior, Quality, Reference, Rejection,
+};
 
 /// `p` with its rotation re-normalised: nalgebra does not renormalise unit
 /// complex numbers after products, and the rounding drift of thousands of
@@ -54,6 +56,14 @@ pub struct Step {
     pub keyframe: bool,
 }
 
+/// What a tracker needs to carry on where another left off (e.g. after a
+/// restart): its local map's keyframes, oldest first.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrackerState {
+    /// The keyframes of the local map, oldest first.
+    pub keyframes: Vec<KeyframeState>,
+}
+
 /// Tracks the scanner pose over a sequence of scans (scan-to-map odometry).
 #[derive(Debug)]
 pub struct Tracker {
@@ -91,6 +101,48 @@ impl Tracker {
             reported: start,
             previous: Reference::new(),
         })
+    }
+
+    /// The state to continue from later ([`Tracker::restore`]); allocates.
+    pub fn state(&self) -> TrackerState {
+        TrackerState {
+            keyframes: self.map.export(),
+        }
+    }
+
+    /// A tracker at `start` whose local map is `state`'s keyframes, so the
+    /// first scan is matched against them instead of starting a new map
+    /// (whose frame would carry the error of `start`). With no usable
+    /// keyframes this is [`Tracker::new`] and the error says why.
+    pub fn restore(
+        params: IcpParams,
+        start: Pose,
+        state: &TrackerState,
+    ) -> Result<(Self, Option<IcpError>), ConfigError> {
+        let mut t = Self::new(params, start)?;
+        if state.keyframes.is_empty() {
+            return Ok((t, None));
+        }
+        let params = t.matcher.params().clone();
+        match t.map.restore(&state.keyframes, &params) {
+            Ok(()) => {
+                t.started = true;
+                Ok((t, None))
+            }
+            Err(e) => Ok((t, Some(e))),
+        }
+    }
+
+    /// Moves the estimate to `pose` (e.g. a relocalisation), keeping the
+    /// local map; the motion prior starts over.
+    pub fn set_pose(&mut self, pose: Pose) {
+        self.map_pose = unit(pose);
+        self.reported = self.map_pose;
+        self.previous.clear();
+        self.velocity = Pose::identity();
+        self.odom_anchor = None;
+        self.scans_since_anchor = 0;
+        self.odom_step = None;
     }
 
     /// The current pose estimate (the reported pose of the last step).
@@ -369,5 +421,58 @@ impl Tracker {
         self.map
             .insert(&self.map_pose, self.matcher.prepared_points(), &params)
             .is_ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+    use crate::icp::synth::{cast_seeded, room, Wall};
+
+    #[test]
+    fn restored_keyframes_pull_an_offset_start_back_into_their_frame() {
+        let mut walls = room(5.0, 4.0, 0.5);
+        walls.push(Wall::new(3.0, 1.0, 3.0, 2.2, 0.9));
+        let truth = |k: u32| pose(1.0 + 0.05 * f64::from(k), 1.5, 0.02 * f64::from(k));
+        let params = IcpParams::default();
+        let mut a = Tracker::new(params.clone(), truth(0)).unwrap();
+        for k in 0..30 {
+            a.step(&cast_seeded(&walls, &truth(k), u64::from(k)), None);
+        }
+        let state = a.state();
+        assert!(!state.keyframes.is_empty());
+        assert!(state
+            .keyframes
+            .iter()
+            .all(|k| k.points.len() == k.normals.len() && k.points.len() == k.edges.len()));
+
+        // A resume 8 cm and 2° off the truth of the next scan.
+        let next = truth(30);
+        let off = next * pose(0.06, -0.05, 0.035);
+        let (mut b, refused) = Tracker::restore(params.clone(), off, &state).unwrap();
+        assert_eq!(refused, None);
+        assert_eq!(b.map().len(), state.keyframes.len());
+        let step = b.step(&cast_seeded(&walls, &next, 99), None);
+        assert!(matches!(step.outcome, Outcome::Matched(_)), "{step:?}");
+        let err = (step.pose.translation.vector - next.translation.vector).norm();
+        assert!(err < 0.01, "restored: {err:.3} m off");
+
+        // Without the keyframes the first scan founds a new map at the offset.
+        let mut c = Tracker::new(params.clone(), off).unwrap();
+        let step = c.step(&cast_seeded(&walls, &next, 99), None);
+        let err = (step.pose.translation.vector - next.translation.vector).norm();
+        assert!(err > 0.07, "fresh: {err:.3} m off");
+
+        // Nothing usable to restore: a fresh tracker, and the reason.
+        let empty = TrackerState::default();
+        let (d, refused) = Tracker::restore(params.clone(), off, &empty).unwrap();
+        assert!(d.map().is_empty() && refused.is_none());
+        let mut thin = state.clone();
+        thin.keyframes.truncate(1);
+        thin.keyframes[0].points.truncate(3);
+        let (d, refused) = Tracker::restore(params, off, &thin).unwrap();
+        assert!(d.map().is_empty());
+        assert!(refused.is_some());
     }
 }

@@ -67,6 +67,7 @@ pub mod metrics;
 pub mod notify;
 pub mod params;
 pub mod periodic;
+pub mod rt;
 pub mod signals;
 pub mod stage;
 pub mod supervisor;
@@ -202,11 +203,16 @@ impl Pipeline {
             late_after: Duration::from_secs_f64(p.late_after),
             poll_timeout: Duration::from_secs_f64(p.poll_timeout),
         };
+        let realtime = (p.realtime_priority > 0 && p.realtime_stages.iter().any(|s| s == name))
+            .then_some(p.realtime_priority);
         let health = Arc::new(StageHealth::new(name, budget));
         let (h, stop) = (Arc::clone(&health), Arc::clone(&self.stop));
         let thread = std::thread::Builder::new()
             .name(name.to_string())
             .spawn(move || {
+                if let Some(priority) = realtime {
+                    rt::apply(h.name(), priority);
+                }
                 let h2 = Arc::clone(&h);
                 let run =
                     std::panic::AssertUnwindSafe(move || stage::run_stage(stage, h2, policy, stop));

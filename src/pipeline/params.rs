@@ -106,6 +106,10 @@ pub struct PipelineParams {
     pub checkpoint_period: f64,
     /// How often the metrics file of the run folder is rewritten (s).
     pub metrics_period: f64,
+    /// How often the daemon notes its progress in `heartbeat.swc` of the
+    /// state folder (s): unsynced and cheap, it tells a resumed daemon how
+    /// far the crashed one had got after its last checkpoint.
+    pub heartbeat_period: f64,
     /// Speed of the daemon's clock against the wall clock: 1 on a robot;
     /// a simulator driving `sweepline run` as a separate process sets its own
     /// time scale so both read the same simulated time.
@@ -113,6 +117,12 @@ pub struct PipelineParams {
     /// UNIX time (s) at which the daemon's clock reads 0; 0 = when the daemon
     /// starts. A simulator passes its own clock's epoch with `time_scale`.
     pub clock_epoch: f64,
+    /// Real-time (`SCHED_FIFO`) priority for the threads of
+    /// [`PipelineParams::realtime_stages`], 1..=99; 0 = normal scheduling.
+    pub realtime_priority: u8,
+    /// Stages whose thread asks for `realtime_priority` (the scan path; the
+    /// motor stage waits on its device and is left out by default).
+    pub realtime_stages: Vec<String>,
     /// Per-stage latency budgets.
     pub budget: StageBudgets,
 }
@@ -133,8 +143,13 @@ impl Default for PipelineParams {
             scan_queue: 4,
             checkpoint_period: 2.0,
             metrics_period: 5.0,
+            heartbeat_period: 0.5,
             time_scale: 1.0,
             clock_epoch: 0.0,
+            realtime_priority: 0,
+            realtime_stages: ["scanner", "localise", "control"]
+                .map(String::from)
+                .to_vec(),
             budget: StageBudgets::default(),
         }
     }
@@ -151,6 +166,26 @@ impl PipelineParams {
         positive("pipeline.late_after", self.late_after)?;
         positive("pipeline.checkpoint_period", self.checkpoint_period)?;
         positive("pipeline.metrics_period", self.metrics_period)?;
+        positive("pipeline.heartbeat_period", self.heartbeat_period)?;
+        if self.realtime_priority > 99 {
+            return Err(invalid(
+                "pipeline.realtime_priority",
+                &format!(
+                    "must be 0 (off) or a SCHED_FIFO priority 1..=99, got {}",
+                    self.realtime_priority
+                ),
+            ));
+        }
+        if let Some(bad) = self
+            .realtime_stages
+            .iter()
+            .find(|s| self.budget.get(s).is_none())
+        {
+            return Err(invalid(
+                "pipeline.realtime_stages",
+                &format!("`{bad}` is not a stage (scanner, localise, map, plan, control, motor)"),
+            ));
+        }
         if !(self.watchdog_period.is_finite() && self.watchdog_period >= 0.0) {
             return Err(invalid(
                 "pipeline.watchdog_period",
@@ -220,5 +255,29 @@ impl PipelineParams {
             }
         }
         self.budget.validate()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn realtime_settings_are_checked() {
+        let mut p = PipelineParams::default();
+        assert_eq!(p.realtime_priority, 0, "off by default");
+        p.validate().unwrap();
+        p.realtime_priority = 20;
+        p.validate().unwrap();
+        p.realtime_priority = 100;
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("pipeline.realtime_priority"), "{e}");
+        p.realtime_priority = 20;
+        p.realtime_stages.push("vacuum".into());
+        let e = p.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("pipeline.realtime_stages") && e.contains("vacuum"),
+            "{e}"
+        );
     }
 }

@@ -1,16 +1,11 @@
-//! The planner's record of swept floor as a checkpoint section, so a daemon
-//! restarted after a crash continues the coverage instead of starting over.
-//! Only the swept-floor record is saved: the configuration space, frontier
+//! The planner's record of swept floor, as plain data a daemon checkpoints
+//! (the section's encoding lives in `pipeline::checkpoint::swept`) so that,
+//! restarted after a crash, it continues the coverage instead of starting
+//! over. Only the swept-floor record is saved: the configuration space, frontier
 //! and reachability are recomputed from the restored map on the first update,
 //! and targets given up before the crash simply get their tries again.
 
-use nalgebra::Point2;
-
 use super::cspace::Frame;
-use crate::pipeline::checkpoint::{CheckpointError, Decoder, Encoder, GridHeader, Section};
-
-/// Largest record a checkpoint may restore (cells), as for the map grid.
-const MAX_CELLS: u64 = 8192 * 8192;
 
 /// What the tool has swept, on the planner's grid (the map's geometry).
 #[derive(Clone, Debug, PartialEq)]
@@ -28,56 +23,15 @@ impl SweptFloor {
     }
 }
 
-impl Section for SweptFloor {
-    const NAME: &'static str = "plan.swept";
-    const VERSION: u16 = 1;
-
-    fn encode(&self, e: &mut Encoder) {
-        e.grid_header(&GridHeader {
-            origin_x: self.frame.origin.x,
-            origin_y: self.frame.origin.y,
-            resolution: self.frame.res,
-            width: self.frame.w as u32,
-            height: self.frame.h as u32,
-        });
-        let mut bits = vec![0u8; self.covered.len().div_ceil(8)];
-        for (i, _) in self.covered.iter().enumerate().filter(|(_, c)| **c) {
-            bits[i / 8] |= 1 << (i % 8);
-        }
-        e.bytes(&bits);
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let g = d.grid_header(MAX_CELLS)?;
-        let bits = d.bytes()?;
-        let (w, h, n) = (g.width, g.height, g.cells());
-        if bits.len() != n.div_ceil(8) {
-            return Err(d.error(format!(
-                "{} bytes of swept flags for a {w} x {h} grid",
-                bits.len()
-            )));
-        }
-        let covered = (0..n).map(|i| bits[i / 8] & (1 << (i % 8)) != 0).collect();
-        Ok(Self {
-            frame: Frame {
-                origin: Point2::new(g.origin_x, g.origin_y),
-                res: g.resolution,
-                w: w as usize,
-                h: h as usize,
-            },
-            covered,
-        })
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use nalgebra::Point2;
+
     use super::*;
     use crate::config::RobotParams;
     use crate::decomp::Decomposition;
     use crate::geom::pose;
     use crate::grid::{CellState, Grid};
-    use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::{CoveragePlanner, PlanParams};
 
     fn room() -> Grid {
@@ -105,37 +59,6 @@ mod tests {
     }
 
     #[test]
-    fn swept_floor_survives_save_and_load() {
-        let grid = room();
-        let empty = Decomposition::default();
-        let start = pose(0.6, 0.6, 0.0);
-        let mut a = planner();
-        a.update(&grid, &empty, &start, None).unwrap();
-        for k in 0..100 {
-            a.record_pose(&pose(0.6 + 0.02 * f64::from(k), 0.6, 0.0));
-        }
-        let saved = a.swept().unwrap();
-        assert!(saved.area() > 0.5, "{} m² swept", saved.area());
-
-        let mut cp = Checkpoint::new();
-        cp.put(&saved).unwrap();
-        let back = Checkpoint::from_bytes(&cp.to_bytes()).unwrap();
-        let loaded: SweptFloor = back.require().unwrap();
-        assert_eq!(loaded, saved);
-
-        let mut fresh = planner();
-        fresh.update(&grid, &empty, &start, None).unwrap();
-        assert!(fresh.swept().unwrap().area() < saved.area() / 2.0);
-
-        let mut b = planner();
-        b.restore_swept(loaded);
-        assert!(b.swept().is_none(), "no grid yet");
-        b.update(&grid, &empty, &start, None).unwrap();
-        assert_eq!(b.swept().unwrap(), saved);
-        assert_eq!(b.covered(), a.covered());
-    }
-
-    #[test]
     fn record_of_another_geometry_is_ignored() {
         let grid = room();
         let empty = Decomposition::default();
@@ -155,44 +78,5 @@ mod tests {
         let mut c = planner();
         c.update(&grid, &empty, &start, None).unwrap();
         assert_eq!(b.covered(), c.covered());
-    }
-
-    #[test]
-    fn bad_records_are_clear_errors() {
-        let good = SweptFloor {
-            frame: Frame {
-                origin: Point2::new(0.0, 0.0),
-                res: 0.05,
-                w: 9,
-                h: 3,
-            },
-            covered: (0..27).map(|i| i % 3 == 0).collect(),
-        };
-        let mut e = Encoder::new();
-        good.encode(&mut e);
-        let bytes = e.into_bytes();
-        let mut d = Decoder::new(SweptFloor::NAME, &bytes);
-        assert_eq!(SweptFloor::decode(&mut d).unwrap(), good);
-        for cut in [0, 10, 30, bytes.len() - 1] {
-            let mut d = Decoder::new(SweptFloor::NAME, &bytes[..cut]);
-            assert!(SweptFloor::decode(&mut d).is_err(), "cut at {cut}");
-        }
-        let mut e = Encoder::new();
-        e.f64(0.0);
-        e.f64(0.0);
-        e.f64(0.05);
-        e.u32(9);
-        e.u32(3);
-        e.bytes(&[0xff; 3]);
-        let bytes = e.into_bytes();
-        let err = SweptFloor::decode(&mut Decoder::new(SweptFloor::NAME, &bytes)).unwrap_err();
-        assert!(err.to_string().contains("swept flags"), "{err}");
-        let mut e = Encoder::new();
-        e.f64(0.0);
-        e.f64(0.0);
-        e.f64(-1.0);
-        let bytes = e.into_bytes();
-        let err = SweptFloor::decode(&mut Decoder::new(SweptFloor::NAME, &bytes)).unwrap_err();
-        assert!(err.to_string().contains("resolution"), "{err}");
     }
 }

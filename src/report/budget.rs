@@ -1,8 +1,9 @@
 //! The latency / CPU-budget report of a run: `report.md` (per-stage table of
 //! p50, p99, max, budget and overruns; CPU share against the budget; drops,
 //! late inputs, channel depths; supervisor counters) and one SVG latency
-//! histogram per stage plus the end-to-end one, written into the run folder.
-//! Built from a [`MetricsSnapshot`] alone, so `sweepline report RUN_DIR` can
+//! histogram per stage plus the end-to-end one, written into the run folder,
+//! and, from the folder's `resume.toml`, what restarts of the run lost.
+//! Built from a [`MetricsSnapshot`] and that record alone, so `sweepline report RUN_DIR` can
 //! regenerate it from `metrics.toml` at any time.
 
 use std::fmt::Write as _;
@@ -10,6 +11,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use super::histogram::{fmt_duration, latency_svg};
+use super::resume::resume_markdown;
+use crate::pipeline::checkpoint::ResumeLog;
 use crate::pipeline::metrics::{LatencyHistogram, MetricsSnapshot, Quantiles, METRICS_FILE};
 
 /// Target p99 of the end-to-end latency (scan's last byte → wheel command), s.
@@ -239,8 +242,19 @@ pub fn write_budget_report(dir: &Path, s: &MetricsSnapshot) -> Result<PathBuf, R
         let path = dir.join(histogram_file("end-to-end"));
         svg::save(&path, &doc).map_err(io(&path))?;
     }
+    let mut md = budget_markdown(s);
+    md.push('\n');
+    match ResumeLog::read(dir) {
+        Ok(log) => md += &resume_markdown(log.as_ref()),
+        Err(e) => {
+            let _ = writeln!(
+                md,
+                "## Checkpoint and resume\n\nThe resume record is unreadable: {e}"
+            );
+        }
+    }
     let path = dir.join(REPORT_FILE);
-    std::fs::write(&path, budget_markdown(s)).map_err(io(&path))?;
+    std::fs::write(&path, md).map_err(io(&path))?;
     Ok(path)
 }
 

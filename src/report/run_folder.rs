@@ -2,10 +2,13 @@
 //! rewritten every `pipeline.metrics_period` while the run goes on (so a
 //! crash leaves recent metrics behind), and at the end the final metrics and
 //! the budget report. Wraps the daemon's own hooks and delegates to them.
+//! A resumed run also records its restart in `resume.toml`
+//! ([`RunFolderHooks::with_resume`]), which the report includes.
 
 use std::path::{Path, PathBuf};
 
 use super::budget::write_budget_report;
+use crate::pipeline::checkpoint::{ResumeEntry, ResumeLog};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::metrics::{MetricsSnapshot, METRICS_FILE};
 use crate::pipeline::periodic::Every;
@@ -34,6 +37,20 @@ impl<H: Hooks> RunFolderHooks<H> {
             errors: 0,
             report: None,
         }
+    }
+
+    /// Records how the run started: `Some` appends the resume to the run
+    /// folder's `resume.toml` (keeping earlier restarts of the same run),
+    /// `None` (a fresh start) removes a stale one.
+    pub fn with_resume(self, entry: Option<ResumeEntry>) -> Self {
+        let r = match entry {
+            Some(e) => ResumeLog::append(&self.dir, e).map(|_| ()),
+            None => ResumeLog::clear(&self.dir),
+        };
+        if let Err(e) = r {
+            log::warn!("cannot record the resume in the run folder: {e}");
+        }
+        self
     }
 
     fn write(&mut self, snap: &MetricsSnapshot) {

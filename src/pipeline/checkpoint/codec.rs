@@ -122,6 +122,11 @@ impl Encoder {
         self.buf.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// A little-endian IEEE-754 single (rounded from `v`).
+    pub fn f32(&mut self, v: f64) {
+        self.buf.extend_from_slice(&(v as f32).to_le_bytes());
+    }
+
     /// A little-endian IEEE-754 double.
     pub fn f64(&mut self, v: f64) {
         self.buf.extend_from_slice(&v.to_le_bytes());
@@ -291,6 +296,17 @@ impl<'a> Decoder<'a> {
     /// A little-endian double (any bit pattern, NaN included).
     pub fn f64(&mut self) -> Result<f64, CheckpointError> {
         Ok(f64::from_le_bytes(self.array()?))
+    }
+
+    /// A little-endian single widened to a double, which must be finite;
+    /// `what` names it in the error.
+    pub fn finite_f32(&mut self, what: &str) -> Result<f64, CheckpointError> {
+        let v = f64::from(f32::from_le_bytes(self.array()?));
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.error(format!("{what} is not a finite number ({v})")))
+        }
     }
 
     /// A double that must be finite; `what` names it in the error.

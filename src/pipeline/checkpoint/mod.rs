@@ -1,6 +1,7 @@
 //! Crash-safe checkpoints: a versioned, checksummed container of named,
-//! typed sections (pose, explored grid, run progress; the map, cells and
-//! planner add their own by implementing [`Section`]), written atomically
+//! typed sections (pose, explored grid, run progress, the tracker's
+//! keyframes, the planner's swept floor: each implements [`Section`] here in
+//! the pipeline layer, over the algorithm modules' plain data), written atomically
 //! (tmp file + fsync + rename + fsync of the folder) so that after a crash or
 //! `kill -9` the daemon resumes from the last good checkpoint.
 //!
@@ -28,14 +29,18 @@
 //! `<name>.prev`, which [`CheckpointStore::load`] falls back to.
 
 pub mod codec;
+pub mod keyframes;
+pub mod resume_log;
 mod sections;
+mod swept;
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 pub use codec::{crc32, Decoder, Encoder, GridHeader};
-pub use sections::RunProgress;
+pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
+pub use sections::{RunProgress, WrittenAt};
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"SWPLCKPT";
@@ -476,6 +481,36 @@ impl CheckpointStore {
             .and_then(|d| d.sync_all())
             .map_err(io(&self.dir))?;
         Ok(())
+    }
+
+    /// Writes `cp` to `<name>` by a temporary file and a rename, without
+    /// fsync, verification or a previous copy: for the frequent, expendable
+    /// heartbeat, where a crash of the process (not of the machine) must
+    /// leave either the old or the new file, never a torn one.
+    pub fn save_unsynced(&self, cp: &Checkpoint) -> Result<(), CheckpointError> {
+        let tmp = self.tmp_path();
+        let cur = self.path();
+        let io = |p: &Path| {
+            let p = p.display().to_string();
+            move |source| CheckpointError::Io { path: p, source }
+        };
+        fs::create_dir_all(&self.dir).map_err(io(&self.dir))?;
+        fs::write(&tmp, cp.to_bytes()).map_err(io(&tmp))?;
+        fs::rename(&tmp, &cur).map_err(io(&cur))
+    }
+
+    /// Reads the current file only (no fallback): `Ok(None)` when it does
+    /// not exist.
+    pub fn read_current(&self) -> Result<Option<Checkpoint>, CheckpointError> {
+        match Checkpoint::read(&self.path()) {
+            Ok(cp) => Ok(Some(cp)),
+            Err(CheckpointError::Io { source, .. })
+                if source.kind() == std::io::ErrorKind::NotFound =>
+            {
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        }
     }
 
     /// Loads the current checkpoint, or the previous copy when the current one

@@ -67,6 +67,43 @@ impl Section for Grid {
     }
 }
 
+/// When a checkpoint (or heartbeat) was written, as UNIX time on the wall
+/// clock: the run's own clock may be simulated or restart at zero, the wall
+/// clock says when it happened for the person reading the report.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WrittenAt {
+    /// Seconds since 1970-01-01 00:00 UTC.
+    pub unix: f64,
+}
+
+impl WrittenAt {
+    /// The wall clock now (0 if the system clock is before 1970).
+    pub fn now() -> Self {
+        let unix = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
+        Self { unix }
+    }
+}
+
+impl Section for WrittenAt {
+    const NAME: &'static str = "written";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        e.f64(self.unix);
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let unix = d.finite("unix time")?;
+        if unix < 0.0 {
+            return Err(d.error(format!("unix time {unix} is negative")));
+        }
+        Ok(Self { unix })
+    }
+}
+
 /// How far a run had got: lets a restarted daemon resume and the report say
 /// how much progress a crash lost.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -1,0 +1,127 @@
+//! Resuming a run: loads the newest intact checkpoint of the state folder
+//! (map, pose, progress, the planner's swept floor) and the crashed daemon's
+//! last heartbeat, and says what the restart lost ([`ResumeEntry`]).
+
+use super::Resume;
+use crate::geom::Pose;
+use crate::grid::Grid;
+use crate::icp::TrackerState;
+use crate::pipeline::checkpoint::{
+    Checkpoint, CheckpointError, CheckpointStore, ProgressMark, ResumeEntry, RunProgress, WrittenAt,
+};
+use crate::plan::SweptFloor;
+
+/// File name of the heartbeat in the state folder: the run's progress and
+/// the wall time, rewritten every `pipeline.heartbeat_period` (unsynced).
+pub const HEARTBEAT_FILE: &str = "heartbeat.swc";
+
+/// The store of the heartbeat in `state_dir`.
+pub fn heartbeat_store(state_dir: &std::path::Path) -> CheckpointStore {
+    CheckpointStore::with_name(state_dir, HEARTBEAT_FILE)
+}
+
+/// The heartbeat image for `progress` written at `at`.
+pub fn heartbeat(progress: &RunProgress, at: WrittenAt) -> Result<Checkpoint, CheckpointError> {
+    let mut cp = Checkpoint::new();
+    cp.put(progress)?;
+    cp.put(&at)?;
+    Ok(cp)
+}
+
+/// The previous daemon's last sign of life after the checkpoint `cp` of the
+/// same run segment, from `heartbeat` if it has one.
+fn last_alive(cp: &RunProgress, heartbeat: &CheckpointStore) -> Option<ProgressMark> {
+    let hb = match heartbeat.read_current() {
+        Ok(hb) => hb?,
+        Err(e) => {
+            log::warn!("heartbeat unreadable, progress lost is unknown: {e}");
+            return None;
+        }
+    };
+    let p = hb.get::<RunProgress>().ok()??;
+    let at = hb.get::<WrittenAt>().ok().flatten().map(|w| w.unix);
+    let same_segment = p.resumes == cp.resumes && p.sequence >= cp.sequence;
+    (same_segment && p.elapsed >= cp.elapsed).then(|| ProgressMark::new(&p, at))
+}
+
+/// Loads what the checkpoint in `store` holds to resume from, if anything,
+/// with the heartbeat of `heartbeat` for the report. A missing or unusable
+/// checkpoint is a fresh start (logged).
+pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resume> {
+    let l = match store.load() {
+        Ok(None) => {
+            log::info!("no checkpoint: fresh start");
+            return None;
+        }
+        Ok(Some(l)) => l,
+        Err(e) => {
+            log::warn!("no usable checkpoint, starting fresh: {e}");
+            return None;
+        }
+    };
+    if let Some(why) = &l.fell_back {
+        log::warn!("latest checkpoint unusable ({why}); using the previous copy");
+    }
+    let cp = &l.checkpoint;
+    let (progress, pose, grid) = match (cp.get::<RunProgress>(), cp.get::<Pose>(), cp.get::<Grid>())
+    {
+        (Ok(Some(progress)), Ok(Some(pose)), Ok(Some(grid))) => (progress, pose, grid),
+        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
+            log::warn!("checkpoint unreadable, starting fresh: {e}");
+            return None;
+        }
+        _ => {
+            log::info!("checkpoint without map or pose: fresh start");
+            return None;
+        }
+    };
+    let written = cp.get::<WrittenAt>().ok().flatten().map(|w| w.unix);
+    let alive = last_alive(&progress, heartbeat);
+    let entry = ResumeEntry {
+        restart: progress.resumes + 1,
+        resumed_unix: WrittenAt::now().unix,
+        checkpoint: ProgressMark::new(&progress, written),
+        last_alive: alive,
+        fell_back: l.fell_back.clone(),
+    };
+    match (entry.checkpoint_age(), entry.coverage_lost()) {
+        (Some(age), Some(lost)) => log::info!(
+            "checkpoint #{} found: ~{:.1} % covered after {:.0} s, {age:.1} s old at the last \
+             heartbeat ({:.1} points of coverage lost); resuming (restart {})",
+            progress.sequence,
+            progress.coverage * 100.0,
+            progress.elapsed,
+            lost * 100.0,
+            entry.restart
+        ),
+        _ => log::info!(
+            "checkpoint #{} found: ~{:.1} % covered after {:.0} s; resuming (restart {})",
+            progress.sequence,
+            progress.coverage * 100.0,
+            progress.elapsed,
+            entry.restart
+        ),
+    }
+    let swept = match cp.get::<SweptFloor>() {
+        Ok(s) => s,
+        Err(e) => {
+            log::warn!("swept-floor record unreadable, covering again: {e}");
+            None
+        }
+    };
+    let tracker = match cp.get::<TrackerState>() {
+        Ok(t) => t,
+        Err(e) => {
+            log::warn!("tracker keyframes unreadable, starting a new local map: {e}");
+            None
+        }
+    };
+    Some(Resume {
+        pose,
+        grid,
+        progress,
+        swept,
+        tracker,
+        entry,
+    })
+}
