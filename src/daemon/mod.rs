@@ -9,6 +9,7 @@
 //! run` hands it `/dev/...` paths and the monotonic clock, `sweepline sim`
 //! hands it pty paths and a scaled clock; nothing in here knows which.
 
+pub mod contact;
 pub mod hooks;
 pub mod messages;
 pub mod relocalise;
@@ -233,6 +234,8 @@ impl Daemon {
                 period: MOTOR_POLL_PERIOD,
                 next_poll: now,
                 radius: robot.radius,
+                wheel_base: robot.wheel_base,
+                last_wheels: crate::motor::WheelSpeeds::STOP,
             },
         )?;
         pipeline.spawn(
@@ -272,6 +275,7 @@ impl Daemon {
                 last: f64::NEG_INFINITY,
                 seq: 0,
                 updates: 0,
+                contacts_seen: 0,
             },
         )?;
         pipeline.spawn(
@@ -283,6 +287,7 @@ impl Daemon {
                 shared: shared.clone(),
                 max_range: MAP_MAX_RANGE,
                 contacts: Vec::new(),
+                new_contacts: 0,
             },
         )?;
         pipeline.spawn(

@@ -9,7 +9,8 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::messages::{CmdMsg, MapMsg, PathMsg, PoseFix, ScanMsg};
+use super::contact::ContactMark;
+use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
@@ -188,32 +189,25 @@ pub struct MapStage {
     /// Registered scans and bumper contacts in.
     pub rx: Rx<MapMsg>,
     /// Snapshots out (newest wins).
-    pub tx: Tx<Arc<Grid>>,
+    pub tx: Tx<MapSnapshot>,
     /// Shared state.
     pub shared: Arc<Shared>,
     /// Longest range merged (m); farther echoes are too uncertain.
     pub max_range: f64,
     /// Bumper contacts: obstacles the scanner cannot see, kept occupied
     /// even when later rays pass over them.
-    pub contacts: Vec<Point2<f64>>,
+    pub contacts: Vec<ContactMark>,
+    /// Contacts that were new (not a repeat of a marked one).
+    pub new_contacts: u64,
 }
-
-/// Radius of the obstacle a bumper contact marks (m).
-pub const CONTACT_RADIUS: f64 = 0.05;
 
 impl MapStage {
     fn mark_contacts(&mut self) {
         let res = self.grid.resolution();
-        let n = (CONTACT_RADIUS / res).ceil() as i64;
         for c in &self.contacts {
-            for dy in -n..=n {
-                for dx in -n..=n {
-                    let p = Point2::new(c.x + dx as f64 * res, c.y + dy as f64 * res);
-                    if (p - c).norm() <= CONTACT_RADIUS {
-                        if let Some(cell) = self.grid.cell_of(&p) {
-                            self.grid.set_state(cell, crate::grid::CellState::Occupied);
-                        }
-                    }
+            for p in c.arc(res / 2.0) {
+                if let Some(cell) = self.grid.cell_of(&p) {
+                    self.grid.set_state(cell, crate::grid::CellState::Occupied);
                 }
             }
         }
@@ -245,21 +239,22 @@ impl Stage for MapStage {
                     self.grid.integrate_ray(&o, &end, r >= b.range);
                 }
             }
-            MapMsg::Contact(at) => {
-                if self
-                    .contacts
-                    .iter()
-                    .all(|c| (c - at).norm() > CONTACT_RADIUS)
-                {
-                    self.contacts.push(at);
+            MapMsg::Contact(mark) => {
+                if !self.contacts.iter().any(|c| c.same_as(&mark)) {
+                    self.contacts.push(mark);
+                    self.new_contacts += 1;
                 }
             }
         }
         self.mark_contacts();
         let snap = Arc::new(self.grid.clone());
         self.shared.with_status(|s| s.grid = Some(snap.clone()));
+        let msg = MapSnapshot {
+            grid: snap,
+            contacts: self.new_contacts,
+        };
         self.tx
-            .send(snap)
+            .send(msg)
             .map_or_else(|_| gone(&self.shared, "plan"), |_| Ok(()))
     }
 }
@@ -273,7 +268,7 @@ pub struct PlanStage {
     /// The planner.
     pub planner: CoveragePlanner,
     /// Map snapshots in.
-    pub rx: Rx<Arc<Grid>>,
+    pub rx: Rx<MapSnapshot>,
     /// Executed poses in (the tool swept the floor there).
     pub poses: Rx<Pose>,
     /// Paths out.
@@ -292,12 +287,14 @@ pub struct PlanStage {
     pub seq: u64,
     /// Updates so far.
     pub updates: u64,
+    /// New bumper contacts the planner has been told of.
+    pub contacts_seen: u64,
 }
 
 impl Stage for PlanStage {
-    type Work = Arc<Grid>;
+    type Work = MapSnapshot;
 
-    fn wait(&mut self, timeout: Duration) -> Poll<Arc<Grid>> {
+    fn wait(&mut self, timeout: Duration) -> Poll<MapSnapshot> {
         if self.shared.done.load(Ordering::Relaxed) {
             std::thread::sleep(timeout);
             return Poll::Idle;
@@ -317,10 +314,17 @@ impl Stage for PlanStage {
         }
     }
 
-    fn process(&mut self, grid: Arc<Grid>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, snap: MapSnapshot, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         self.last = self.clock.now() + self.min_interval * f64::from(ctx.degrade());
         while let Recv::Msg(p) = self.poses.try_recv() {
             self.planner.record_pose(&p);
+        }
+        let grid = snap.grid;
+        if snap.contacts > self.contacts_seen {
+            // The path ran into an obstacle the map did not show; the map
+            // has it now: plan again, the floor it was after is not at fault.
+            self.contacts_seen = snap.contacts;
+            self.planner.interrupt();
         }
         let decomp = self.decomposer.update(&grid, &[]);
         let progress = self.shared.progress();
@@ -566,6 +570,10 @@ pub struct MotorStage {
     pub next_poll: f64,
     /// Robot radius (m): where a bumper contact is.
     pub radius: f64,
+    /// Wheel base (m).
+    pub wheel_base: f64,
+    /// The last wheel speeds commanded (the motion a contact interrupted).
+    pub last_wheels: WheelSpeeds,
 }
 
 impl MotorStage {
@@ -578,18 +586,30 @@ impl MotorStage {
         }
         for e in fb.events.iter() {
             match e {
-                SafetyEvent::Bumper(_) | SafetyEvent::WheelDrop(_) => {
-                    let now = self.clock.now();
-                    self.shared.note_bump(now);
-                    self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
+                SafetyEvent::Bumper(sides) | SafetyEvent::WheelDrop(sides) => {
                     let here = self.shared.with_status(|s| s.pose);
-                    let th = heading(&here);
-                    let at = Point2::new(
-                        here.translation.x + (self.radius + 0.01) * th.cos(),
-                        here.translation.y + (self.radius + 0.01) * th.sin(),
+                    let mark = ContactMark::estimate(
+                        &here,
+                        *sides,
+                        self.last_wheels,
+                        self.radius,
+                        self.wheel_base,
                     );
-                    let _ = self.to_map.send(MapMsg::Contact(at));
-                    log::warn!("safety: {e:?} at ({:.2}, {:.2}) m", at.x, at.y);
+                    // The map first, so the snapshot that makes the planner
+                    // plan again already holds the contact.
+                    let _ = self.to_map.send(MapMsg::Contact(mark));
+                    self.shared.note_bump(self.clock.now());
+                    self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
+                    log::warn!(
+                        "safety: {e:?}: contact at ({:.2}, {:.2}) m, robot at ({:.2}, {:.2}) m {:.0}°, wheels ({:+.2}, {:+.2}) m/s",
+                        mark.at.x,
+                        mark.at.y,
+                        here.translation.x,
+                        here.translation.y,
+                        heading(&here).to_degrees(),
+                        self.last_wheels.left,
+                        self.last_wheels.right,
+                    );
                 }
                 SafetyEvent::DeadMan | SafetyEvent::LinkLost => {
                     self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
@@ -628,6 +648,7 @@ impl Stage for MotorStage {
                 } else {
                     c.wheels
                 };
+                self.last_wheels = wheels;
                 let r = self.base.set_wheels(wheels);
                 if let Some(t0) = c.t0 {
                     ctx.end_to_end(t0);
