@@ -15,6 +15,7 @@ pub mod messages;
 pub mod relocalise;
 pub mod shared;
 pub mod stages;
+pub mod stuck;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -258,6 +259,7 @@ impl Daemon {
                 backoff: BUMP_BACKOFF,
                 last_pose: None,
                 bump_seen: f64::NEG_INFINITY,
+                watch: stuck::ProgressWatch::default(),
             },
         )?;
         pipeline.spawn(

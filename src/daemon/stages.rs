@@ -12,6 +12,7 @@ use nalgebra::Point2;
 use super::contact::ContactMark;
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
+use super::stuck::ProgressWatch;
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
@@ -438,6 +439,8 @@ pub struct ControlStage {
     pub last_pose: Option<Pose>,
     /// Clock time of the last bump handled.
     pub bump_seen: f64,
+    /// Headway on the current path.
+    pub watch: ProgressWatch,
 }
 
 impl ControlStage {
@@ -449,6 +452,31 @@ impl ControlStage {
             None => self.start * odom,
         };
         pose(p.translation.x, p.translation.y, heading(&p))
+    }
+
+    /// Gives the path up when the follower has made no headway for
+    /// [`STUCK_AFTER`](super::stuck::STUCK_AFTER) (see [`ProgressWatch`]):
+    /// the planner then hears the path ended and plans again.
+    fn watch_headway(&mut self, now: f64, est: &Pose) {
+        if self.follower.is_done() {
+            self.watch.reset();
+            return;
+        }
+        let next = self.follower.next_index();
+        let here: Point2<f64> = est.translation.vector.into();
+        let distance = self.follower.path().get(next).map(|g| (g - here).norm());
+        if self.watch.stuck(now, self.path_seq, next, distance) {
+            log::warn!(
+                "control: no headway towards waypoint {next} of path {} for {:.0} s (at {:.2}, {:.2}); path given up",
+                self.path_seq,
+                super::stuck::STUCK_AFTER,
+                here.x,
+                here.y
+            );
+            self.shared.stuck_paths.fetch_add(1, Ordering::Relaxed);
+            self.follower.set_path(&[], None);
+            self.watch.reset();
+        }
     }
 
     fn command(&mut self, t0: Option<Stamp>) -> Result<(), StageFault> {
@@ -469,6 +497,7 @@ impl ControlStage {
             }
             WheelSpeeds::from_body(-0.05, 0.0, self.wheel_base)
         } else {
+            self.watch_headway(now, &est);
             let (_, w) = self.follower.step(&est, dt);
             WheelSpeeds {
                 left: w.left,

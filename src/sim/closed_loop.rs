@@ -167,6 +167,8 @@ pub struct SimReport {
     pub scans: (u64, u64),
     /// Safety events the daemon saw.
     pub safety_events: u64,
+    /// Paths the daemon gave up because the robot made no headway on them.
+    pub stuck_paths: u64,
     /// The pipeline's final metrics.
     pub pipeline: MetricsSnapshot,
     /// True trajectory (one pose per sample).
@@ -570,6 +572,9 @@ fn drive(
         scans: shared.with_status(|s| (s.scans, s.fallbacks)),
         safety_events: shared
             .safety_events
+            .load(std::sync::atomic::Ordering::Relaxed),
+        stuck_paths: shared
+            .stuck_paths
             .load(std::sync::atomic::Ordering::Relaxed),
         pipeline: outcome.snapshot,
         truth,
