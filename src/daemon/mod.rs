@@ -278,6 +278,7 @@ impl Daemon {
                 seq: 0,
                 updates: 0,
                 contacts_seen: 0,
+                bump_handled: f64::NEG_INFINITY,
             },
         )?;
         pipeline.spawn(

@@ -290,7 +290,12 @@ pub struct PlanStage {
     pub updates: u64,
     /// New bumper contacts the planner has been told of.
     pub contacts_seen: u64,
+    /// Clock time of the last bump whose contact the planner has seen.
+    pub bump_handled: f64,
 }
+
+/// Longest a plan update waits for a bump's contact to reach the map (clock s).
+pub const CONTACT_SETTLE: f64 = 1.0;
 
 impl Stage for PlanStage {
     type Work = MapSnapshot;
@@ -321,11 +326,21 @@ impl Stage for PlanStage {
             self.planner.record_pose(&p);
         }
         let grid = snap.grid;
+        let bump = self.shared.last_bump();
         if snap.contacts > self.contacts_seen {
             // The path ran into an obstacle the map did not show; the map
             // has it now: plan again, the floor it was after is not at fault.
             self.contacts_seen = snap.contacts;
+            self.bump_handled = bump;
             self.planner.interrupt();
+        } else if bump > self.bump_handled {
+            if self.clock.now() - bump < CONTACT_SETTLE {
+                // A bump whose contact is not in this snapshot yet: wait
+                // for the one that has it rather than plan without it.
+                return Ok(());
+            }
+            // A repeat of a marked contact: nothing new to plan around.
+            self.bump_handled = bump;
         }
         let decomp = self.decomposer.update(&grid, &[]);
         let progress = self.shared.progress();
