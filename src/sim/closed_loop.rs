@@ -499,6 +499,9 @@ fn drive(
     faults.sort_by(|a, b| a.at.total_cmp(&b.at));
     let mut next_fault = 0;
     let (mut truth, mut estimate) = (Vec::new(), Vec::new());
+    // Truth samples of the last second, for the live estimate's error.
+    const RECENT: usize = 40;
+    let mut recent: Vec<(f64, Pose)> = Vec::with_capacity(RECENT);
     let (mut se_pos, mut se_head, mut n_err, mut max_err) = (0.0, 0.0, 0usize, 0.0f64);
     let mut last_print = Instant::now();
     let mut capped = false;
@@ -513,10 +516,23 @@ fn drive(
         let (at, p) = base.truth_stamped();
         let (est, est_at) = shared.with_status(|s| (s.pose, s.pose_time));
         tracker.record(&p, t);
-        // The truth carried to the estimate's own time (both threads run
-        // independently); what is left is the estimate's error and its lag.
-        let twist = Twist::from_wheels(&to_cmd(base.wheels()), opts.config.robot.wheel_base);
-        let q = integrate(&p, &twist, (est_at - at).clamp(-0.3, 0.3));
+        // The truth at the estimate's own time (both threads run
+        // independently): from the recent truth samples when the estimate
+        // is older, carried forward along the current motion when newer.
+        if recent.last().is_none_or(|(t0, _)| at > *t0) {
+            if recent.len() == RECENT {
+                recent.remove(0);
+            }
+            recent.push((at, p));
+        }
+        let q = match truth_at(&recent, est_at, 0.25) {
+            Some(q) if est_at <= at => q,
+            _ => {
+                let twist =
+                    Twist::from_wheels(&to_cmd(base.wheels()), opts.config.robot.wheel_base);
+                integrate(&p, &twist, (est_at - at).clamp(-0.3, 0.3))
+            }
+        };
         let e = (q.translation.vector - est.translation.vector).norm();
         let eh = wrap_angle(heading(&q) - heading(&est));
         se_pos += e * e;
