@@ -111,3 +111,28 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     assert!(m.coverage >= 0.99, "coverage {:.4}", m.coverage);
     assert!(r.position_rmse <= 0.03, "{}", r.position_rmse);
 }
+
+#[test]
+fn create2_bumper_sides_place_the_contact_and_the_run_goes_on() {
+    // The Create 2 reports which side closed: the contact is marked on that
+    // side of the shell instead of straight ahead.
+    let mut opts = SimOptions::new(World::parse(ROOM).unwrap(), config());
+    opts.body_world = Some(std::sync::Arc::new(World::parse(ROOM_WITH_STOOL).unwrap()));
+    opts.base = sweepline::motor::BaseKind::Create2;
+    opts.speed = 8.0;
+    opts.time_cap = 1200.0;
+    opts.out = out("sim_faults_bump_create2");
+    let r = closed_loop::run(&opts).unwrap();
+    let m = &r.metrics;
+    eprintln!(
+        "{}: coverage {:.2} %, bumps {}, safety events {}",
+        r.reason,
+        m.coverage * 100.0,
+        r.base_emu.bumps,
+        r.safety_events,
+    );
+    assert!(r.base_emu.bumps >= 1, "{:?}", r.base_emu);
+    assert!(r.base.safety_stops >= 1, "{:?}", r.base);
+    assert!(r.finished, "did not finish: {}", r.reason);
+    assert!(m.coverage >= 0.99, "coverage {:.4}", m.coverage);
+}
