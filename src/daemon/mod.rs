@@ -237,6 +237,11 @@ impl Daemon {
                 radius: robot.radius,
                 wheel_base: robot.wheel_base,
                 last_wheels: crate::motor::WheelSpeeds::STOP,
+                track: contact::BodyTrack::new(
+                    setup.map.origin,
+                    setup.map.width as f64 * setup.map.resolution,
+                    setup.map.height as f64 * setup.map.resolution,
+                ),
             },
         )?;
         pipeline.spawn(

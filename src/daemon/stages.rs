@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::contact::ContactMark;
+use super::contact::{BodyTrack, ContactMark};
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
@@ -618,10 +618,15 @@ pub struct MotorStage {
     pub wheel_base: f64,
     /// The last wheel speeds commanded (the motion a contact interrupted).
     pub last_wheels: WheelSpeeds,
+    /// Where the body has been (rules out contact bearings).
+    pub track: BodyTrack,
 }
 
 impl MotorStage {
     fn poll(&mut self) -> Result<(), StageFault> {
+        let here = self.shared.with_status(|s| s.pose);
+        self.track
+            .stamp(&here.translation.vector.into(), self.radius);
         let fb = self.base.poll();
         self.shared.set_base_health(self.base.health());
         let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
@@ -638,6 +643,7 @@ impl MotorStage {
                         self.last_wheels,
                         self.radius,
                         self.wheel_base,
+                        Some(&self.track),
                     );
                     // The map first, so the snapshot that makes the planner
                     // plan again already holds the contact.
