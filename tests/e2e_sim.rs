@@ -1,7 +1,8 @@
 //! End to end through the real pty path: the emulated URG-04LX and RoboClaw
 //! on ptys, the daemon opening both, covering a small world time-scaled.
-//! Asserts ground-truth coverage, localisation error and that both links
-//! carried traffic. Wall-clock figures are not asserted (shared machine).
+//! Asserts ground-truth coverage, localisation error, scan stamps against
+//! the emulator's sampling times and that both links carried traffic.
+//! Wall-clock figures are not asserted (shared machine).
 
 use std::path::Path;
 
@@ -52,6 +53,13 @@ fn daemon_covers_a_small_world_through_the_ptys() {
         r.heading_rmse.to_degrees() <= 1.0,
         "heading RMSE {}°",
         r.heading_rmse.to_degrees()
+    );
+    // Scan stamps are the times the emulator sampled the world: the shift
+    // that fits the truth best is zero within a few milliseconds.
+    assert!(
+        r.stamp_offset.abs() <= 0.006,
+        "scan stamps off by {:.0} ms",
+        r.stamp_offset * 1e3
     );
     assert!(r.urg.scans > 100 && r.urg.checksum_errors == 0);
     assert!(r.base.received > 100, "{:?}", r.base);

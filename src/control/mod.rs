@@ -315,16 +315,20 @@ impl PathFollower {
                 w: self.exact_turn(err, dt),
             };
         }
-        // Drive: heading along the segment plus cross-track correction.
+        // Drive: heading along the segment plus cross-track correction. A
+        // robot already past the waypoint along its segment (an overshoot)
+        // drives straight back to it instead: the segment has nothing left.
         let seg = goal - from;
-        let (seg_heading, cross) = if seg.norm() > 1e-6 {
+        let past = seg.norm() > 1e-6 && to_goal.dot(&seg) <= 0.0;
+        let seg = if past { to_goal } else { seg };
+        let (seg_heading, cross) = if seg.norm() > 1e-6 && !past {
             let d = seg / seg.norm();
             let off = p - from;
             (d.y.atan2(d.x), d.x * off.y - d.y * off.x)
         } else {
             (bearing, 0.0)
         };
-        let herr = if dist > 0.05 {
+        let herr = if dist > 0.05 && !past {
             wrap_angle(seg_heading - th)
         } else {
             err
@@ -460,6 +464,27 @@ mod tests {
         let (t, _) = f.step(&pose(0.0, 0.0, 0.0), 0.05);
         assert_eq!(t, Twist::default());
         assert!(f.is_done());
+    }
+
+    #[test]
+    fn a_robot_past_its_waypoint_drives_back_to_it() {
+        // The lane runs south to (1, 1); the robot overshot it by 7 cm (a
+        // stalled control step) and stands facing south. It used to turn to
+        // face the waypoint, then steer back along the lane's heading with
+        // no forward speed (nothing left "along" the lane), for ever.
+        let mut f = PathFollower::new(&ControlParams::default(), &robot()).unwrap();
+        f.set_path(&[Point2::new(1.0, 2.0), Point2::new(1.0, 1.0)], None);
+        let mut p = pose(1.0, 2.0, -std::f64::consts::FRAC_PI_2);
+        f.step(&p, 0.05);
+        assert_eq!(f.next_index(), 1);
+        p = pose(1.0, 0.93, -std::f64::consts::FRAC_PI_2);
+        let (end, _, _) = run(&mut f, p, 400);
+        assert!(f.is_done(), "still at {:?}", end.translation.vector);
+        assert!(
+            (end.translation.y - 1.0).abs() <= 0.011,
+            "{:?}",
+            end.translation.vector
+        );
     }
 
     #[test]

@@ -3,9 +3,12 @@
 //! motor stage can record the end-to-end latency of the wheel command a scan
 //! produced.
 
+use std::sync::Arc;
+
 use nalgebra::Point2;
 
 use crate::geom::Pose;
+use crate::grid::Grid;
 use crate::motor::WheelSpeeds;
 use crate::pipeline::clock::Stamp;
 use crate::scan::LaserScan;
@@ -50,8 +53,18 @@ pub enum MapMsg {
         /// The scan.
         scan: LaserScan,
     },
-    /// A bumper contact at this point: an obstacle the scanner did not see.
-    Contact(Point2<f64>),
+    /// A bumper contact: an obstacle the scanner did not see.
+    Contact(super::contact::ContactMark),
+}
+
+/// map → plan: a map snapshot.
+#[derive(Clone, Debug)]
+pub struct MapSnapshot {
+    /// The explored-area grid, contact marks included.
+    pub grid: Arc<Grid>,
+    /// New bumper contacts marked in it so far (a planner that saw fewer
+    /// must give up its current path: it ran into something).
+    pub contacts: u64,
 }
 
 /// plan → control: a path to follow.

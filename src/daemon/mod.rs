@@ -9,12 +9,14 @@
 //! run` hands it `/dev/...` paths and the monotonic clock, `sweepline sim`
 //! hands it pty paths and a scaled clock; nothing in here knows which.
 
+pub mod contact;
 pub mod hooks;
 pub mod messages;
 pub mod relocalise;
 pub mod resume;
 pub mod shared;
 pub mod stages;
+pub mod stuck;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -260,6 +262,13 @@ impl Daemon {
                 period: MOTOR_POLL_PERIOD,
                 next_poll: now,
                 radius: robot.radius,
+                wheel_base: robot.wheel_base,
+                last_wheels: crate::motor::WheelSpeeds::STOP,
+                track: contact::BodyTrack::new(
+                    setup.map.origin,
+                    setup.map.width as f64 * setup.map.resolution,
+                    setup.map.height as f64 * setup.map.resolution,
+                ),
             },
         )?;
         pipeline.spawn(
@@ -282,6 +291,7 @@ impl Daemon {
                 backoff: BUMP_BACKOFF,
                 last_pose: None,
                 bump_seen: f64::NEG_INFINITY,
+                watch: stuck::ProgressWatch::default(),
             },
         )?;
         pipeline.spawn(
@@ -299,6 +309,8 @@ impl Daemon {
                 last: f64::NEG_INFINITY,
                 seq: 0,
                 updates: 0,
+                contacts_seen: 0,
+                bump_handled: f64::NEG_INFINITY,
             },
         )?;
         pipeline.spawn(
@@ -310,6 +322,7 @@ impl Daemon {
                 shared: shared.clone(),
                 max_range: MAP_MAX_RANGE,
                 contacts: Vec::new(),
+                new_contacts: 0,
             },
         )?;
         pipeline.spawn(

@@ -164,6 +164,8 @@ pub struct Shared {
     pub halt: AtomicBool,
     /// Bumper or wheel-drop latched: clock time (f64 bits) of the last event.
     pub bumped_at: AtomicU64,
+    /// Paths the control stage gave up for lack of headway.
+    pub stuck_paths: AtomicU64,
     /// Safety events seen (bumper, wheel drop, dead-man, link lost).
     pub safety_events: AtomicU64,
     /// The wheel-base link counters, copied by the motor stage.

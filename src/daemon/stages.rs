@@ -9,8 +9,10 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::messages::{CmdMsg, MapMsg, PathMsg, PoseFix, ScanMsg};
+use super::contact::{BodyTrack, ContactMark};
+use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
+use super::stuck::ProgressWatch;
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
@@ -220,32 +222,25 @@ pub struct MapStage {
     /// Registered scans and bumper contacts in.
     pub rx: Rx<MapMsg>,
     /// Snapshots out (newest wins).
-    pub tx: Tx<Arc<Grid>>,
+    pub tx: Tx<MapSnapshot>,
     /// Shared state.
     pub shared: Arc<Shared>,
     /// Longest range merged (m); farther echoes are too uncertain.
     pub max_range: f64,
     /// Bumper contacts: obstacles the scanner cannot see, kept occupied
     /// even when later rays pass over them.
-    pub contacts: Vec<Point2<f64>>,
+    pub contacts: Vec<ContactMark>,
+    /// Contacts that were new (not a repeat of a marked one).
+    pub new_contacts: u64,
 }
-
-/// Radius of the obstacle a bumper contact marks (m).
-pub const CONTACT_RADIUS: f64 = 0.05;
 
 impl MapStage {
     fn mark_contacts(&mut self) {
         let res = self.grid.resolution();
-        let n = (CONTACT_RADIUS / res).ceil() as i64;
         for c in &self.contacts {
-            for dy in -n..=n {
-                for dx in -n..=n {
-                    let p = Point2::new(c.x + dx as f64 * res, c.y + dy as f64 * res);
-                    if (p - c).norm() <= CONTACT_RADIUS {
-                        if let Some(cell) = self.grid.cell_of(&p) {
-                            self.grid.set_state(cell, crate::grid::CellState::Occupied);
-                        }
-                    }
+            for p in c.arc(res / 2.0) {
+                if let Some(cell) = self.grid.cell_of(&p) {
+                    self.grid.set_state(cell, crate::grid::CellState::Occupied);
                 }
             }
         }
@@ -277,21 +272,22 @@ impl Stage for MapStage {
                     self.grid.integrate_ray(&o, &end, r >= b.range);
                 }
             }
-            MapMsg::Contact(at) => {
-                if self
-                    .contacts
-                    .iter()
-                    .all(|c| (c - at).norm() > CONTACT_RADIUS)
-                {
-                    self.contacts.push(at);
+            MapMsg::Contact(mark) => {
+                if !self.contacts.iter().any(|c| c.same_as(&mark)) {
+                    self.contacts.push(mark);
+                    self.new_contacts += 1;
                 }
             }
         }
         self.mark_contacts();
         let snap = Arc::new(self.grid.clone());
         self.shared.with_status(|s| s.grid = Some(snap.clone()));
+        let msg = MapSnapshot {
+            grid: snap,
+            contacts: self.new_contacts,
+        };
         self.tx
-            .send(snap)
+            .send(msg)
             .map_or_else(|_| gone(&self.shared, "plan"), |_| Ok(()))
     }
 }
@@ -305,7 +301,7 @@ pub struct PlanStage {
     /// The planner.
     pub planner: CoveragePlanner,
     /// Map snapshots in.
-    pub rx: Rx<Arc<Grid>>,
+    pub rx: Rx<MapSnapshot>,
     /// Executed poses in (the tool swept the floor there).
     pub poses: Rx<Pose>,
     /// Paths out.
@@ -324,12 +320,19 @@ pub struct PlanStage {
     pub seq: u64,
     /// Updates so far.
     pub updates: u64,
+    /// New bumper contacts the planner has been told of.
+    pub contacts_seen: u64,
+    /// Clock time of the last bump whose contact the planner has seen.
+    pub bump_handled: f64,
 }
 
-impl Stage for PlanStage {
-    type Work = Arc<Grid>;
+/// Longest a plan update waits for a bump's contact to reach the map (clock s).
+pub const CONTACT_SETTLE: f64 = 1.0;
 
-    fn wait(&mut self, timeout: Duration) -> Poll<Arc<Grid>> {
+impl Stage for PlanStage {
+    type Work = MapSnapshot;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<MapSnapshot> {
         if self.shared.done.load(Ordering::Relaxed) {
             std::thread::sleep(timeout);
             return Poll::Idle;
@@ -349,10 +352,27 @@ impl Stage for PlanStage {
         }
     }
 
-    fn process(&mut self, grid: Arc<Grid>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, snap: MapSnapshot, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         self.last = self.clock.now() + self.min_interval * f64::from(ctx.degrade());
         while let Recv::Msg(p) = self.poses.try_recv() {
             self.planner.record_pose(&p);
+        }
+        let grid = snap.grid;
+        let bump = self.shared.last_bump();
+        if snap.contacts > self.contacts_seen {
+            // The path ran into an obstacle the map did not show; the map
+            // has it now: plan again, the floor it was after is not at fault.
+            self.contacts_seen = snap.contacts;
+            self.bump_handled = bump;
+            self.planner.interrupt();
+        } else if bump > self.bump_handled {
+            if self.clock.now() - bump < CONTACT_SETTLE {
+                // A bump whose contact is not in this snapshot yet: wait
+                // for the one that has it rather than plan without it.
+                return Ok(());
+            }
+            // A repeat of a marked contact: nothing new to plan around.
+            self.bump_handled = bump;
         }
         let decomp = self.decomposer.update(&grid, &[]);
         let progress = self.shared.progress();
@@ -466,6 +486,8 @@ pub struct ControlStage {
     pub last_pose: Option<Pose>,
     /// Clock time of the last bump handled.
     pub bump_seen: f64,
+    /// Headway on the current path.
+    pub watch: ProgressWatch,
 }
 
 impl ControlStage {
@@ -477,6 +499,31 @@ impl ControlStage {
             None => self.start * odom,
         };
         pose(p.translation.x, p.translation.y, heading(&p))
+    }
+
+    /// Gives the path up when the follower has made no headway for
+    /// [`STUCK_AFTER`](super::stuck::STUCK_AFTER) (see [`ProgressWatch`]):
+    /// the planner then hears the path ended and plans again.
+    fn watch_headway(&mut self, now: f64, est: &Pose) {
+        if self.follower.is_done() {
+            self.watch.reset();
+            return;
+        }
+        let next = self.follower.next_index();
+        let here: Point2<f64> = est.translation.vector.into();
+        let distance = self.follower.path().get(next).map(|g| (g - here).norm());
+        if self.watch.stuck(now, self.path_seq, next, distance) {
+            log::warn!(
+                "control: no headway towards waypoint {next} of path {} for {:.0} s (at {:.2}, {:.2}); path given up",
+                self.path_seq,
+                super::stuck::STUCK_AFTER,
+                here.x,
+                here.y
+            );
+            self.shared.stuck_paths.fetch_add(1, Ordering::Relaxed);
+            self.follower.set_path(&[], None);
+            self.watch.reset();
+        }
     }
 
     fn command(&mut self, t0: Option<Stamp>) -> Result<(), StageFault> {
@@ -497,6 +544,7 @@ impl ControlStage {
             }
             WheelSpeeds::from_body(-0.05, 0.0, self.wheel_base)
         } else {
+            self.watch_headway(now, &est);
             let (_, w) = self.follower.step(&est, dt);
             WheelSpeeds {
                 left: w.left,
@@ -598,10 +646,19 @@ pub struct MotorStage {
     pub next_poll: f64,
     /// Robot radius (m): where a bumper contact is.
     pub radius: f64,
+    /// Wheel base (m).
+    pub wheel_base: f64,
+    /// The last wheel speeds commanded (the motion a contact interrupted).
+    pub last_wheels: WheelSpeeds,
+    /// Where the body has been (rules out contact bearings).
+    pub track: BodyTrack,
 }
 
 impl MotorStage {
     fn poll(&mut self) -> Result<(), StageFault> {
+        let here = self.shared.with_status(|s| s.pose);
+        self.track
+            .stamp(&here.translation.vector.into(), self.radius);
         let fb = self.base.poll();
         self.shared.set_base_health(self.base.health());
         let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
@@ -610,18 +667,31 @@ impl MotorStage {
         }
         for e in fb.events.iter() {
             match e {
-                SafetyEvent::Bumper(_) | SafetyEvent::WheelDrop(_) => {
-                    let now = self.clock.now();
-                    self.shared.note_bump(now);
-                    self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
+                SafetyEvent::Bumper(sides) | SafetyEvent::WheelDrop(sides) => {
                     let here = self.shared.with_status(|s| s.pose);
-                    let th = heading(&here);
-                    let at = Point2::new(
-                        here.translation.x + (self.radius + 0.01) * th.cos(),
-                        here.translation.y + (self.radius + 0.01) * th.sin(),
+                    let mark = ContactMark::estimate(
+                        &here,
+                        *sides,
+                        self.last_wheels,
+                        self.radius,
+                        self.wheel_base,
+                        Some(&self.track),
                     );
-                    let _ = self.to_map.send(MapMsg::Contact(at));
-                    log::warn!("safety: {e:?} at ({:.2}, {:.2}) m", at.x, at.y);
+                    // The map first, so the snapshot that makes the planner
+                    // plan again already holds the contact.
+                    let _ = self.to_map.send(MapMsg::Contact(mark));
+                    self.shared.note_bump(self.clock.now());
+                    self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
+                    log::warn!(
+                        "safety: {e:?}: contact at ({:.2}, {:.2}) m, robot at ({:.2}, {:.2}) m {:.0}°, wheels ({:+.2}, {:+.2}) m/s",
+                        mark.at.x,
+                        mark.at.y,
+                        here.translation.x,
+                        here.translation.y,
+                        heading(&here).to_degrees(),
+                        self.last_wheels.left,
+                        self.last_wheels.right,
+                    );
                 }
                 SafetyEvent::DeadMan | SafetyEvent::LinkLost => {
                     self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
@@ -660,6 +730,7 @@ impl Stage for MotorStage {
                 } else {
                     c.wheels
                 };
+                self.last_wheels = wheels;
                 let r = self.base.set_wheels(wheels);
                 if let Some(t0) = c.t0 {
                     ctx.end_to_end(t0);

@@ -396,6 +396,19 @@ impl CoveragePlanner {
         }
     }
 
+    /// The current path was cut short by an obstacle the map did not show
+    /// (a bumper contact, now in the map): the next update plans again, and
+    /// the floor or frontier the interrupted task was after is not charged a
+    /// try (it is not at fault; the new plan goes around the obstacle).
+    pub fn interrupt(&mut self) {
+        if self.report.is_some() {
+            return;
+        }
+        self.task_targets.clear();
+        self.explore_goal = None;
+        self.task = Task::Idle;
+    }
+
     /// One planning step after a map update. `grid` is the explored map,
     /// `decomp` the current decomposition, `pose` the robot's pose, and
     /// `progress` the index of the waypoint the follower drives to (`None`

@@ -138,7 +138,8 @@ pub struct SimReport {
     /// Localised poses scored.
     pub scored_fixes: usize,
     /// Shift of the scan stamps against the emulator's sampling times that
-    /// fits best (s; diagnostic of the scanner's time stamping).
+    /// fits best (s; diagnostic of the scanner's time stamping, see
+    /// [`best_stamp_shift`]; 0 when the stamps are right).
     pub stamp_offset: f64,
     /// RMS position error of the control stage's live estimate (last fix
     /// composed with odometry) sampled every 50 ms against the truth at the
@@ -166,6 +167,8 @@ pub struct SimReport {
     pub scans: (u64, u64),
     /// Safety events the daemon saw.
     pub safety_events: u64,
+    /// Paths the daemon gave up because the robot made no headway on them.
+    pub stuck_paths: u64,
     /// The pipeline's final metrics.
     pub pipeline: MetricsSnapshot,
     /// True trajectory (one pose per sample).
@@ -210,6 +213,68 @@ pub fn fix_errors(
     ((sp / d).sqrt(), (sh / d).sqrt(), mx, n)
 }
 
+/// Largest shift [`best_stamp_shift`] tries (s).
+pub const MAX_STAMP_SHIFT: f64 = 0.1;
+/// Step of the shifts [`best_stamp_shift`] tries (s).
+pub const STAMP_SHIFT_STEP: f64 = 0.002;
+
+/// The true pose at time `t` from the sorted log `truth`, interpolated
+/// between the two samples around it when they are at most `gap` apart.
+pub fn truth_at(truth: &[(f64, Pose)], t: f64, gap: f64) -> Option<Pose> {
+    let i = truth.partition_point(|(tt, _)| *tt < t);
+    let (t1, b) = truth.get(i)?;
+    if (t1 - t).abs() < 1e-9 {
+        return Some(*b);
+    }
+    let (t0, a) = truth.get(i.checked_sub(1)?)?;
+    if !(t1 - t0 > 0.0 && t1 - t0 <= gap) {
+        return None;
+    }
+    let f = (t - t0) / (t1 - t0);
+    let th = heading(a) + f * wrap_angle(heading(b) - heading(a));
+    Some(crate::geom::pose(
+        a.translation.x + f * (b.translation.x - a.translation.x),
+        a.translation.y + f * (b.translation.y - a.translation.y),
+        wrap_angle(th),
+    ))
+}
+
+/// The shift of the localised poses' stamps against the truth log that
+/// fits best (s, within ±[`MAX_STAMP_SHIFT`]): the truth is interpolated at
+/// each shifted stamp (pairing with the nearest sample instead cannot tell
+/// shifts within half a scan period apart), and the score is the mean of
+/// the squared position error plus the squared heading error times 0.1 m.
+/// Zero when the stamps are the times the scans were taken.
+pub fn best_stamp_shift(fixes: &[(f64, Pose)], truth: &[(f64, Pose)]) -> f64 {
+    let n = (MAX_STAMP_SHIFT / STAMP_SHIFT_STEP).round() as i32;
+    let score = |o: f64| {
+        let (mut s, mut k) = (0.0, 0usize);
+        for (t, p) in fixes {
+            let Some(q) = truth_at(truth, t + o, 0.25) else {
+                continue;
+            };
+            let e = (p.translation.vector - q.translation.vector).norm_squared();
+            let h = wrap_angle(heading(p) - heading(&q)) * 0.1;
+            s += e + h * h;
+            k += 1;
+        }
+        if k == 0 {
+            f64::INFINITY
+        } else {
+            s / k as f64
+        }
+    };
+    // Ties (no motion) resolve to the smallest shift.
+    (-n..=n)
+        .map(|k| f64::from(k) * STAMP_SHIFT_STEP)
+        .min_by(|a, b| {
+            score(*a)
+                .total_cmp(&score(*b))
+                .then(a.abs().total_cmp(&b.abs()))
+        })
+        .unwrap_or(0.0)
+}
+
 fn to_cmd(w: crate::motor::WheelSpeeds) -> WheelCmd {
     WheelCmd {
         left: w.left,
@@ -223,7 +288,6 @@ struct WorldScene {
     world: Arc<World>,
     base: Arc<EmulatorHandle>,
     seen: TruthLog,
-    clock: SharedClock,
     wheel_base: f64,
     mount: f64,
     noise: f64,
@@ -240,16 +304,14 @@ impl WorldScene {
 
 impl Scene for WorldScene {
     fn sample(&mut self, t: f64, angles: &[f64], out: &mut [Echo]) {
-        // The emulator thread may run a little after the scan's own time
-        // `t`: take the true pose back to `t` along the current motion.
-        let now = self.base.truth();
-        let lag = (self.clock.now() - t).clamp(0.0, 0.3);
-        let back = Twist::from_wheels(&to_cmd(self.base.wheels()), self.wheel_base);
-        let back = Twist {
-            v: -back.v,
-            w: -back.w,
-        };
-        let p = integrate(&now, &back, lag);
+        // The base emulator's true pose is the one it reached at its last
+        // kinematics step, which may be before or after the scan's own time
+        // `t` (the two emulator threads run independently): carry it to `t`
+        // along the current motion. (Taking it as the pose at the clock's
+        // `now` made every scan ~40 ms older than its stamp at ×8-10.)
+        let (at, truth) = self.base.truth_stamped();
+        let twist = Twist::from_wheels(&to_cmd(self.base.wheels()), self.wheel_base);
+        let p = integrate(&truth, &twist, (t - at).clamp(-0.3, 0.3));
         if let Ok(mut g) = self.seen.lock() {
             g.push((t, p));
         }
@@ -322,7 +384,6 @@ fn start_emulators(
         world: opts.world.clone(),
         base: base.clone(),
         seen,
-        clock: clock.clone(),
         wheel_base: opts.config.robot.wheel_base,
         mount: opts.config.robot.scanner_offset_x,
         noise: opts.range_noise,
@@ -438,6 +499,9 @@ fn drive(
     faults.sort_by(|a, b| a.at.total_cmp(&b.at));
     let mut next_fault = 0;
     let (mut truth, mut estimate) = (Vec::new(), Vec::new());
+    // Truth samples of the last second, for the live estimate's error.
+    const RECENT: usize = 40;
+    let mut recent: Vec<(f64, Pose)> = Vec::with_capacity(RECENT);
     let (mut se_pos, mut se_head, mut n_err, mut max_err) = (0.0, 0.0, 0usize, 0.0f64);
     let mut last_print = Instant::now();
     let mut capped = false;
@@ -449,11 +513,28 @@ fn drive(
             base.inject(faults[next_fault].fault);
             next_fault += 1;
         }
-        let p = base.truth();
-        let est = shared.with_status(|s| s.pose);
+        let (at, p) = base.truth_stamped();
+        let (est, est_at) = shared.with_status(|s| (s.pose, s.pose_time));
         tracker.record(&p, t);
-        let e = (p.translation.vector - est.translation.vector).norm();
-        let eh = wrap_angle(heading(&p) - heading(&est));
+        // The truth at the estimate's own time (both threads run
+        // independently): from the recent truth samples when the estimate
+        // is older, carried forward along the current motion when newer.
+        if recent.last().is_none_or(|(t0, _)| at > *t0) {
+            if recent.len() == RECENT {
+                recent.remove(0);
+            }
+            recent.push((at, p));
+        }
+        let q = match truth_at(&recent, est_at, 0.25) {
+            Some(q) if est_at <= at => q,
+            _ => {
+                let twist =
+                    Twist::from_wheels(&to_cmd(base.wheels()), opts.config.robot.wheel_base);
+                integrate(&p, &twist, (est_at - at).clamp(-0.3, 0.3))
+            }
+        };
+        let e = (q.translation.vector - est.translation.vector).norm();
+        let eh = wrap_angle(heading(&q) - heading(&est));
         se_pos += e * e;
         se_head += eh * eh;
         n_err += 1;
@@ -486,14 +567,7 @@ fn drive(
     let seen = seen.lock().map(|g| g.clone()).unwrap_or_default();
     let fixes = shared.fixes();
     let (pos, head, pmax, pairs) = fix_errors(&fixes, &seen, 0.0, 0.2);
-    let best_offset = (-20..=20)
-        .map(|k| f64::from(k) * 0.01)
-        .min_by(|a, b| {
-            fix_errors(&fixes, &seen, *a, 0.2)
-                .1
-                .total_cmp(&fix_errors(&fixes, &seen, *b, 0.2).1)
-        })
-        .unwrap_or(0.0);
+    let best_offset = best_stamp_shift(&fixes, &seen);
     let report = SimReport {
         metrics: tracker.metrics(),
         position_rmse: pos,
@@ -515,6 +589,9 @@ fn drive(
         safety_events: shared
             .safety_events
             .load(std::sync::atomic::Ordering::Relaxed),
+        stuck_paths: shared
+            .stuck_paths
+            .load(std::sync::atomic::Ordering::Relaxed),
         pipeline: outcome.snapshot,
         truth,
         estimate,
@@ -533,4 +610,40 @@ fn drive(
 /// Where `sweepline sim` writes by default.
 pub fn default_out() -> &'static Path {
     Path::new("out/sim")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    /// A robot driving a curve at 0.2 m/s, 0.5 rad/s: its pose at `t`.
+    fn at(t: f64) -> Pose {
+        integrate(&pose(1.0, 1.0, 0.0), &Twist { v: 0.2, w: 0.5 }, t)
+    }
+
+    #[test]
+    fn the_stamp_shift_is_found_between_scan_samples() {
+        // Truth sampled at the scan times (10 Hz).
+        let truth: Vec<_> = (0..100)
+            .map(|k| (k as f64 * 0.1, at(k as f64 * 0.1)))
+            .collect();
+        // Exact stamps: no shift.
+        let exact: Vec<_> = (5..90)
+            .map(|k| (k as f64 * 0.1, at(k as f64 * 0.1)))
+            .collect();
+        assert_eq!(best_stamp_shift(&exact, &truth), 0.0);
+        // Stamps 30 ms late (each pose taken 30 ms before its stamp): a
+        // shift of -30 ms, though it is under half a scan period.
+        let late: Vec<_> = (5..90)
+            .map(|k| (k as f64 * 0.1 + 0.03, at(k as f64 * 0.1)))
+            .collect();
+        let s = best_stamp_shift(&late, &truth);
+        assert!((s + 0.03).abs() <= STAMP_SHIFT_STEP, "{s}");
+        // Interpolation: halfway between two samples.
+        let q = truth_at(&truth, 0.25, 0.2).unwrap();
+        let m = at(0.25);
+        assert!((q.translation.vector - m.translation.vector).norm() < 1e-3);
+        assert!(truth_at(&truth, 50.0, 0.2).is_none());
+    }
 }

@@ -177,6 +177,10 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
         ),
         ("safety events", format!("{}", r.safety_events)),
         (
+            "paths given up for lack of headway",
+            format!("{}", r.stuck_paths),
+        ),
+        (
             "process CPU",
             format!(
                 "{:.1} % of one core",

@@ -1,0 +1,348 @@
+//! Bumper contacts: where an obstacle the scanner did not see must be, from
+//! what the bumper proves and nothing more.
+//!
+//! A closed bumper proves that something touches the front half of the body
+//! shell. The switches say which side (a Create 2 has two; a RoboClaw base
+//! wires its bumper to one E-stop input, so both sides read closed), and the
+//! motion at the time narrows it further: a robot turning in place can only
+//! close its bumper with the shell's leading end; and nothing can stand
+//! where the body itself has been ([`BodyTrack`]), so bearings whose contact
+//! point the body has already passed over are ruled out (a lane that grazes
+//! an obstacle's corner has the previous lane's track on its other side).
+//! The contact is marked as a
+//! short arc (a few centimetres) of the shell at that bearing, just outside
+//! the body: small enough not to wall off floor beside the obstacle, and
+//! repeated contacts with the same obstacle add further arcs until the
+//! planner's path no longer touches it.
+
+use nalgebra::{Point2, Vector2};
+
+use crate::geom::{heading, Pose};
+use crate::motor::{Sides, WheelSpeeds};
+
+/// Bearing of a contact on one side only (rad from straight ahead): the
+/// middle of that side's half of the front shell.
+pub const SIDE_BEARING: f64 = 0.7;
+/// Bearing of a contact closed by turning in place (rad): the leading end of
+/// the front shell (the bumper covers ±80°).
+pub const TURN_BEARING: f64 = 1.3;
+/// Distance of the contact outside the body (m): half the bumper's travel.
+pub const CONTACT_GAP: f64 = 0.01;
+/// Half length of the marked arc (m).
+pub const ARC_HALF_LENGTH: f64 = 0.02;
+/// A contact closer than this to an earlier one is the same contact (m).
+pub const SAME_CONTACT: f64 = 0.03;
+
+/// Half width of the bumper's arc (rad from straight ahead).
+pub const BUMPER_HALF_ARC: f64 = 1.4;
+/// Step of the bearings tried along the bumper's arc (rad).
+const BEARING_STEP: f64 = 0.05;
+/// Cell size of the [`BodyTrack`] (m).
+pub const TRACK_RESOLUTION: f64 = 0.02;
+
+/// Where the robot's body has been: cells wholly under the body at some
+/// executed pose. Allocated once for the map's extent.
+#[derive(Clone, Debug)]
+pub struct BodyTrack {
+    origin: Point2<f64>,
+    w: usize,
+    h: usize,
+    cells: Vec<bool>,
+}
+
+impl BodyTrack {
+    /// A track over the rectangle at `origin` of `width` × `height` metres.
+    pub fn new(origin: Point2<f64>, width: f64, height: f64) -> Self {
+        let n = |v: f64| {
+            if v.is_finite() && v > 0.0 {
+                (v / TRACK_RESOLUTION).ceil() as usize
+            } else {
+                0
+            }
+        };
+        let (w, h) = (n(width), n(height));
+        Self {
+            origin,
+            w,
+            h,
+            cells: vec![false; w * h],
+        }
+    }
+
+    fn index(&self, p: &Point2<f64>) -> Option<usize> {
+        let x = ((p.x - self.origin.x) / TRACK_RESOLUTION).floor();
+        let y = ((p.y - self.origin.y) / TRACK_RESOLUTION).floor();
+        (x >= 0.0 && y >= 0.0 && (x as usize) < self.w && (y as usize) < self.h)
+            .then(|| y as usize * self.w + x as usize)
+    }
+
+    /// Records the body, a disc of `radius` at `centre`: every cell lying
+    /// wholly inside it.
+    pub fn stamp(&mut self, centre: &Point2<f64>, radius: f64) {
+        let inner = radius - TRACK_RESOLUTION * std::f64::consts::FRAC_1_SQRT_2;
+        if !(inner > 0.0 && centre.x.is_finite() && centre.y.is_finite()) {
+            return;
+        }
+        let n = (inner / TRACK_RESOLUTION).ceil() as i64;
+        let cx = ((centre.x - self.origin.x) / TRACK_RESOLUTION).floor() as i64;
+        let cy = ((centre.y - self.origin.y) / TRACK_RESOLUTION).floor() as i64;
+        for y in (cy - n).max(0)..=(cy + n).min(self.h as i64 - 1) {
+            for x in (cx - n).max(0)..=(cx + n).min(self.w as i64 - 1) {
+                let c = Point2::new(
+                    self.origin.x + (x as f64 + 0.5) * TRACK_RESOLUTION,
+                    self.origin.y + (y as f64 + 0.5) * TRACK_RESOLUTION,
+                );
+                if (c - centre).norm() <= inner {
+                    self.cells[y as usize * self.w + x as usize] = true;
+                }
+            }
+        }
+    }
+
+    /// Whether the body has been over `p`.
+    pub fn covered(&self, p: &Point2<f64>) -> bool {
+        self.index(p).is_some_and(|i| self.cells[i])
+    }
+}
+
+/// One bumper contact: the robot centre at the time and the contact point
+/// on the shell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactMark {
+    /// Robot centre when the bumper closed (map frame, m).
+    pub centre: Point2<f64>,
+    /// The contact point (map frame, m).
+    pub at: Point2<f64>,
+}
+
+impl ContactMark {
+    /// The contact of a bumper closing on `sides` with the robot of radius
+    /// `radius` at `pose`, commanded to `wheels` (wheel base `wheel_base`),
+    /// with the bearings the body's `track` rules out removed.
+    pub fn estimate(
+        pose: &Pose,
+        sides: Sides,
+        wheels: WheelSpeeds,
+        radius: f64,
+        wheel_base: f64,
+        track: Option<&BodyTrack>,
+    ) -> Self {
+        let v = 0.5 * (wheels.left + wheels.right);
+        let w = if wheel_base > 0.0 {
+            (wheels.right - wheels.left) / wheel_base
+        } else {
+            0.0
+        };
+        // Turning in place: the shell's leading end sweeps new space.
+        let turning = w.is_finite() && v.is_finite() && w.abs() * radius > 2.0 * v.abs();
+        let (bearing, arc) = match (sides.left, sides.right) {
+            (true, false) => (SIDE_BEARING, (0.0, BUMPER_HALF_ARC)),
+            (false, true) => (-SIDE_BEARING, (-BUMPER_HALF_ARC, 0.0)),
+            _ if turning => {
+                let b = TURN_BEARING * w.signum();
+                (b, (b, b))
+            }
+            _ => (0.0, (-BUMPER_HALF_ARC, BUMPER_HALF_ARC)),
+        };
+        let centre: Point2<f64> = pose.translation.vector.into();
+        let th = heading(pose);
+        let r = radius + CONTACT_GAP;
+        let point = |b: f64| centre + Vector2::new((th + b).cos(), (th + b).sin()) * r;
+        let bearing = track
+            .and_then(|t| open_bearing(arc, bearing, |b| t.covered(&point(b))))
+            .unwrap_or(bearing);
+        Self {
+            centre,
+            at: point(bearing),
+        }
+    }
+
+    /// Whether `other` is the same contact as this one.
+    pub fn same_as(&self, other: &ContactMark) -> bool {
+        (self.at - other.at).norm() <= SAME_CONTACT
+    }
+
+    /// Points along the marked arc, at most `step` apart (ends included).
+    pub fn arc(&self, step: f64) -> impl Iterator<Item = Point2<f64>> + '_ {
+        let d = self.at - self.centre;
+        let r = d.norm().max(1e-6);
+        let a0 = d.y.atan2(d.x);
+        let half = ARC_HALF_LENGTH / r;
+        let n = ((2.0 * ARC_HALF_LENGTH / step.max(1e-3)).ceil() as usize).max(1);
+        (0..=n).map(move |k| {
+            let a = a0 - half + 2.0 * half * k as f64 / n as f64;
+            self.centre + Vector2::new(a.cos(), a.sin()) * r
+        })
+    }
+}
+
+/// The middle of the run of bearings in `arc` not `ruled_out` that holds
+/// `preferred` (or else the longest run); `None` when the whole arc is
+/// open (nothing learnt) or ruled out (nothing to go by).
+fn open_bearing(arc: (f64, f64), preferred: f64, ruled_out: impl Fn(f64) -> bool) -> Option<f64> {
+    let n = ((arc.1 - arc.0) / BEARING_STEP).round().max(0.0) as usize;
+    let at = |k: usize| arc.0 + k as f64 * BEARING_STEP;
+    let mut runs: heapless::Vec<(usize, usize), 32> = heapless::Vec::new();
+    let mut start = None;
+    for k in 0..=n {
+        match (ruled_out(at(k)), start) {
+            (false, None) => start = Some(k),
+            (true, Some(s)) => {
+                let _ = runs.push((s, k - 1));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        let _ = runs.push((s, n));
+    }
+    match runs.as_slice() {
+        [] => None,
+        [(0, e)] if *e == n => None,
+        rs => {
+            let holds = |&&(s, e): &&(usize, usize)| {
+                at(s) - BEARING_STEP / 2.0 <= preferred && preferred <= at(e) + BEARING_STEP / 2.0
+            };
+            let run = rs
+                .iter()
+                .find(holds)
+                .or_else(|| rs.iter().max_by_key(|(s, e)| e - s))?;
+            Some(0.5 * (at(run.0) + at(run.1)))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    const R: f64 = 0.17;
+    const B: f64 = 0.235;
+
+    fn both() -> Sides {
+        Sides {
+            left: true,
+            right: true,
+        }
+    }
+
+    #[test]
+    fn a_head_on_contact_is_straight_ahead_just_outside_the_body() {
+        let m = ContactMark::estimate(
+            &pose(1.0, 2.0, std::f64::consts::FRAC_PI_2),
+            both(),
+            WheelSpeeds::from_body(0.2, 0.0, B),
+            R,
+            B,
+            None,
+        );
+        assert!((m.at.x - 1.0).abs() < 1e-9, "{:?}", m.at);
+        assert!(
+            (m.at.y - (2.0 + R + CONTACT_GAP)).abs() < 1e-9,
+            "{:?}",
+            m.at
+        );
+    }
+
+    #[test]
+    fn one_side_or_a_turn_moves_the_contact_to_that_side() {
+        let p = pose(0.0, 0.0, 0.0);
+        let fwd = WheelSpeeds::from_body(0.2, 0.0, B);
+        let left = ContactMark::estimate(
+            &p,
+            Sides {
+                left: true,
+                right: false,
+            },
+            fwd,
+            R,
+            B,
+            None,
+        );
+        assert!(left.at.y > 0.05 && left.at.x > 0.05, "{:?}", left.at);
+        let right = ContactMark::estimate(
+            &p,
+            Sides {
+                left: false,
+                right: true,
+            },
+            fwd,
+            R,
+            B,
+            None,
+        );
+        assert!(right.at.y < -0.05, "{:?}", right.at);
+        // A RoboClaw E-stop (both sides) while turning right in place.
+        let turn =
+            ContactMark::estimate(&p, both(), WheelSpeeds::from_body(0.0, -1.0, B), R, B, None);
+        assert!(turn.at.y < -0.15, "{:?}", turn.at);
+    }
+
+    #[test]
+    fn the_body_track_rules_out_the_side_the_robot_has_swept() {
+        // The previous lane ran 0.28 m to the right (south) of this one,
+        // and the robot came along this lane from the west.
+        let mut t = BodyTrack::new(Point2::new(-3.0, -2.0), 6.0, 4.0);
+        for k in 0..=300 {
+            let x = -2.0 + k as f64 * 0.01;
+            t.stamp(&Point2::new(x, -0.28), R);
+            if x <= 0.0 {
+                t.stamp(&Point2::new(x, 0.0), R);
+            }
+        }
+        assert!(t.covered(&Point2::new(0.5, -0.28 + R - 0.02)));
+        assert!(!t.covered(&Point2::new(0.5, -0.28 + R + 0.01)));
+        let m = ContactMark::estimate(
+            &pose(0.0, 0.0, 0.0),
+            both(),
+            WheelSpeeds::from_body(0.2, 0.0, B),
+            R,
+            B,
+            Some(&t),
+        );
+        // Not straight ahead: on the left, where the body has not been.
+        assert!(m.at.y > 0.03, "{:?}", m.at);
+        assert!(((m.at - m.centre).norm() - (R + CONTACT_GAP)).abs() < 1e-9);
+        // Nothing swept around: the same as without a track.
+        let empty = BodyTrack::new(Point2::new(-3.0, -2.0), 6.0, 4.0);
+        let a = ContactMark::estimate(
+            &pose(0.0, 0.0, 0.0),
+            both(),
+            WheelSpeeds::from_body(0.2, 0.0, B),
+            R,
+            B,
+            Some(&empty),
+        );
+        assert!(a.at.y.abs() < 1e-9, "{:?}", a.at);
+        // Outside the track's extent nothing is known.
+        assert!(!empty.covered(&Point2::new(50.0, 0.0)));
+    }
+
+    #[test]
+    fn the_open_run_holding_the_preferred_bearing_is_chosen() {
+        // Open between -0.5 and 0.5 and beyond 1.0: the run holding 0.
+        let b = open_bearing((-1.4, 1.4), 0.0, |b| !(-0.5..=0.5).contains(&b) && b < 1.0);
+        assert!(b.unwrap().abs() < 0.03, "{b:?}");
+        // Preferred bearing ruled out: the longest open run.
+        let b = open_bearing((-1.4, 1.4), 0.0, |b| b > -1.0);
+        assert!((b.unwrap() + 1.2).abs() < 0.03, "{b:?}");
+        assert_eq!(open_bearing((-1.4, 1.4), 0.0, |_| false), None);
+        assert_eq!(open_bearing((-1.4, 1.4), 0.0, |_| true), None);
+    }
+
+    #[test]
+    fn the_arc_is_a_few_centimetres_of_the_shell() {
+        let m = ContactMark::estimate(&pose(0.0, 0.0, 0.3), both(), WheelSpeeds::STOP, R, B, None);
+        let pts: Vec<_> = m.arc(0.01).collect();
+        assert!(pts.len() >= 4);
+        for q in &pts {
+            assert!(((q - m.centre).norm() - (R + CONTACT_GAP)).abs() < 1e-9);
+            assert!((q - m.at).norm() <= ARC_HALF_LENGTH + 1e-9);
+        }
+        let ends = (pts[0] - pts[pts.len() - 1]).norm();
+        assert!(ends > 1.5 * ARC_HALF_LENGTH, "{ends}");
+        assert!(m.same_as(&m));
+    }
+}
