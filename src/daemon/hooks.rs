@@ -142,14 +142,18 @@ impl DaemonHooks {
     /// Logs the planner's task when its kind changes (a stalled run then
     /// shows in the log what the planner was doing).
     fn log_task_change(&mut self) {
-        let task = self.shared.with_status(|s| s.task.clone());
+        let (task, pose) = self.shared.with_status(|s| (s.task.clone(), s.pose));
         let kind = task
             .split(|c: char| !c.is_alphanumeric())
             .next()
             .unwrap_or("");
         if kind != self.task_kind {
             self.task_kind = kind.to_string();
-            log::info!("planner: {task}");
+            log::info!(
+                "planner: {task} (robot at {:.2}, {:.2})",
+                pose.translation.x,
+                pose.translation.y
+            );
         }
     }
 }
