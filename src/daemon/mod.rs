@@ -12,6 +12,7 @@
 pub mod contact;
 pub mod hooks;
 pub mod messages;
+pub mod params;
 pub mod relocalise;
 pub mod resume;
 pub mod shared;
@@ -39,6 +40,7 @@ use crate::serial::Connector;
 use crate::urg::{UrgDriver, UrgHealth};
 
 pub use hooks::DaemonHooks;
+pub use params::DaemonParams;
 pub use shared::{LiveStatus, Shared};
 
 /// Control period (s): the follower runs at 20 Hz.
@@ -264,6 +266,7 @@ impl Daemon {
                 radius: robot.radius,
                 wheel_base: robot.wheel_base,
                 last_wheels: crate::motor::WheelSpeeds::STOP,
+                contact: cfg.daemon.contact.clone(),
                 track: contact::BodyTrack::new(
                     setup.map.origin,
                     setup.map.width as f64 * setup.map.resolution,
@@ -291,7 +294,7 @@ impl Daemon {
                 backoff: BUMP_BACKOFF,
                 last_pose: None,
                 bump_seen: f64::NEG_INFINITY,
-                watch: stuck::ProgressWatch::default(),
+                watch: stuck::ProgressWatch::new(cfg.daemon.stuck_after),
             },
         )?;
         pipeline.spawn(
@@ -311,6 +314,7 @@ impl Daemon {
                 updates: 0,
                 contacts_seen: 0,
                 bump_handled: f64::NEG_INFINITY,
+                contact_settle: cfg.daemon.contact.settle,
             },
         )?;
         pipeline.spawn(
@@ -323,6 +327,7 @@ impl Daemon {
                 max_range: MAP_MAX_RANGE,
                 contacts: Vec::new(),
                 new_contacts: 0,
+                same_contact: cfg.daemon.contact.same_contact,
             },
         )?;
         pipeline.spawn(

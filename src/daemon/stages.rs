@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::contact::{BodyTrack, ContactMark};
+use super::contact::{BodyTrack, ContactMark, ContactParams};
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
@@ -232,6 +232,8 @@ pub struct MapStage {
     pub contacts: Vec<ContactMark>,
     /// Contacts that were new (not a repeat of a marked one).
     pub new_contacts: u64,
+    /// A contact this close to a marked one is a repeat of it (m).
+    pub same_contact: f64,
 }
 
 impl MapStage {
@@ -273,7 +275,11 @@ impl Stage for MapStage {
                 }
             }
             MapMsg::Contact(mark) => {
-                if !self.contacts.iter().any(|c| c.same_as(&mark)) {
+                if !self
+                    .contacts
+                    .iter()
+                    .any(|c| c.same_as(&mark, self.same_contact))
+                {
                     self.contacts.push(mark);
                     self.new_contacts += 1;
                 }
@@ -324,10 +330,10 @@ pub struct PlanStage {
     pub contacts_seen: u64,
     /// Clock time of the last bump whose contact the planner has seen.
     pub bump_handled: f64,
+    /// Longest a plan update waits for a bump's contact to reach the map
+    /// (clock s).
+    pub contact_settle: f64,
 }
-
-/// Longest a plan update waits for a bump's contact to reach the map (clock s).
-pub const CONTACT_SETTLE: f64 = 1.0;
 
 impl Stage for PlanStage {
     type Work = MapSnapshot;
@@ -366,7 +372,7 @@ impl Stage for PlanStage {
             self.bump_handled = bump;
             self.planner.interrupt();
         } else if bump > self.bump_handled {
-            if self.clock.now() - bump < CONTACT_SETTLE {
+            if self.clock.now() - bump < self.contact_settle {
                 // A bump whose contact is not in this snapshot yet: wait
                 // for the one that has it rather than plan without it.
                 return Ok(());
@@ -502,7 +508,7 @@ impl ControlStage {
     }
 
     /// Gives the path up when the follower has made no headway for
-    /// [`STUCK_AFTER`](super::stuck::STUCK_AFTER) (see [`ProgressWatch`]):
+    /// `daemon.stuck_after` seconds (see [`ProgressWatch`]):
     /// the planner then hears the path ended and plans again.
     fn watch_headway(&mut self, now: f64, est: &Pose) {
         if self.follower.is_done() {
@@ -516,7 +522,7 @@ impl ControlStage {
             log::warn!(
                 "control: no headway towards waypoint {next} of path {} for {:.0} s (at {:.2}, {:.2}); path given up",
                 self.path_seq,
-                super::stuck::STUCK_AFTER,
+                self.watch.after(),
                 here.x,
                 here.y
             );
@@ -652,6 +658,8 @@ pub struct MotorStage {
     pub last_wheels: WheelSpeeds,
     /// Where the body has been (rules out contact bearings).
     pub track: BodyTrack,
+    /// Where contact marks go.
+    pub contact: ContactParams,
 }
 
 impl MotorStage {
@@ -670,6 +678,7 @@ impl MotorStage {
                 SafetyEvent::Bumper(sides) | SafetyEvent::WheelDrop(sides) => {
                     let here = self.shared.with_status(|s| s.pose);
                     let mark = ContactMark::estimate(
+                        &self.contact,
                         &here,
                         *sides,
                         self.last_wheels,
