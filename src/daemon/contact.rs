@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::{invalid, ConfigError};
 use crate::geom::{heading, Pose};
 use crate::motor::{Sides, WheelSpeeds};
+use crate::pipeline::checkpoint::ContactArc;
 
 /// Where contact marks go and how the daemon reacts to them: the
 /// `[daemon.contact]` table.
@@ -252,6 +253,26 @@ impl ContactMark {
             let a = a0 - half + 2.0 * half * k as f64 / n as f64;
             self.centre + Vector2::new(a.cos(), a.sin()) * r
         })
+    }
+}
+
+impl From<ContactArc> for ContactMark {
+    fn from(a: ContactArc) -> Self {
+        Self {
+            centre: a.centre,
+            at: a.at,
+            half_length: a.half_length,
+        }
+    }
+}
+
+impl From<&ContactMark> for ContactArc {
+    fn from(m: &ContactMark) -> Self {
+        Self {
+            centre: m.centre,
+            at: m.at,
+            half_length: m.half_length,
+        }
     }
 }
 

@@ -113,6 +113,9 @@ pub struct Resume {
     /// The scan tracker's keyframes at the checkpoint (none: a new local
     /// map is started at the resume pose).
     pub tracker: Option<TrackerState>,
+    /// The bumper contact marks at the checkpoint, marked again in the map
+    /// so that rays cannot clear them.
+    pub contacts: Vec<contact::ContactMark>,
     /// What the restart lost, for the run's report.
     pub entry: ResumeEntry,
 }
@@ -199,6 +202,9 @@ impl Daemon {
                 }
                 s.grid = Some(Arc::new(r.grid.clone()));
                 s.keyframes = r.tracker.clone().map(Arc::new);
+                if !r.contacts.is_empty() {
+                    s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
+                }
             }
         });
 
@@ -317,18 +323,25 @@ impl Daemon {
                 contact_settle: cfg.daemon.contact.settle,
             },
         )?;
+        let contacts = setup
+            .resume
+            .as_ref()
+            .map(|r| r.contacts.clone())
+            .unwrap_or_default();
+        if !contacts.is_empty() {
+            log::info!("resume: {} bumper contact mark(s) restored", contacts.len());
+        }
         pipeline.spawn(
             "map",
-            stages::MapStage {
+            stages::MapStage::new(
                 grid,
-                rx: map_rx,
-                tx: snap_tx,
-                shared: shared.clone(),
-                max_range: MAP_MAX_RANGE,
-                contacts: Vec::new(),
-                new_contacts: 0,
-                same_contact: cfg.daemon.contact.same_contact,
-            },
+                map_rx,
+                snap_tx,
+                shared.clone(),
+                MAP_MAX_RANGE,
+                contacts,
+                cfg.daemon.contact.same_contact,
+            ),
         )?;
         pipeline.spawn(
             "localise",

@@ -20,6 +20,7 @@ use crate::geom::{heading, pose, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
 use crate::motor::{DiffDriveBase, SafetyEvent, WheelSpeeds};
+use crate::pipeline::checkpoint::{ContactArc, ContactArcs};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::supervisor::Control;
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
@@ -236,7 +237,72 @@ pub struct MapStage {
     pub same_contact: f64,
 }
 
+/// The checkpoint section of contact `marks`.
+pub fn contact_arcs(marks: &[ContactMark]) -> ContactArcs {
+    ContactArcs {
+        arcs: marks.iter().map(ContactArc::from).collect(),
+    }
+}
+
 impl MapStage {
+    /// A map stage on `grid` with the contact marks `contacts` (restored
+    /// from a checkpoint) marked in it at once.
+    pub fn new(
+        grid: Grid,
+        rx: Rx<MapMsg>,
+        tx: Tx<MapSnapshot>,
+        shared: Arc<Shared>,
+        max_range: f64,
+        contacts: Vec<ContactMark>,
+        same_contact: f64,
+    ) -> Self {
+        let mut s = Self {
+            grid,
+            rx,
+            tx,
+            shared,
+            max_range,
+            contacts,
+            new_contacts: 0,
+            same_contact,
+        };
+        s.mark_contacts();
+        s
+    }
+
+    /// Merges a registered scan or a bumper contact into the grid; the
+    /// contact marks are occupied again afterwards, whatever the rays
+    /// crossed.
+    pub fn merge(&mut self, msg: MapMsg) {
+        match msg {
+            MapMsg::Scan { pose: p, scan } => {
+                let o: Point2<f64> = p.translation.vector.into();
+                for b in scan.beams.iter() {
+                    if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
+                        continue;
+                    }
+                    let r = b.range.min(self.max_range);
+                    let (s, c) = b.angle.sin_cos();
+                    let end = p * Point2::new(r * c, r * s);
+                    self.grid.integrate_ray(&o, &end, r >= b.range);
+                }
+            }
+            MapMsg::Contact(mark) => {
+                if !self
+                    .contacts
+                    .iter()
+                    .any(|c| c.same_as(&mark, self.same_contact))
+                {
+                    self.contacts.push(mark);
+                    self.new_contacts += 1;
+                    let arcs = Arc::new(contact_arcs(&self.contacts));
+                    self.shared.with_status(|s| s.contacts = Some(arcs));
+                }
+            }
+        }
+        self.mark_contacts();
+    }
+
     fn mark_contacts(&mut self) {
         let res = self.grid.resolution();
         for c in &self.contacts {
@@ -261,31 +327,7 @@ impl Stage for MapStage {
     }
 
     fn process(&mut self, msg: MapMsg, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
-        match msg {
-            MapMsg::Scan { pose: p, scan } => {
-                let o: Point2<f64> = p.translation.vector.into();
-                for b in scan.beams.iter() {
-                    if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
-                        continue;
-                    }
-                    let r = b.range.min(self.max_range);
-                    let (s, c) = b.angle.sin_cos();
-                    let end = p * Point2::new(r * c, r * s);
-                    self.grid.integrate_ray(&o, &end, r >= b.range);
-                }
-            }
-            MapMsg::Contact(mark) => {
-                if !self
-                    .contacts
-                    .iter()
-                    .any(|c| c.same_as(&mark, self.same_contact))
-                {
-                    self.contacts.push(mark);
-                    self.new_contacts += 1;
-                }
-            }
-        }
-        self.mark_contacts();
+        self.merge(msg);
         let snap = Arc::new(self.grid.clone());
         self.shared.with_status(|s| s.grid = Some(snap.clone()));
         let msg = MapSnapshot {
