@@ -97,9 +97,15 @@ impl DaemonHooks {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
         let progress = self.progress();
-        let (pose, grid, swept, keyframes) = self
-            .shared
-            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone(), s.keyframes.clone()));
+        let (pose, grid, swept, keyframes, contacts) = self.shared.with_status(|s| {
+            (
+                s.pose,
+                s.grid.clone(),
+                s.swept.clone(),
+                s.keyframes.clone(),
+                s.contacts.clone(),
+            )
+        });
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)
@@ -113,6 +119,9 @@ impl DaemonHooks {
         }
         if let Some(k) = keyframes {
             r = r.and_then(|()| cp.put(&*k));
+        }
+        if let Some(c) = contacts {
+            r = r.and_then(|()| cp.put(&*c));
         }
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;

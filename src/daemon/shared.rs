@@ -129,6 +129,9 @@ pub struct LiveStatus {
     /// The scan tracker's keyframes as of its newest one (checkpointed;
     /// published only when checkpoints are written).
     pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
+    /// The bumper contact marks (checkpointed: rays may clear them from a
+    /// restored grid, a resumed run marks them again).
+    pub contacts: Option<std::sync::Arc<crate::pipeline::checkpoint::ContactArcs>>,
 }
 
 impl Default for LiveStatus {
@@ -145,6 +148,7 @@ impl Default for LiveStatus {
             decomposition: None,
             swept: None,
             keyframes: None,
+            contacts: None,
         }
     }
 }

@@ -29,6 +29,7 @@
 //! `<name>.prev`, which [`CheckpointStore::load`] falls back to.
 
 pub mod codec;
+pub mod contacts;
 pub mod keyframes;
 pub mod resume_log;
 mod sections;
@@ -39,6 +40,7 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 pub use codec::{crc32, Decoder, Encoder, GridHeader};
+pub use contacts::{ContactArc, ContactArcs};
 pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
 pub use sections::{RunProgress, WrittenAt};
 
