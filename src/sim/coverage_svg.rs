@@ -161,29 +161,7 @@ pub fn path_svg(
             _ => Some("#2171b5"),
         }
     };
-    let mut cells = Group::new().set("shape-rendering", "crispEdges");
-    for y in 0..r.height {
-        let mut x = 0;
-        while x < r.width {
-            let c = colour(y * r.width + x);
-            let start = x;
-            while x < r.width && colour(y * r.width + x) == c {
-                x += 1;
-            }
-            if let Some(col) = c {
-                let x0 = r.origin.x + start as f64 * r.resolution;
-                let y0 = r.origin.y + (y + 1) as f64 * r.resolution;
-                cells = cells.add(
-                    Rectangle::new()
-                        .set("x", v.x(x0))
-                        .set("y", v.y(y0))
-                        .set("width", (x - start) as f64 * r.resolution * SCALE)
-                        .set("height", r.resolution * SCALE)
-                        .set("fill", col),
-                );
-            }
-        }
-    }
+    let cells = raster_cells(r, &v, colour);
     doc = doc
         .add(cells)
         .add(walls(world, &v))
@@ -208,6 +186,35 @@ pub fn path_svg(
         m.collisions
     );
     doc.add(label(8.0, v.h + 22.0, caption, 14))
+}
+
+/// The raster's cells as run-length rows of equal colour (`colour` of a
+/// cell index; `None` leaves the cell blank).
+fn raster_cells(r: &FreeRaster, v: &View, colour: impl Fn(usize) -> Option<&'static str>) -> Group {
+    let mut cells = Group::new().set("shape-rendering", "crispEdges");
+    for y in 0..r.height {
+        let mut x = 0;
+        while x < r.width {
+            let c = colour(y * r.width + x);
+            let start = x;
+            while x < r.width && colour(y * r.width + x) == c {
+                x += 1;
+            }
+            if let Some(col) = c {
+                let x0 = r.origin.x + start as f64 * r.resolution;
+                let y0 = r.origin.y + (y + 1) as f64 * r.resolution;
+                cells = cells.add(
+                    Rectangle::new()
+                        .set("x", v.x(x0))
+                        .set("y", v.y(y0))
+                        .set("width", (x - start) as f64 * r.resolution * SCALE)
+                        .set("height", r.resolution * SCALE)
+                        .set("fill", col),
+                );
+            }
+        }
+    }
+    cells
 }
 
 /// Colours of the overlap causes (index as in `coverage_metrics::OVERLAP_CAUSES`).
@@ -237,29 +244,7 @@ pub fn overlap_svg(
             .get(i)
             .and_then(|&c| CAUSE_COLOURS.get(c as usize).copied())
     };
-    let mut cells = Group::new().set("shape-rendering", "crispEdges");
-    for y in 0..r.height {
-        let mut x = 0;
-        while x < r.width {
-            let c = colour(y * r.width + x);
-            let start = x;
-            while x < r.width && colour(y * r.width + x) == c {
-                x += 1;
-            }
-            if let Some(col) = c {
-                let x0 = r.origin.x + start as f64 * r.resolution;
-                let y0 = r.origin.y + (y + 1) as f64 * r.resolution;
-                cells = cells.add(
-                    Rectangle::new()
-                        .set("x", v.x(x0))
-                        .set("y", v.y(y0))
-                        .set("width", (x - start) as f64 * r.resolution * SCALE)
-                        .set("height", r.resolution * SCALE)
-                        .set("fill", col),
-                );
-            }
-        }
-    }
+    let cells = raster_cells(r, &v, colour);
     doc = doc
         .add(cells)
         .add(walls(world, &v))
