@@ -173,8 +173,13 @@ impl Candidate {
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
 
-/// Candidates considered jointly when ordering (the nearest ones).
+/// Up to this many candidates the tour is searched exhaustively; beyond,
+/// a greedy tour over all of them is improved by or-opt and 2-opt moves.
 const TOUR_CANDIDATES: usize = 9;
+
+/// Tour evaluations the heuristic search may spend (a fixed budget, so the
+/// result is deterministic and the update time bounded).
+const TOUR_EVALUATIONS: usize = 4000;
 
 /// The online coverage planner (see the module docs).
 pub struct CoveragePlanner {
@@ -602,8 +607,7 @@ impl CoveragePlanner {
         // Look-ahead: the order of the nearest candidates (and the corner
         // each is entered at) that minimises the whole tour, exhaustively.
         cands.sort_by(|a, b| a.cost().total_cmp(&b.cost()));
-        cands.truncate(TOUR_CANDIDATES);
-        let (k, v) = best_tour_start(&cands, self.params.lookahead_weight);
+        let (k, v) = tour_start(&cands, self.params.lookahead_weight);
         let chosen = cands.swap_remove(k);
         let mut lanes = chosen.variants[v].lanes.clone();
         // A long join between two lanes would drive over swept floor: the
@@ -1179,6 +1183,133 @@ impl CoveragePlanner {
         }
         r
     }
+}
+
+/// The candidate and variant to start with, from a tour through all
+/// candidates: exhaustive for a few, heuristic for many.
+fn tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
+    if cands.len() <= TOUR_CANDIDATES {
+        best_tour_start(cands, weight)
+    } else {
+        heuristic_tour_start(cands, weight)
+    }
+}
+
+/// Cost of visiting `order` (the first from the robot), each candidate at
+/// its best variant given the order (dynamic programming over variants),
+/// and the variant of the first.
+fn order_cost(
+    cands: &[Candidate],
+    order: &[usize],
+    weight: f64,
+    dp: &mut Vec<(f64, usize)>,
+) -> (f64, usize) {
+    dp.clear();
+    let Some(&c0) = order.first() else {
+        return (f64::INFINITY, 0);
+    };
+    // dp holds, per variant of the current candidate: (cost, first variant).
+    for (v, var) in cands[c0].variants.iter().enumerate() {
+        dp.push((cands[c0].entry_cost[v] + var.length, v));
+    }
+    let mut next = Vec::with_capacity(4);
+    for w in order.windows(2) {
+        let (a, b) = (&cands[w[0]], &cands[w[1]]);
+        next.clear();
+        for vb in &b.variants {
+            let mut best = (f64::INFINITY, 0);
+            for (va, &(c, f0)) in a.variants.iter().zip(dp.iter()) {
+                let t = c + weight * ((vb.entry() - va.exit()).norm() + vb.length);
+                if t < best.0 {
+                    best = (t, f0);
+                }
+            }
+            next.push(best);
+        }
+        std::mem::swap(dp, &mut next);
+    }
+    dp.iter()
+        .copied()
+        .fold((f64::INFINITY, 0), |b, x| if x.0 < b.0 { x } else { b })
+}
+
+/// A greedy tour over all candidates (nearest next entry from the last
+/// exit), improved by moving runs of one to three candidates elsewhere
+/// (or-opt) and reversing stretches (2-opt) while that lowers
+/// [`order_cost`], within [`TOUR_EVALUATIONS`].
+fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
+    let n = cands.len();
+    let mut used = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    let mut at: Option<Point2<f64>> = None;
+    for _ in 0..n {
+        let mut pick: Option<(f64, usize, usize)> = None;
+        for (i, c) in cands.iter().enumerate().filter(|(i, _)| !used[*i]) {
+            for (v, var) in c.variants.iter().enumerate() {
+                let d = match at {
+                    None => c.entry_cost[v],
+                    Some(p) => (var.entry() - p).norm(),
+                };
+                if pick.is_none_or(|(b, _, _)| d < b) {
+                    pick = Some((d, i, v));
+                }
+            }
+        }
+        let Some((_, i, v)) = pick else { break };
+        used[i] = true;
+        order.push(i);
+        at = Some(cands[i].variants[v].exit());
+    }
+    let mut dp = Vec::with_capacity(4);
+    let mut best = order_cost(cands, &order, weight, &mut dp);
+    let mut evals = 1;
+    let mut trial = Vec::with_capacity(n);
+    let mut improved = true;
+    while improved && evals < TOUR_EVALUATIONS {
+        improved = false;
+        // Or-opt: move order[i..i + len] to before position j of the rest.
+        'moves: for len in 1..=3usize.min(n - 1) {
+            for i in 0..=n - len {
+                for j in 0..=n - len {
+                    if j == i {
+                        continue;
+                    }
+                    trial.clear();
+                    trial.extend(order[..i].iter().chain(&order[i + len..]));
+                    trial.splice(j..j, order[i..i + len].iter().copied());
+                    let c = order_cost(cands, &trial, weight, &mut dp);
+                    evals += 1;
+                    if c.0 + 1e-9 < best.0 {
+                        best = c;
+                        std::mem::swap(&mut order, &mut trial);
+                        improved = true;
+                    }
+                    if evals >= TOUR_EVALUATIONS {
+                        break 'moves;
+                    }
+                }
+            }
+        }
+        // 2-opt: reverse order[i..=j].
+        'rev: for i in 0..n {
+            for j in i + 1..n {
+                if evals >= TOUR_EVALUATIONS {
+                    break 'rev;
+                }
+                trial.clear();
+                trial.extend_from_slice(&order);
+                trial[i..=j].reverse();
+                let c = order_cost(cands, &trial, weight, &mut dp);
+                evals += 1;
+                if c.0 + 1e-9 < best.0 {
+                    best = c;
+                    std::mem::swap(&mut order, &mut trial);
+                    improved = true;
+                }
+            }
+        }
+    }
+    (order.first().copied().unwrap_or(0), best.1)
 }
 
 /// The candidate and variant to start with: exhaustive search (dynamic
