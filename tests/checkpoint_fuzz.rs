@@ -16,7 +16,7 @@ use sweepline::pipeline::checkpoint::{
     crc32, Checkpoint, CheckpointError, Encoder, RunProgress, WrittenAt, FORMAT_VERSION, MAGIC,
 };
 use sweepline::plan::cspace::Frame;
-use sweepline::plan::SweptFloor;
+use sweepline::plan::{LatticePhase, SweptFloor};
 
 /// Two small keyframes: enough to cover every field, small enough that the
 /// every-bit-flip test stays quick.
@@ -60,6 +60,11 @@ fn sample() -> Checkpoint {
         covered: (0..15).map(|i| i % 4 == 0).collect(),
     })
     .unwrap();
+    cp.put(&LatticePhase {
+        x: Some(0.335),
+        y: None,
+    })
+    .unwrap();
     cp.put(&keyframes()).unwrap();
     cp
 }
@@ -73,6 +78,7 @@ fn read_all(bytes: &[u8]) -> Result<(), CheckpointError> {
     cp.get::<RunProgress>()?;
     cp.get::<WrittenAt>()?;
     cp.get::<SweptFloor>()?;
+    cp.get::<LatticePhase>()?;
     cp.get::<TrackerState>()?;
     Ok(())
 }
@@ -159,6 +165,7 @@ fn random_payloads_with_valid_checksums_never_panic() {
             b"progress",
             b"written",
             b"plan.swept",
+            b"plan.lattice",
             b"icp.keyframes",
         ] {
             let b = craft(&[(name, 1, &payload, None)], None);

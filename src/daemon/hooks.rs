@@ -100,6 +100,7 @@ impl DaemonHooks {
         let (pose, grid, swept, keyframes) = self
             .shared
             .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone(), s.keyframes.clone()));
+        let lattice = self.shared.with_status(|s| s.lattice);
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)
@@ -110,6 +111,9 @@ impl DaemonHooks {
         }
         if let Some(s) = swept {
             r = r.and_then(|()| cp.put(&*s));
+        }
+        if let Some(l) = lattice {
+            r = r.and_then(|()| cp.put(&l));
         }
         if let Some(k) = keyframes {
             r = r.and_then(|()| cp.put(&*k));

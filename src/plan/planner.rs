@@ -30,7 +30,7 @@ use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::{lanes, lattice_position, variants, Axis, Lane, LaneInput, Variant};
-use super::swept::SweptFloor;
+use super::swept::{LatticePhase, SweptFloor};
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
@@ -376,6 +376,25 @@ impl CoveragePlanner {
             }
         } else {
             self.restored = Some(swept);
+        }
+    }
+
+    /// The phase of the lane lattice, for a checkpoint (see [`LatticePhase`]).
+    pub fn lattice(&self) -> LatticePhase {
+        LatticePhase {
+            x: self.phase[Axis::X as usize],
+            y: self.phase[Axis::Y as usize],
+        }
+    }
+
+    /// Restores a lattice phase saved by [`CoveragePlanner::lattice`]: the
+    /// lanes planned from now on lie on the lattice of the lanes driven
+    /// before the restart. Non-finite values are ignored.
+    pub fn restore_lattice(&mut self, lattice: LatticePhase) {
+        for (k, v) in [(Axis::X, lattice.x), (Axis::Y, lattice.y)] {
+            if let Some(p) = v.filter(|p| p.is_finite()) {
+                self.phase[k as usize] = Some(p);
+            }
         }
     }
 

@@ -30,6 +30,7 @@
 
 pub mod codec;
 pub mod keyframes;
+mod lattice;
 pub mod resume_log;
 mod sections;
 mod swept;
