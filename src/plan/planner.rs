@@ -1441,3 +1441,62 @@ fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One region per x: a single lane from (x, 0) to (x, 1), drivable
+    /// either way, entered from the robot at `robot`.
+    fn regions(xs: &[f64], robot: Point2<f64>) -> Vec<Candidate> {
+        xs.iter()
+            .map(|&x| {
+                let l = Lane {
+                    a: Point2::new(x, 0.0),
+                    b: Point2::new(x, 1.0),
+                    fixup: false,
+                };
+                let variants = variants(&[l]);
+                let entry_cost = variants
+                    .iter()
+                    .map(|v| (v.entry() - robot).norm())
+                    .collect();
+                Candidate {
+                    cell: None,
+                    variants,
+                    entry_cost,
+                    targets: Vec::new(),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_tour_over_many_regions_starts_with_the_short_side() {
+        // The robot stands just right of the middle of a row of regions:
+        // three to its left (0.7 m to the nearest), thirteen to its right
+        // (0.4 m). Nearest first would go right, to the far end, and all
+        // the way back; the whole tour is shorter clearing the left first.
+        let robot = Point2::new(0.1, 0.0);
+        let mut xs: Vec<f64> = (1..=3).map(|k| -0.6 * f64::from(k)).collect();
+        xs.extend((0..13).map(|k| 0.5 + 0.5 * f64::from(k)));
+        // Candidates arrive in no particular order.
+        xs.reverse();
+        xs.swap(2, 9);
+        let cands = regions(&xs, robot);
+        assert!(cands.len() > TOUR_CANDIDATES, "heuristic search in use");
+        let (k, _) = tour_start(&cands, 1.0);
+        assert!((xs[k] + 0.6).abs() < 1e-9, "starts at x = {}", xs[k]);
+    }
+
+    #[test]
+    fn heuristic_and_exhaustive_search_agree_on_a_few_regions() {
+        let robot = Point2::new(0.1, 0.0);
+        let xs = [-1.2, -0.6, 0.5, 1.0, 1.5, 2.0, 2.5];
+        let cands = regions(&xs, robot);
+        let exact = best_tour_start(&cands, 1.0);
+        let heur = heuristic_tour_start(&cands, 1.0);
+        assert_eq!(exact.0, heur.0);
+        assert!((xs[exact.0] + 0.6).abs() < 1e-9, "{}", xs[exact.0]);
+    }
+}
