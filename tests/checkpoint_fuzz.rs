@@ -13,7 +13,8 @@ use sweepline::geom::{pose, IPoint, Pose};
 use sweepline::grid::Grid;
 use sweepline::icp::{KeyframeState, TrackerState};
 use sweepline::pipeline::checkpoint::{
-    crc32, Checkpoint, CheckpointError, Encoder, RunProgress, WrittenAt, FORMAT_VERSION, MAGIC,
+    crc32, Checkpoint, CheckpointError, ContactArc, ContactArcs, Encoder, RunProgress, WrittenAt,
+    FORMAT_VERSION, MAGIC,
 };
 use sweepline::plan::cspace::Frame;
 use sweepline::plan::{LatticePhase, SweptFloor};
@@ -66,6 +67,14 @@ fn sample() -> Checkpoint {
     })
     .unwrap();
     cp.put(&keyframes()).unwrap();
+    cp.put(&ContactArcs {
+        arcs: vec![ContactArc {
+            centre: Point2::new(1.0, 2.0),
+            at: Point2::new(1.18, 2.0),
+            half_length: 0.02,
+        }],
+    })
+    .unwrap();
     cp
 }
 
@@ -80,6 +89,7 @@ fn read_all(bytes: &[u8]) -> Result<(), CheckpointError> {
     cp.get::<SweptFloor>()?;
     cp.get::<LatticePhase>()?;
     cp.get::<TrackerState>()?;
+    cp.get::<ContactArcs>()?;
     Ok(())
 }
 
@@ -167,6 +177,7 @@ fn random_payloads_with_valid_checksums_never_panic() {
             b"plan.swept",
             b"plan.lattice",
             b"icp.keyframes",
+            b"daemon.contacts",
         ] {
             let b = craft(&[(name, 1, &payload, None)], None);
             let _ = read_all(&b); // Ok or Err, never a panic

@@ -195,6 +195,46 @@ fn hostile_inputs_name_the_key_or_line() {
             "[pipeline]\ndegrade_after = 0\n".into(),
             &["pipeline.degrade_after"],
         ),
+        (
+            "zero stuck limit",
+            "[daemon]\nstuck_after = 0.0\n".into(),
+            &["daemon.stuck_after", "got 0.0"],
+        ),
+        (
+            "NaN stuck limit",
+            "[daemon]\nstuck_after = nan\n".into(),
+            &["daemon.stuck_after"],
+        ),
+        (
+            "bearing outside the bumper",
+            "[daemon.contact]\nside_bearing = 1.5\n".into(),
+            &["daemon.contact.side_bearing", "got 1.5"],
+        ),
+        (
+            "bumper wider than a half circle",
+            "[daemon.contact]\nbumper_half_arc = 3.0\n".into(),
+            &["daemon.contact.bumper_half_arc"],
+        ),
+        (
+            "negative contact gap",
+            "[daemon.contact]\ngap = -0.01\n".into(),
+            &["daemon.contact.gap"],
+        ),
+        (
+            "zero arc",
+            "[daemon.contact]\narc_half_length = 0\n".into(),
+            &["daemon.contact.arc_half_length"],
+        ),
+        (
+            "huge settle",
+            "[daemon.contact]\nsettle = 1e300\n".into(),
+            &["daemon.contact.settle"],
+        ),
+        (
+            "unknown contact key",
+            "[daemon.contact]\nbearing = 0.5\n".into(),
+            &["bearing", "side_bearing"],
+        ),
         ("deep arrays", deep_arrays, &["line 1"]),
         ("deep tables", deep_tables, &["line 1"]),
         ("long key", long_key, &["line 2", "kkkk"]),
@@ -210,6 +250,17 @@ fn hostile_inputs_name_the_key_or_line() {
             assert!(msg.contains(want), "{what}: want {want:?} in: {msg}");
         }
     }
+}
+
+#[test]
+fn the_daemon_keys_are_read_from_the_file() {
+    let text = "[daemon]\nstuck_after = 7.5\n[daemon.contact]\nside_bearing = 0.4\nsettle = 0.5\n";
+    let cfg = Config::from_toml(text, "t.toml").unwrap();
+    assert_eq!(cfg.daemon.stuck_after, 7.5);
+    assert_eq!(cfg.daemon.contact.side_bearing, 0.4);
+    assert_eq!(cfg.daemon.contact.settle, 0.5);
+    let def = sweepline::daemon::DaemonParams::default();
+    assert_eq!(cfg.daemon.contact.gap, def.contact.gap);
 }
 
 #[test]

@@ -3,11 +3,11 @@
 //! are one spacing apart, and it reports done only when nothing reachable is
 //! left.
 
-use nalgebra::Point2;
+use nalgebra::{Point2, Vector2};
 use sweepline::config::RobotParams;
 use sweepline::decomp::Decomposition;
 use sweepline::geom::{pose, Pose};
-use sweepline::grid::Grid;
+use sweepline::grid::{CellState, Grid};
 use sweepline::plan::{CoveragePlanner, PlanParams, PlanStatus, Task};
 use sweepline::sim::lockstep::{fill_from_truth, grid_for};
 use sweepline::sim::world::World;
@@ -113,4 +113,59 @@ fn lanes_of_a_patch_are_one_spacing_apart() {
     assert!(*ys.last().unwrap() >= 2.0 - clear - 0.1, "{ys:?}");
     // Lane count: (2 - 2·clear - reach edge) / spacing rounded up, plus one.
     assert!(ys.len() >= 6 && ys.len() <= 7, "{ys:?}");
+}
+
+#[test]
+fn escapes_from_a_passing_inflation_zone_give_no_floor_up() {
+    // A cell seen occupied right beside the robot (a spurious echo, or the
+    // estimate pushed into a wall's inflation zone) makes the planner escape
+    // first. The cover task it interrupted is not at fault: however often
+    // this happens, none of its floor may be given up.
+    let world = World::parse("room 0 0 4 0 4 2 0 2\nstart 0.5 0.5 0\n").unwrap();
+    let mut grid = grid_for(&world, 0.05, 0.5);
+    fill_from_truth(&world, &mut grid);
+    let robot = RobotParams::default();
+    let params = PlanParams {
+        look_around: false,
+        ..PlanParams::default()
+    };
+    let mut p = CoveragePlanner::new(&params, &robot).unwrap();
+    let empty = Decomposition::default();
+    let mut at = world.start;
+    let mut escapes = 0;
+    let mut finished = false;
+    for _ in 0..500 {
+        if let PlanStatus::Done(_) = p.update(&grid, &empty, &at, None).unwrap() {
+            finished = true;
+            break;
+        }
+        if escapes < 6 && matches!(p.task(), Task::Cover(_)) {
+            // Before the robot has swept any of the task's floor: an
+            // obstacle cell flickers up 0.1 m beside it, then is gone.
+            let here: Point2<f64> = at.translation.vector.into();
+            let c = grid.cell_of(&(here + Vector2::new(0.1, 0.0))).unwrap();
+            let was = grid.state(c);
+            grid.set_state(c, CellState::Occupied);
+            p.update(&grid, &empty, &at, Some(0)).unwrap();
+            grid.set_state(c, was);
+            assert_eq!(p.task(), Task::Escape, "the phantom blocks the path");
+            escapes += 1;
+        }
+        let path: Vec<Point2<f64>> = p.path().0.to_vec();
+        for q in path {
+            let from: Point2<f64> = at.translation.vector.into();
+            let n = (((q - from).norm() / 0.02).ceil() as usize).max(1);
+            for k in 1..=n {
+                let x = from + (q - from) * (k as f64 / n as f64);
+                at = pose(x.x, x.y, 0.0);
+                p.record_pose(&at);
+            }
+        }
+    }
+    assert!(finished, "planner never finished");
+    assert_eq!(escapes, 6);
+    assert_eq!(p.stats().escapes, 6);
+    let report = p.report().unwrap();
+    assert!(report.abandoned_area < 0.05, "{report:?}");
+    assert!(report.covered_area > 5.0, "{report:?}");
 }

@@ -63,6 +63,8 @@ pub struct Config {
     pub control: crate::control::ControlParams,
     /// Pipeline budgets.
     pub pipeline: crate::pipeline::PipelineParams,
+    /// The daemon's own settings (giving paths up, bumper contact marks).
+    pub daemon: crate::daemon::DaemonParams,
 }
 
 /// Why a configuration could not be loaded.
@@ -202,6 +204,7 @@ impl Config {
             invalid(key, rest)
         })?;
         self.map.validate()?;
+        self.daemon.validate()?;
         Ok(())
     }
 }

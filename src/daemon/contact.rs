@@ -17,26 +17,96 @@
 
 use nalgebra::{Point2, Vector2};
 
+use serde::{Deserialize, Serialize};
+
+use crate::config::{invalid, ConfigError};
 use crate::geom::{heading, Pose};
 use crate::motor::{Sides, WheelSpeeds};
+use crate::pipeline::checkpoint::ContactArc;
 
-/// Bearing of a contact on one side only (rad from straight ahead): the
-/// middle of that side's half of the front shell.
-pub const SIDE_BEARING: f64 = 0.7;
-/// Bearing of a contact closed by turning in place (rad): the leading end of
-/// the front shell (the bumper covers ±80°).
-pub const TURN_BEARING: f64 = 1.3;
-/// Distance of the contact outside the body (m): half the bumper's travel.
-pub const CONTACT_GAP: f64 = 0.01;
-/// Half length of the marked arc (m).
-pub const ARC_HALF_LENGTH: f64 = 0.02;
-/// A contact closer than this to an earlier one is the same contact (m).
-pub const SAME_CONTACT: f64 = 0.03;
+/// Where contact marks go and how the daemon reacts to them: the
+/// `[daemon.contact]` table.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactParams {
+    /// Bearing of a contact on one side only (rad from straight ahead): the
+    /// middle of that side's half of the front shell.
+    pub side_bearing: f64,
+    /// Bearing of a contact closed by turning in place (rad): the leading
+    /// end of the front shell.
+    pub turn_bearing: f64,
+    /// Half width of the bumper's arc (rad from straight ahead).
+    pub bumper_half_arc: f64,
+    /// Distance of the contact outside the body (m): half the bumper's travel.
+    pub gap: f64,
+    /// Half length of the marked arc (m).
+    pub arc_half_length: f64,
+    /// A contact closer than this to an earlier one is the same contact (m).
+    pub same_contact: f64,
+    /// Longest a plan update waits for a bump's contact to reach the map
+    /// (clock s).
+    pub settle: f64,
+}
 
-/// Half width of the bumper's arc (rad from straight ahead).
-pub const BUMPER_HALF_ARC: f64 = 1.4;
+impl Default for ContactParams {
+    fn default() -> Self {
+        Self {
+            side_bearing: 0.7,
+            turn_bearing: 1.3,
+            bumper_half_arc: 1.4,
+            gap: 0.01,
+            arc_half_length: 0.02,
+            same_contact: 0.03,
+            settle: 1.0,
+        }
+    }
+}
+
+impl ContactParams {
+    /// Checks every value's range; the error names the dotted key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let within = |key: &str, v: f64, lo: f64, hi: f64, open_lo: bool| {
+            let ok = v.is_finite() && v <= hi && if open_lo { v > lo } else { v >= lo };
+            if ok {
+                Ok(())
+            } else {
+                let lo_s = if open_lo { ">" } else { ">=" };
+                Err(invalid(
+                    &format!("daemon.contact.{key}"),
+                    &format!("must be a finite number {lo_s} {lo} and <= {hi}, got {v:?}"),
+                ))
+            }
+        };
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        within("bumper_half_arc", self.bumper_half_arc, 0.0, half_pi, true)?;
+        within(
+            "side_bearing",
+            self.side_bearing,
+            0.0,
+            self.bumper_half_arc,
+            false,
+        )?;
+        within(
+            "turn_bearing",
+            self.turn_bearing,
+            0.0,
+            self.bumper_half_arc,
+            true,
+        )?;
+        within("gap", self.gap, 0.0, 0.2, false)?;
+        within("arc_half_length", self.arc_half_length, 0.0, 0.5, true)?;
+        within("same_contact", self.same_contact, 0.0, 1.0, false)?;
+        within("settle", self.settle, 0.0, 10.0, false)?;
+        Ok(())
+    }
+}
+
 /// Step of the bearings tried along the bumper's arc (rad).
 const BEARING_STEP: f64 = 0.05;
+/// Longest half arc a mark is drawn with (m), whatever it holds.
+pub const MAX_ARC_HALF_LENGTH: f64 = 0.5;
+/// Most points along one marked arc.
+const MAX_ARC_STEPS: usize = 1000;
 /// Cell size of the [`BodyTrack`] (m).
 pub const TRACK_RESOLUTION: f64 = 0.02;
 
@@ -113,6 +183,8 @@ pub struct ContactMark {
     pub centre: Point2<f64>,
     /// The contact point (map frame, m).
     pub at: Point2<f64>,
+    /// Half length of the marked arc around `at` (m).
+    pub half_length: f64,
 }
 
 impl ContactMark {
@@ -120,6 +192,7 @@ impl ContactMark {
     /// `radius` at `pose`, commanded to `wheels` (wheel base `wheel_base`),
     /// with the bearings the body's `track` rules out removed.
     pub fn estimate(
+        params: &ContactParams,
         pose: &Pose,
         sides: Sides,
         wheels: WheelSpeeds,
@@ -136,17 +209,17 @@ impl ContactMark {
         // Turning in place: the shell's leading end sweeps new space.
         let turning = w.is_finite() && v.is_finite() && w.abs() * radius > 2.0 * v.abs();
         let (bearing, arc) = match (sides.left, sides.right) {
-            (true, false) => (SIDE_BEARING, (0.0, BUMPER_HALF_ARC)),
-            (false, true) => (-SIDE_BEARING, (-BUMPER_HALF_ARC, 0.0)),
+            (true, false) => (params.side_bearing, (0.0, params.bumper_half_arc)),
+            (false, true) => (-params.side_bearing, (-params.bumper_half_arc, 0.0)),
             _ if turning => {
-                let b = TURN_BEARING * w.signum();
+                let b = params.turn_bearing * w.signum();
                 (b, (b, b))
             }
-            _ => (0.0, (-BUMPER_HALF_ARC, BUMPER_HALF_ARC)),
+            _ => (0.0, (-params.bumper_half_arc, params.bumper_half_arc)),
         };
         let centre: Point2<f64> = pose.translation.vector.into();
         let th = heading(pose);
-        let r = radius + CONTACT_GAP;
+        let r = radius + params.gap;
         let point = |b: f64| centre + Vector2::new((th + b).cos(), (th + b).sin()) * r;
         let bearing = track
             .and_then(|t| open_bearing(arc, bearing, |b| t.covered(&point(b))))
@@ -154,12 +227,14 @@ impl ContactMark {
         Self {
             centre,
             at: point(bearing),
+            half_length: params.arc_half_length,
         }
     }
 
-    /// Whether `other` is the same contact as this one.
-    pub fn same_as(&self, other: &ContactMark) -> bool {
-        (self.at - other.at).norm() <= SAME_CONTACT
+    /// Whether `other` is the same contact as this one: its contact point
+    /// lies within `tolerance` (m).
+    pub fn same_as(&self, other: &ContactMark, tolerance: f64) -> bool {
+        (self.at - other.at).norm() <= tolerance
     }
 
     /// Points along the marked arc, at most `step` apart (ends included).
@@ -167,12 +242,37 @@ impl ContactMark {
         let d = self.at - self.centre;
         let r = d.norm().max(1e-6);
         let a0 = d.y.atan2(d.x);
-        let half = ARC_HALF_LENGTH / r;
-        let n = ((2.0 * ARC_HALF_LENGTH / step.max(1e-3)).ceil() as usize).max(1);
+        let len = if self.half_length.is_finite() {
+            self.half_length.clamp(0.0, MAX_ARC_HALF_LENGTH)
+        } else {
+            0.0
+        };
+        let half = len / r;
+        let n = ((2.0 * len / step.max(1e-3)).ceil() as usize).clamp(1, MAX_ARC_STEPS);
         (0..=n).map(move |k| {
             let a = a0 - half + 2.0 * half * k as f64 / n as f64;
             self.centre + Vector2::new(a.cos(), a.sin()) * r
         })
+    }
+}
+
+impl From<ContactArc> for ContactMark {
+    fn from(a: ContactArc) -> Self {
+        Self {
+            centre: a.centre,
+            at: a.at,
+            half_length: a.half_length,
+        }
+    }
+}
+
+impl From<&ContactMark> for ContactArc {
+    fn from(m: &ContactMark) -> Self {
+        Self {
+            centre: m.centre,
+            at: m.at,
+            half_length: m.half_length,
+        }
     }
 }
 
@@ -221,6 +321,15 @@ mod tests {
     const R: f64 = 0.17;
     const B: f64 = 0.235;
 
+    fn est(
+        pose: &Pose,
+        sides: Sides,
+        wheels: WheelSpeeds,
+        track: Option<&BodyTrack>,
+    ) -> ContactMark {
+        ContactMark::estimate(&ContactParams::default(), pose, sides, wheels, R, B, track)
+    }
+
     fn both() -> Sides {
         Sides {
             left: true,
@@ -230,17 +339,15 @@ mod tests {
 
     #[test]
     fn a_head_on_contact_is_straight_ahead_just_outside_the_body() {
-        let m = ContactMark::estimate(
+        let m = est(
             &pose(1.0, 2.0, std::f64::consts::FRAC_PI_2),
             both(),
             WheelSpeeds::from_body(0.2, 0.0, B),
-            R,
-            B,
             None,
         );
         assert!((m.at.x - 1.0).abs() < 1e-9, "{:?}", m.at);
         assert!(
-            (m.at.y - (2.0 + R + CONTACT_GAP)).abs() < 1e-9,
+            (m.at.y - (2.0 + R + ContactParams::default().gap)).abs() < 1e-9,
             "{:?}",
             m.at
         );
@@ -250,33 +357,28 @@ mod tests {
     fn one_side_or_a_turn_moves_the_contact_to_that_side() {
         let p = pose(0.0, 0.0, 0.0);
         let fwd = WheelSpeeds::from_body(0.2, 0.0, B);
-        let left = ContactMark::estimate(
+        let left = est(
             &p,
             Sides {
                 left: true,
                 right: false,
             },
             fwd,
-            R,
-            B,
             None,
         );
         assert!(left.at.y > 0.05 && left.at.x > 0.05, "{:?}", left.at);
-        let right = ContactMark::estimate(
+        let right = est(
             &p,
             Sides {
                 left: false,
                 right: true,
             },
             fwd,
-            R,
-            B,
             None,
         );
         assert!(right.at.y < -0.05, "{:?}", right.at);
         // A RoboClaw E-stop (both sides) while turning right in place.
-        let turn =
-            ContactMark::estimate(&p, both(), WheelSpeeds::from_body(0.0, -1.0, B), R, B, None);
+        let turn = est(&p, both(), WheelSpeeds::from_body(0.0, -1.0, B), None);
         assert!(turn.at.y < -0.15, "{:?}", turn.at);
     }
 
@@ -294,25 +396,21 @@ mod tests {
         }
         assert!(t.covered(&Point2::new(0.5, -0.28 + R - 0.02)));
         assert!(!t.covered(&Point2::new(0.5, -0.28 + R + 0.01)));
-        let m = ContactMark::estimate(
+        let m = est(
             &pose(0.0, 0.0, 0.0),
             both(),
             WheelSpeeds::from_body(0.2, 0.0, B),
-            R,
-            B,
             Some(&t),
         );
         // Not straight ahead: on the left, where the body has not been.
         assert!(m.at.y > 0.03, "{:?}", m.at);
-        assert!(((m.at - m.centre).norm() - (R + CONTACT_GAP)).abs() < 1e-9);
+        assert!(((m.at - m.centre).norm() - (R + ContactParams::default().gap)).abs() < 1e-9);
         // Nothing swept around: the same as without a track.
         let empty = BodyTrack::new(Point2::new(-3.0, -2.0), 6.0, 4.0);
-        let a = ContactMark::estimate(
+        let a = est(
             &pose(0.0, 0.0, 0.0),
             both(),
             WheelSpeeds::from_body(0.2, 0.0, B),
-            R,
-            B,
             Some(&empty),
         );
         assert!(a.at.y.abs() < 1e-9, "{:?}", a.at);
@@ -334,15 +432,113 @@ mod tests {
 
     #[test]
     fn the_arc_is_a_few_centimetres_of_the_shell() {
-        let m = ContactMark::estimate(&pose(0.0, 0.0, 0.3), both(), WheelSpeeds::STOP, R, B, None);
+        let m = est(&pose(0.0, 0.0, 0.3), both(), WheelSpeeds::STOP, None);
         let pts: Vec<_> = m.arc(0.01).collect();
         assert!(pts.len() >= 4);
         for q in &pts {
-            assert!(((q - m.centre).norm() - (R + CONTACT_GAP)).abs() < 1e-9);
-            assert!((q - m.at).norm() <= ARC_HALF_LENGTH + 1e-9);
+            assert!(((q - m.centre).norm() - (R + ContactParams::default().gap)).abs() < 1e-9);
+            assert!((q - m.at).norm() <= ContactParams::default().arc_half_length + 1e-9);
         }
         let ends = (pts[0] - pts[pts.len() - 1]).norm();
-        assert!(ends > 1.5 * ARC_HALF_LENGTH, "{ends}");
-        assert!(m.same_as(&m));
+        assert!(
+            ends > 1.5 * ContactParams::default().arc_half_length,
+            "{ends}"
+        );
+        assert!(m.same_as(&m, 0.0));
+    }
+
+    #[test]
+    fn the_marks_follow_their_keys() {
+        let p = ContactParams {
+            side_bearing: 0.3,
+            gap: 0.05,
+            arc_half_length: 0.06,
+            ..ContactParams::default()
+        };
+        let left = Sides {
+            left: true,
+            right: false,
+        };
+        let m = ContactMark::estimate(
+            &p,
+            &pose(0.0, 0.0, 0.0),
+            left,
+            WheelSpeeds::from_body(0.2, 0.0, B),
+            R,
+            B,
+            None,
+        );
+        let d = m.at - m.centre;
+        assert!((d.norm() - (R + 0.05)).abs() < 1e-9, "{d:?}");
+        assert!((d.y.atan2(d.x) - 0.3).abs() < 1e-9, "{d:?}");
+        let pts: Vec<_> = m.arc(0.01).collect();
+        let ends = (pts[0] - pts[pts.len() - 1]).norm();
+        assert!(ends > 0.11 && ends <= 0.12 + 1e-9, "{ends}");
+        // An absurd arc held by a corrupt mark is drawn bounded.
+        let huge = ContactMark {
+            half_length: 1e12,
+            ..m
+        };
+        assert!(huge.arc(1e-9).count() <= MAX_ARC_STEPS + 1);
+    }
+
+    #[test]
+    fn bad_values_name_their_key() {
+        assert!(ContactParams::default().validate().is_ok());
+        let cases = [
+            (
+                ContactParams {
+                    side_bearing: 2.0,
+                    ..ContactParams::default()
+                },
+                "side_bearing",
+            ),
+            (
+                ContactParams {
+                    turn_bearing: 0.0,
+                    ..ContactParams::default()
+                },
+                "turn_bearing",
+            ),
+            (
+                ContactParams {
+                    bumper_half_arc: f64::NAN,
+                    ..ContactParams::default()
+                },
+                "bumper_half_arc",
+            ),
+            (
+                ContactParams {
+                    gap: -0.01,
+                    ..ContactParams::default()
+                },
+                "gap",
+            ),
+            (
+                ContactParams {
+                    arc_half_length: 0.0,
+                    ..ContactParams::default()
+                },
+                "arc_half_length",
+            ),
+            (
+                ContactParams {
+                    same_contact: f64::INFINITY,
+                    ..ContactParams::default()
+                },
+                "same_contact",
+            ),
+            (
+                ContactParams {
+                    settle: -1.0,
+                    ..ContactParams::default()
+                },
+                "settle",
+            ),
+        ];
+        for (p, key) in cases {
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.contains(&format!("daemon.contact.{key}")), "{e}");
+        }
     }
 }

@@ -97,9 +97,15 @@ impl DaemonHooks {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
         let progress = self.progress();
-        let (pose, grid, swept, keyframes) = self
-            .shared
-            .with_status(|s| (s.pose, s.grid.clone(), s.swept.clone(), s.keyframes.clone()));
+        let (pose, grid, swept, keyframes, contacts) = self.shared.with_status(|s| {
+            (
+                s.pose,
+                s.grid.clone(),
+                s.swept.clone(),
+                s.keyframes.clone(),
+                s.contacts.clone(),
+            )
+        });
         let lattice = self.shared.with_status(|s| s.lattice);
         let mut cp = Checkpoint::new();
         let mut r = cp
@@ -117,6 +123,9 @@ impl DaemonHooks {
         }
         if let Some(k) = keyframes {
             r = r.and_then(|()| cp.put(&*k));
+        }
+        if let Some(c) = contacts {
+            r = r.and_then(|()| cp.put(&*c));
         }
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;
@@ -146,14 +155,18 @@ impl DaemonHooks {
     /// Logs the planner's task when its kind changes (a stalled run then
     /// shows in the log what the planner was doing).
     fn log_task_change(&mut self) {
-        let task = self.shared.with_status(|s| s.task.clone());
+        let (task, pose) = self.shared.with_status(|s| (s.task.clone(), s.pose));
         let kind = task
             .split(|c: char| !c.is_alphanumeric())
             .next()
             .unwrap_or("");
         if kind != self.task_kind {
             self.task_kind = kind.to_string();
-            log::info!("planner: {task}");
+            log::info!(
+                "planner: {task} (robot at {:.2}, {:.2})",
+                pose.translation.x,
+                pose.translation.y
+            );
         }
     }
 }

@@ -12,6 +12,7 @@
 pub mod contact;
 pub mod hooks;
 pub mod messages;
+pub mod params;
 pub mod relocalise;
 pub mod resume;
 pub mod shared;
@@ -39,6 +40,7 @@ use crate::serial::Connector;
 use crate::urg::{UrgDriver, UrgHealth};
 
 pub use hooks::DaemonHooks;
+pub use params::DaemonParams;
 pub use shared::{LiveStatus, Shared};
 
 /// Control period (s): the follower runs at 20 Hz.
@@ -114,6 +116,9 @@ pub struct Resume {
     /// The scan tracker's keyframes at the checkpoint (none: a new local
     /// map is started at the resume pose).
     pub tracker: Option<TrackerState>,
+    /// The bumper contact marks at the checkpoint, marked again in the map
+    /// so that rays cannot clear them.
+    pub contacts: Vec<contact::ContactMark>,
     /// What the restart lost, for the run's report.
     pub entry: ResumeEntry,
 }
@@ -201,6 +206,9 @@ impl Daemon {
                 s.grid = Some(Arc::new(r.grid.clone()));
                 s.keyframes = r.tracker.clone().map(Arc::new);
                 s.lattice = r.lattice;
+                if !r.contacts.is_empty() {
+                    s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
+                }
             }
         });
 
@@ -271,6 +279,7 @@ impl Daemon {
                 radius: robot.radius,
                 wheel_base: robot.wheel_base,
                 last_wheels: crate::motor::WheelSpeeds::STOP,
+                contact: cfg.daemon.contact.clone(),
                 track: contact::BodyTrack::new(
                     setup.map.origin,
                     setup.map.width as f64 * setup.map.resolution,
@@ -298,7 +307,7 @@ impl Daemon {
                 backoff: BUMP_BACKOFF,
                 last_pose: None,
                 bump_seen: f64::NEG_INFINITY,
-                watch: stuck::ProgressWatch::default(),
+                watch: stuck::ProgressWatch::new(cfg.daemon.stuck_after),
             },
         )?;
         pipeline.spawn(
@@ -318,19 +327,28 @@ impl Daemon {
                 updates: 0,
                 contacts_seen: 0,
                 bump_handled: f64::NEG_INFINITY,
+                contact_settle: cfg.daemon.contact.settle,
             },
         )?;
+        let contacts = setup
+            .resume
+            .as_ref()
+            .map(|r| r.contacts.clone())
+            .unwrap_or_default();
+        if !contacts.is_empty() {
+            log::info!("resume: {} bumper contact mark(s) restored", contacts.len());
+        }
         pipeline.spawn(
             "map",
-            stages::MapStage {
+            stages::MapStage::new(
                 grid,
-                rx: map_rx,
-                tx: snap_tx,
-                shared: shared.clone(),
-                max_range: MAP_MAX_RANGE,
-                contacts: Vec::new(),
-                new_contacts: 0,
-            },
+                map_rx,
+                snap_tx,
+                shared.clone(),
+                MAP_MAX_RANGE,
+                contacts,
+                cfg.daemon.contact.same_contact,
+            ),
         )?;
         pipeline.spawn(
             "localise",

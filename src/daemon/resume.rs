@@ -1,5 +1,6 @@
 //! Resuming a run: loads the newest intact checkpoint of the state folder
-//! (map, pose, progress, the planner's swept floor) and the crashed daemon's
+//! (map, pose, progress, the planner's swept floor, the tracker's keyframes,
+//! the bumper contact marks) and the crashed daemon's
 //! last heartbeat, and says what the restart lost ([`ResumeEntry`]).
 
 use super::Resume;
@@ -7,7 +8,8 @@ use crate::geom::Pose;
 use crate::grid::Grid;
 use crate::icp::TrackerState;
 use crate::pipeline::checkpoint::{
-    Checkpoint, CheckpointError, CheckpointStore, ProgressMark, ResumeEntry, RunProgress, WrittenAt,
+    Checkpoint, CheckpointError, CheckpointStore, ContactArcs, ProgressMark, ResumeEntry,
+    RunProgress, WrittenAt,
 };
 use crate::plan::{LatticePhase, SweptFloor};
 
@@ -123,6 +125,15 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             None
         }
     };
+    let contacts = match cp.get::<ContactArcs>() {
+        Ok(c) => c
+            .map(|c| c.arcs.iter().map(|&a| a.into()).collect())
+            .unwrap_or_default(),
+        Err(e) => {
+            log::warn!("bumper contact marks unreadable, only the map's copy of them is left: {e}");
+            Vec::new()
+        }
+    };
     Some(Resume {
         pose,
         grid,
@@ -130,6 +141,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         swept,
         lattice,
         tracker,
+        contacts,
         entry,
     })
 }

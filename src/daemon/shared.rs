@@ -131,6 +131,9 @@ pub struct LiveStatus {
     /// The scan tracker's keyframes as of its newest one (checkpointed;
     /// published only when checkpoints are written).
     pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
+    /// The bumper contact marks (checkpointed: rays may clear them from a
+    /// restored grid, a resumed run marks them again).
+    pub contacts: Option<std::sync::Arc<crate::pipeline::checkpoint::ContactArcs>>,
 }
 
 impl Default for LiveStatus {
@@ -148,6 +151,7 @@ impl Default for LiveStatus {
             swept: None,
             lattice: None,
             keyframes: None,
+            contacts: None,
         }
     }
 }

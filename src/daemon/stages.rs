@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::contact::{BodyTrack, ContactMark};
+use super::contact::{BodyTrack, ContactMark, ContactParams};
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
@@ -20,6 +20,7 @@ use crate::geom::{heading, pose, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
 use crate::motor::{DiffDriveBase, SafetyEvent, WheelSpeeds};
+use crate::pipeline::checkpoint::{ContactArc, ContactArcs};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::supervisor::Control;
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
@@ -232,9 +233,76 @@ pub struct MapStage {
     pub contacts: Vec<ContactMark>,
     /// Contacts that were new (not a repeat of a marked one).
     pub new_contacts: u64,
+    /// A contact this close to a marked one is a repeat of it (m).
+    pub same_contact: f64,
+}
+
+/// The checkpoint section of contact `marks`.
+pub fn contact_arcs(marks: &[ContactMark]) -> ContactArcs {
+    ContactArcs {
+        arcs: marks.iter().map(ContactArc::from).collect(),
+    }
 }
 
 impl MapStage {
+    /// A map stage on `grid` with the contact marks `contacts` (restored
+    /// from a checkpoint) marked in it at once.
+    pub fn new(
+        grid: Grid,
+        rx: Rx<MapMsg>,
+        tx: Tx<MapSnapshot>,
+        shared: Arc<Shared>,
+        max_range: f64,
+        contacts: Vec<ContactMark>,
+        same_contact: f64,
+    ) -> Self {
+        let mut s = Self {
+            grid,
+            rx,
+            tx,
+            shared,
+            max_range,
+            contacts,
+            new_contacts: 0,
+            same_contact,
+        };
+        s.mark_contacts();
+        s
+    }
+
+    /// Merges a registered scan or a bumper contact into the grid; the
+    /// contact marks are occupied again afterwards, whatever the rays
+    /// crossed.
+    pub fn merge(&mut self, msg: MapMsg) {
+        match msg {
+            MapMsg::Scan { pose: p, scan } => {
+                let o: Point2<f64> = p.translation.vector.into();
+                for b in scan.beams.iter() {
+                    if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
+                        continue;
+                    }
+                    let r = b.range.min(self.max_range);
+                    let (s, c) = b.angle.sin_cos();
+                    let end = p * Point2::new(r * c, r * s);
+                    self.grid.integrate_ray(&o, &end, r >= b.range);
+                }
+            }
+            MapMsg::Contact(mark) => {
+                if !self
+                    .contacts
+                    .iter()
+                    .any(|c| c.same_as(&mark, self.same_contact))
+                {
+                    self.contacts.push(mark);
+                    self.new_contacts += 1;
+                    let arcs = Arc::new(contact_arcs(&self.contacts));
+                    self.shared.with_status(|s| s.contacts = Some(arcs));
+                }
+            }
+        }
+        self.mark_contacts();
+    }
+
     fn mark_contacts(&mut self) {
         let res = self.grid.resolution();
         for c in &self.contacts {
@@ -259,27 +327,7 @@ impl Stage for MapStage {
     }
 
     fn process(&mut self, msg: MapMsg, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
-        match msg {
-            MapMsg::Scan { pose: p, scan } => {
-                let o: Point2<f64> = p.translation.vector.into();
-                for b in scan.beams.iter() {
-                    if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
-                        continue;
-                    }
-                    let r = b.range.min(self.max_range);
-                    let (s, c) = b.angle.sin_cos();
-                    let end = p * Point2::new(r * c, r * s);
-                    self.grid.integrate_ray(&o, &end, r >= b.range);
-                }
-            }
-            MapMsg::Contact(mark) => {
-                if !self.contacts.iter().any(|c| c.same_as(&mark)) {
-                    self.contacts.push(mark);
-                    self.new_contacts += 1;
-                }
-            }
-        }
-        self.mark_contacts();
+        self.merge(msg);
         let snap = Arc::new(self.grid.clone());
         self.shared.with_status(|s| s.grid = Some(snap.clone()));
         let msg = MapSnapshot {
@@ -324,10 +372,10 @@ pub struct PlanStage {
     pub contacts_seen: u64,
     /// Clock time of the last bump whose contact the planner has seen.
     pub bump_handled: f64,
+    /// Longest a plan update waits for a bump's contact to reach the map
+    /// (clock s).
+    pub contact_settle: f64,
 }
-
-/// Longest a plan update waits for a bump's contact to reach the map (clock s).
-pub const CONTACT_SETTLE: f64 = 1.0;
 
 impl Stage for PlanStage {
     type Work = MapSnapshot;
@@ -366,7 +414,7 @@ impl Stage for PlanStage {
             self.bump_handled = bump;
             self.planner.interrupt();
         } else if bump > self.bump_handled {
-            if self.clock.now() - bump < CONTACT_SETTLE {
+            if self.clock.now() - bump < self.contact_settle {
                 // A bump whose contact is not in this snapshot yet: wait
                 // for the one that has it rather than plan without it.
                 return Ok(());
@@ -506,7 +554,7 @@ impl ControlStage {
     }
 
     /// Gives the path up when the follower has made no headway for
-    /// [`STUCK_AFTER`](super::stuck::STUCK_AFTER) (see [`ProgressWatch`]):
+    /// `daemon.stuck_after` seconds (see [`ProgressWatch`]):
     /// the planner then hears the path ended and plans again.
     fn watch_headway(&mut self, now: f64, est: &Pose) {
         if self.follower.is_done() {
@@ -520,7 +568,7 @@ impl ControlStage {
             log::warn!(
                 "control: no headway towards waypoint {next} of path {} for {:.0} s (at {:.2}, {:.2}); path given up",
                 self.path_seq,
-                super::stuck::STUCK_AFTER,
+                self.watch.after(),
                 here.x,
                 here.y
             );
@@ -656,6 +704,8 @@ pub struct MotorStage {
     pub last_wheels: WheelSpeeds,
     /// Where the body has been (rules out contact bearings).
     pub track: BodyTrack,
+    /// Where contact marks go.
+    pub contact: ContactParams,
 }
 
 impl MotorStage {
@@ -674,6 +724,7 @@ impl MotorStage {
                 SafetyEvent::Bumper(sides) | SafetyEvent::WheelDrop(sides) => {
                     let here = self.shared.with_status(|s| s.pose);
                     let mark = ContactMark::estimate(
+                        &self.contact,
                         &here,
                         *sides,
                         self.last_wheels,

@@ -1,12 +1,13 @@
 //! The control stage's progress watch: a path whose follower makes no
 //! headway (it reaches no waypoint and gets no closer to the one it drives
-//! to) for [`STUCK_AFTER`] seconds is given up, so the planner hears that
+//! to) for `daemon.stuck_after` seconds is given up, so the planner hears that
 //! the path ended, charges its floor a try and plans something else. Without
 //! it, a follower circling a waypoint it cannot settle on (or a robot held
 //! still by anything the map does not explain) keeps the planner on one task
 //! for ever, since the planner only re-plans when a path ends or is blocked.
 
-/// Clock seconds without headway after which a path is given up.
+/// Default for `daemon.stuck_after`: clock seconds without headway after
+/// which a path is given up.
 pub const STUCK_AFTER: f64 = 20.0;
 /// Getting this much closer to the waypoint (m) counts as headway.
 pub const HEADWAY: f64 = 0.05;
@@ -18,24 +19,37 @@ pub struct ProgressWatch {
     next: usize,
     best: f64,
     since: f64,
+    after: f64,
 }
 
 impl Default for ProgressWatch {
     fn default() -> Self {
+        Self::new(STUCK_AFTER)
+    }
+}
+
+impl ProgressWatch {
+    /// A watch that gives a path up after `after` clock seconds without
+    /// headway.
+    pub fn new(after: f64) -> Self {
         Self {
             seq: u64::MAX,
             next: usize::MAX,
             best: f64::INFINITY,
             since: 0.0,
+            after,
         }
     }
-}
 
-impl ProgressWatch {
+    /// Seconds without headway after which a path is given up.
+    pub fn after(&self) -> f64 {
+        self.after
+    }
+
     /// One observation at clock time `now`: path `seq`, the waypoint index
     /// `next` driven to and the distance to it (`None`: no waypoint left,
     /// the final turn or idle). True when the path has made no headway for
-    /// [`STUCK_AFTER`] seconds; the watch then starts over.
+    /// [`after`](Self::after) seconds; the watch then starts over.
     pub fn stuck(&mut self, now: f64, seq: u64, next: usize, distance: Option<f64>) -> bool {
         let d = distance.filter(|d| d.is_finite()).unwrap_or(f64::INFINITY);
         if seq != self.seq || next != self.next {
@@ -44,6 +58,7 @@ impl ProgressWatch {
                 next,
                 best: d,
                 since: now,
+                after: self.after,
             };
             return false;
         }
@@ -52,7 +67,7 @@ impl ProgressWatch {
             self.since = now;
             return false;
         }
-        if now - self.since >= STUCK_AFTER {
+        if now - self.since >= self.after {
             self.since = now;
             self.best = d;
             return true;
@@ -62,7 +77,7 @@ impl ProgressWatch {
 
     /// Forgets the path (after it was given up or finished).
     pub fn reset(&mut self) {
-        *self = Self::default();
+        *self = Self::new(self.after);
     }
 }
 
@@ -105,5 +120,17 @@ mod tests {
         w.reset();
         assert!(!w.stuck(61.0, 8, 0, None));
         assert!(w.stuck(61.0 + STUCK_AFTER, 8, 0, None));
+    }
+
+    #[test]
+    fn the_limit_is_the_configured_one() {
+        let mut w = ProgressWatch::new(5.0);
+        assert!(!w.stuck(0.0, 1, 0, Some(1.0)));
+        assert!(!w.stuck(4.9, 1, 0, Some(1.0)));
+        assert!(w.stuck(5.0, 1, 0, Some(1.0)));
+        w.reset();
+        assert_eq!(w.after(), 5.0);
+        assert!(!w.stuck(6.0, 1, 0, Some(1.0)));
+        assert!(w.stuck(11.0, 1, 0, Some(1.0)));
     }
 }

@@ -49,24 +49,85 @@ pub fn arc_increment(dl: f64, dr: f64, wheel_base: f64) -> Pose {
 /// A reading rejected as physically impossible (a counter reset by a
 /// controller reboot, or a corrupted value that passed the checksum).
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-#[error("encoder jump of {left:.3} m (left) / {right:.3} m (right) in {dt:.3} s is not plausible; odometry re-based")]
+#[error("encoder jump of {left:.3} m (left) / {right:.3} m (right) {dt:.3} s after the last accepted reading is not plausible (at most {limit:.3} m in the {elapsed:.3} s the counters may have been apart); reading ignored, the next one decides between a corrupt value and a counter reset")]
 pub struct OdometryGlitch {
     /// Left travel implied by the reading (m).
     pub left: f64,
     /// Right travel implied (m).
     pub right: f64,
-    /// Time between the readings (s).
+    /// Time between the readings' stamps (s).
     pub dt: f64,
+    /// Longest the two readings' counters may have been latched apart (s):
+    /// from the request of the last accepted reading to the answer of this
+    /// one.
+    pub elapsed: f64,
+    /// Largest travel of one wheel plausible in `elapsed` (m).
+    pub limit: f64,
+}
+
+/// Slack on the plausible wheel speed (reading jitter, acceleration).
+const SPEED_MARGIN: f64 = 1.5;
+/// Default latency allowance (s): a few control periods of reading jitter.
+pub const DEFAULT_LATENCY: f64 = 0.05;
+
+/// One reading of both counters and when they were latched.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Reading {
+    left: u32,
+    right: u32,
+    /// The reading's timestamp (s).
+    stamp: f64,
+    /// Earliest time the counters can have been latched (s): when the
+    /// request went out.
+    earliest: f64,
+}
+
+/// What [`Odometer::update_within`] made of a reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Accepted {
+    /// The first reading: the baseline, no increment.
+    Baseline,
+    /// Plausible against the last accepted reading: the travel since it,
+    /// whatever readings were rejected in between.
+    Increment(Odometry),
+    /// Implausible against the last accepted reading but continuing from
+    /// the rejected one before it: the counters really jumped (a controller
+    /// reboot reset them); odometry re-based on the rejected reading and
+    /// this is the travel since it (the jump itself is not counted).
+    Rebased(Odometry),
+}
+
+impl Accepted {
+    /// The increment, if any.
+    pub fn odometry(self) -> Option<Odometry> {
+        match self {
+            Accepted::Baseline => None,
+            Accepted::Increment(o) | Accepted::Rebased(o) => Some(o),
+        }
+    }
 }
 
 /// Turns successive encoder readings into [`Odometry`] increments.
+///
+/// A reading is plausible when no wheel travelled farther than the top
+/// wheel speed (with a margin) allows in the longest time the two readings'
+/// counters may have been latched apart: from the *request* of the last
+/// accepted reading to the *answer* of this one, plus a latency allowance.
+/// A delayed or bunched reply thus widens the bound instead of making real
+/// travel look like a jump. An implausible reading is set aside and the
+/// last accepted one stays the baseline, so a corrupt value loses no
+/// motion: the next good reading carries all the travel since. When the
+/// next reading continues from the set-aside one instead, the counters did
+/// jump (a reset) and odometry re-bases there.
 #[derive(Clone, Debug)]
 pub struct Odometer {
     width: CounterWidth,
     counts_per_metre: f64,
     wheel_base: f64,
     max_wheel_speed: f64,
-    last: Option<(u32, u32, f64)>,
+    latency: f64,
+    last: Option<Reading>,
+    suspect: Option<Reading>,
 }
 
 impl Odometer {
@@ -84,46 +145,119 @@ impl Odometer {
             counts_per_metre,
             wheel_base,
             max_wheel_speed,
+            latency: DEFAULT_LATENCY,
             last: None,
+            suspect: None,
         }
+    }
+
+    /// The same odometer with a latency allowance of `seconds` (the link's
+    /// reply timeout and reading jitter; non-finite or negative: the default)
+    /// added to the time the counters may have been apart.
+    pub fn with_latency(mut self, seconds: f64) -> Self {
+        self.latency = if seconds.is_finite() && seconds >= 0.0 {
+            seconds
+        } else {
+            DEFAULT_LATENCY
+        };
+        self
     }
 
     /// Forgets the previous reading: the next one becomes the new baseline
     /// (after a reconnect, when counters may have been reset).
     pub fn rebase(&mut self) {
         self.last = None;
+        self.suspect = None;
     }
 
     /// Feeds one reading of both counters taken at `t` seconds; returns the
-    /// increment since the previous reading (`None` for the first one).
+    /// increment since the last accepted reading (`None` for the first one).
     pub fn update(
         &mut self,
         left: u32,
         right: u32,
         t: f64,
     ) -> Result<Option<Odometry>, OdometryGlitch> {
-        let Some((l0, r0, t0)) = self.last.replace((left, right, t)) else {
-            return Ok(None);
+        self.update_within(left, right, t, (t, t))
+            .map(Accepted::odometry)
+    }
+
+    /// Feeds one reading stamped `stamp`, whose counters were latched some
+    /// time within `latched` (request sent, answer received; s).
+    pub fn update_within(
+        &mut self,
+        left: u32,
+        right: u32,
+        stamp: f64,
+        latched: (f64, f64),
+    ) -> Result<Accepted, OdometryGlitch> {
+        let earliest = if latched.0.is_finite() {
+            latched.0.min(stamp)
+        } else {
+            stamp
         };
-        let dl = self.width.diff(l0, left) as f64 / self.counts_per_metre;
-        let dr = self.width.diff(r0, right) as f64 / self.counts_per_metre;
-        let dt = (t - t0).max(0.0);
-        // Allow a few control periods of slack for reading jitter.
-        let limit = self.max_wheel_speed * (dt + 0.05) * 1.5;
-        if dl.abs() > limit || dr.abs() > limit {
+        let latest = if latched.1.is_finite() {
+            latched.1.max(stamp)
+        } else {
+            stamp
+        };
+        let now = Reading {
+            left,
+            right,
+            stamp,
+            earliest,
+        };
+        let Some(base) = self.last else {
+            self.last = Some(now);
+            self.suspect = None;
+            return Ok(Accepted::Baseline);
+        };
+        let glitch = match self.travel(&base, &now, latest) {
+            Ok(o) => {
+                self.last = Some(now);
+                self.suspect = None;
+                return Ok(Accepted::Increment(o));
+            }
+            Err(g) => g,
+        };
+        if let Some(Ok(o)) = self.suspect.map(|s| self.travel(&s, &now, latest)) {
+            self.last = Some(now);
+            self.suspect = None;
+            return Ok(Accepted::Rebased(o));
+        }
+        self.suspect = Some(now);
+        Err(glitch)
+    }
+
+    /// The travel from `from` to `to` (answered at `latest`), or why it is
+    /// not plausible.
+    fn travel(
+        &self,
+        from: &Reading,
+        to: &Reading,
+        latest: f64,
+    ) -> Result<Odometry, OdometryGlitch> {
+        let dl = self.width.diff(from.left, to.left) as f64 / self.counts_per_metre;
+        let dr = self.width.diff(from.right, to.right) as f64 / self.counts_per_metre;
+        let dt = (to.stamp - from.stamp).max(0.0);
+        let elapsed = (latest - from.earliest).max(dt);
+        let limit = self.max_wheel_speed * (elapsed + self.latency) * SPEED_MARGIN;
+        if !(dl.abs() <= limit && dr.abs() <= limit) {
             return Err(OdometryGlitch {
                 left: dl,
                 right: dr,
                 dt,
+                elapsed,
+                limit,
             });
         }
-        Ok(Some(Odometry {
-            t0,
-            t1: t,
+        Ok(Odometry {
+            t0: from.stamp,
+            t1: to.stamp,
             delta: arc_increment(dl, dr, self.wheel_base),
             left: dl,
             right: dr,
-        }))
+        })
     }
 }
 
@@ -310,5 +444,77 @@ mod tests {
         // The glitching reading is the new baseline.
         let d = o.update(50_100, 50_100, 0.2).unwrap().unwrap();
         assert!((d.left - 0.01).abs() < 1e-12);
+    }
+
+    fn roboclaw() -> Odometer {
+        // 10 000 counts per metre, 0.5 m/s top wheel speed.
+        Odometer::new(CounterWidth::Bits32, 10_000.0, 0.235, 0.5).with_latency(0.02)
+    }
+
+    #[test]
+    fn a_delayed_reading_carrying_real_travel_is_accepted() {
+        let mut o = roboclaw();
+        assert_eq!(
+            o.update_within(0, 0, 0.0, (0.0, 0.0)),
+            Ok(Accepted::Baseline)
+        );
+        // The next reply took 0.3 s (a stalled host): stamped near its end,
+        // but the counters may have been latched right after the request.
+        let a = o.update_within(100, 100, 0.29, (0.0, 0.3)).unwrap();
+        assert!(matches!(a, Accepted::Increment(_)), "{a:?}");
+        // 13 ms later by the stamps the counters show 0.14 m more: travel
+        // over the 0.3 s the counters may really have been apart (0.47 m/s).
+        let b = o.update_within(1_500, 1_500, 0.303, (0.3, 0.306)).unwrap();
+        let Accepted::Increment(d) = b else {
+            panic!("{b:?}")
+        };
+        assert!((d.left - 0.14).abs() < 1e-12 && (d.right - 0.14).abs() < 1e-12);
+        // The same jump where the counters cannot have been more than 16 ms
+        // apart (prompt replies both times) is a glitch.
+        let mut o = roboclaw();
+        o.update_within(0, 0, 0.0, (-0.002, 0.002)).unwrap();
+        let e = o
+            .update_within(1_400, 1_400, 0.013, (0.011, 0.015))
+            .unwrap_err();
+        assert!(e.limit < 0.14 && e.elapsed < 0.02, "{e:?}");
+        assert!(e.to_string().contains("reading ignored"), "{e}");
+    }
+
+    #[test]
+    fn a_corrupt_reading_is_rejected_and_no_travel_is_lost() {
+        let mut o = roboclaw();
+        o.update(0, 0, 0.0).unwrap();
+        o.update(50, 50, 0.05).unwrap();
+        // One corrupt value (a flipped high bit that passed the CRC).
+        let e = o.update(50 | 1 << 24, 100, 0.1).unwrap_err();
+        assert!(e.left > 1000.0, "{e:?}");
+        // The next good reading carries all the travel since 0.05 s.
+        let d = o.update(150, 150, 0.15).unwrap().unwrap();
+        assert!(
+            (d.left - 0.01).abs() < 1e-12 && (d.right - 0.01).abs() < 1e-12,
+            "{d:?}"
+        );
+        assert_eq!(d.t0, 0.05);
+        // Two corrupt values in a row: still measured from the last good one.
+        assert!(o.update(7_000_000, 150, 0.2).is_err());
+        assert!(o.update(150, 3_000_000, 0.25).is_err());
+        let d = o.update(250, 250, 0.3).unwrap().unwrap();
+        assert!((d.left - 0.01).abs() < 1e-12, "{d:?}");
+    }
+
+    #[test]
+    fn a_counter_reset_rebases_on_the_reading_after_it() {
+        let mut o = roboclaw();
+        o.update(5_000_000, 5_000_000, 0.0).unwrap();
+        // The controller rebooted: counters restart near 0.
+        assert!(o.update(20, 20, 0.05).is_err());
+        let a = o.update_within(120, 120, 0.1, (0.1, 0.1)).unwrap();
+        let Accepted::Rebased(d) = a else {
+            panic!("{a:?}")
+        };
+        assert!((d.left - 0.01).abs() < 1e-12, "{d:?}");
+        // From then on readings follow the new counters.
+        let d = o.update(220, 220, 0.15).unwrap().unwrap();
+        assert!((d.left - 0.01).abs() < 1e-12, "{d:?}");
     }
 }

@@ -119,6 +119,9 @@ pub struct LinkHealth {
     pub safety_stops: u64,
     /// Encoder readings rejected as physically implausible jumps.
     pub odometry_glitches: u64,
+    /// Times odometry re-based on a jump the next reading confirmed (the
+    /// encoder counters were reset, e.g. by a controller reboot).
+    pub odometry_rebases: u64,
 }
 
 /// Why a wheel-base operation failed.

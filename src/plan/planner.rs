@@ -140,6 +140,8 @@ pub struct PlanStats {
     pub patches: usize,
     /// Lanes planned.
     pub lanes: usize,
+    /// Escapes from an inflation zone the robot found itself in.
+    pub escapes: usize,
 }
 
 /// One planned task, for reports and pictures.
@@ -575,6 +577,12 @@ impl CoveragePlanner {
         }
         if !self.cspace.traversable[robot] {
             if let Some(goal) = self.escape_target(robot) {
+                // The robot was pushed into an inflation zone (a cell seen
+                // occupied next to it, tracking error): the task it was on is
+                // not at fault, so its floor is not charged a try.
+                self.task_targets.clear();
+                self.explore_goal = None;
+                self.stats.escapes += 1;
                 self.set_task(Task::Escape, vec![goal], None);
                 return working(Task::Escape);
             }

@@ -13,7 +13,7 @@ use crate::clock::SharedClock;
 use crate::config::RobotParams;
 use crate::motor::command::WheelCommand;
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
-use crate::motor::odometry::{counts_per_metre, CounterWidth, Odometer};
+use crate::motor::odometry::{counts_per_metre, Accepted, CounterWidth, Odometer, DEFAULT_LATENCY};
 use crate::motor::params::MotorParams;
 use crate::motor::roboclaw::codec::{
     encode_command, Command, Reply, ReplyDecoder, ReplyError, STATUS_ESTOP,
@@ -93,7 +93,11 @@ impl RoboClawDriver {
                 counts_per_metre,
                 robot.wheel_base,
                 p.max_wheel_speed,
-            ),
+            )
+            // The counters are latched somewhere within a request's
+            // round trip, which the odometer is told; plus one reply
+            // timeout of slack for the controller's own latching.
+            .with_latency(DEFAULT_LATENCY + p.roboclaw.reply_timeout),
             cmd: WheelCommand::new(p.max_wheel_speed, p.deadman),
             health: LinkHealth::default(),
             up: false,
@@ -317,8 +321,15 @@ impl DiffDriveBase for RoboClawDriver {
                     // counts, so use the reply time minus half the last RTT.)
                     let answered = self.clock.now();
                     let stamp = answered - 0.5 * (answered - asked).min(self.reply_timeout);
-                    match self.odo.update(l, r, stamp) {
-                        Ok(o) => odometry = o,
+                    match self.odo.update_within(l, r, stamp, (asked, answered)) {
+                        Ok(Accepted::Rebased(o)) => {
+                            self.health.odometry_rebases += 1;
+                            log::warn!(
+                                "wheel base: encoder counters continue from the jump rejected before (reset by the controller?); odometry re-based there, the jump itself not counted as travel"
+                            );
+                            odometry = Some(o);
+                        }
+                        Ok(a) => odometry = a.odometry(),
                         Err(g) => {
                             self.health.odometry_glitches += 1;
                             log::warn!("wheel base: {g}");

@@ -29,6 +29,7 @@
 //! `<name>.prev`, which [`CheckpointStore::load`] falls back to.
 
 pub mod codec;
+pub mod contacts;
 pub mod keyframes;
 mod lattice;
 pub mod resume_log;
@@ -40,6 +41,7 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 pub use codec::{crc32, Decoder, Encoder, GridHeader};
+pub use contacts::{ContactArc, ContactArcs};
 pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
 pub use sections::{RunProgress, WrittenAt};
 

@@ -1,0 +1,157 @@
+//! Bumper contact marks survive a restart: they are checkpointed in the
+//! `daemon.contacts` section, the resume path loads them, and the map stage
+//! marks them again so that the rays of later scans cannot clear them.
+
+use std::sync::Arc;
+
+use nalgebra::Point2;
+use sweepline::daemon::contact::{ContactMark, ContactParams};
+use sweepline::daemon::messages::MapMsg;
+use sweepline::daemon::resume::{heartbeat_store, load};
+use sweepline::daemon::stages::{contact_arcs, MapStage};
+use sweepline::daemon::Shared;
+use sweepline::geom::pose;
+use sweepline::grid::{CellState, Grid};
+use sweepline::motor::{Sides, WheelSpeeds};
+use sweepline::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress};
+use sweepline::pipeline::{latest, queue, Overflow};
+use sweepline::scan::{Beam, LaserScan};
+
+struct TempDir(std::path::PathBuf);
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn temp_dir(tag: &str) -> TempDir {
+    let d = std::env::temp_dir().join(format!("sweepline-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    TempDir(d)
+}
+
+/// A 4 m square room seen as free floor.
+fn free_room() -> Grid {
+    let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 80, 80);
+    for y in 0..80 {
+        for x in 0..80 {
+            g.set_state((x, y), CellState::Free);
+        }
+    }
+    g
+}
+
+/// A head-on contact 0.18 m ahead of a robot at (2, 2) facing +x.
+fn mark() -> ContactMark {
+    ContactMark::estimate(
+        &ContactParams::default(),
+        &pose(2.0, 2.0, 0.0),
+        Sides {
+            left: true,
+            right: true,
+        },
+        WheelSpeeds::from_body(0.2, 0.0, 0.235),
+        0.17,
+        0.235,
+        None,
+    )
+}
+
+/// A fan of beams from (1, 2) along +x, ending 2.5 m away: every ray crosses
+/// the contact.
+fn scan_through_the_contact() -> MapMsg {
+    let mut scan = LaserScan::default();
+    for k in 0..=20 {
+        let _ = scan.beams.push(Beam {
+            angle: -0.02 + 0.002 * f64::from(k),
+            range: 2.5,
+            intensity: 0.0,
+            valid: true,
+        });
+    }
+    MapMsg::Scan {
+        pose: pose(1.0, 2.0, 0.0),
+        scan,
+    }
+}
+
+fn map_stage(grid: Grid, contacts: Vec<ContactMark>) -> MapStage {
+    let (_tx, rx) = queue("registered_scans", 8, Overflow::DropOldest);
+    let (snap_tx, _snap_rx) = latest("map_snapshots");
+    MapStage::new(
+        grid,
+        rx,
+        snap_tx,
+        Arc::new(Shared::default()),
+        5.0,
+        contacts,
+        ContactParams::default().same_contact,
+    )
+}
+
+fn occupied_at(g: &Grid, p: Point2<f64>) -> bool {
+    g.state(g.cell_of(&p).unwrap()) == CellState::Occupied
+}
+
+#[test]
+fn contact_marks_are_restored_and_rays_cannot_clear_them() {
+    let m = mark();
+    assert!((m.at - Point2::new(2.18, 2.0)).norm() < 1e-9, "{:?}", m.at);
+
+    // The crashed run's checkpoint: a map whose rays had already cleared the
+    // contact (it was written into the grid only), and the marks.
+    let dir = temp_dir("contacts");
+    let store = CheckpointStore::new(&dir.0);
+    let mut cp = Checkpoint::new();
+    cp.put(&RunProgress {
+        sequence: 3,
+        elapsed: 30.0,
+        coverage: 0.2,
+        ..RunProgress::default()
+    })
+    .unwrap();
+    cp.put(&pose(1.0, 2.0, 0.0)).unwrap();
+    cp.put(&free_room()).unwrap();
+    cp.put(&contact_arcs(&[m])).unwrap();
+    store.save(&cp).unwrap();
+
+    let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
+    assert_eq!(r.contacts, vec![m]);
+    assert!(!occupied_at(&r.grid, m.at), "the saved grid had lost it");
+
+    // The resumed map stage marks it at once and keeps it through rays.
+    let mut stage = map_stage(r.grid.clone(), r.contacts.clone());
+    assert!(occupied_at(&stage.grid, m.at));
+    for _ in 0..50 {
+        stage.merge(scan_through_the_contact());
+    }
+    assert!(occupied_at(&stage.grid, m.at));
+    // The scan does reach the wall behind it (the rays ran through).
+    assert!(occupied_at(&stage.grid, Point2::new(3.5, 2.0)));
+
+    // Without the restored list the same rays clear a mark the grid held.
+    let mut marked = r.grid.clone();
+    marked.set_state(marked.cell_of(&m.at).unwrap(), CellState::Occupied);
+    let mut bare = map_stage(marked, Vec::new());
+    for _ in 0..50 {
+        bare.merge(scan_through_the_contact());
+    }
+    assert!(
+        !occupied_at(&bare.grid, m.at),
+        "rays clear an unlisted mark"
+    );
+}
+
+#[test]
+fn a_checkpoint_without_marks_resumes_with_none() {
+    let dir = temp_dir("no-contacts");
+    let store = CheckpointStore::new(&dir.0);
+    let mut cp = Checkpoint::new();
+    cp.put(&RunProgress::default()).unwrap();
+    cp.put(&pose(1.0, 2.0, 0.0)).unwrap();
+    cp.put(&free_room()).unwrap();
+    store.save(&cp).unwrap();
+    let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
+    assert!(r.contacts.is_empty());
+}
