@@ -221,7 +221,15 @@ pub struct CoveragePlanner {
     in_cell: Vec<bool>,
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
     phase: [Option<f64>; 2],
+    /// Consecutive updates that found the robot boxed in (see [`BOXED_IN_UPDATES`]).
+    boxed_in: usize,
 }
+
+/// Updates the planner waits, planning nothing, while the space reachable
+/// from the robot is smaller than its own footprint (ghost obstacles from a
+/// bad scan, or contact marks, around it) before it concludes that nothing
+/// reachable is left: the map may clear meanwhile.
+const BOXED_IN_UPDATES: usize = 25;
 
 /// Updates between re-evaluations while exploring (a cell may have become final).
 const EXPLORE_RECHECK: usize = 5;
@@ -284,6 +292,7 @@ impl CoveragePlanner {
             tries: Vec::new(),
             restored: None,
             phase: [None; 2],
+            boxed_in: 0,
             in_cell: Vec::new(),
             split_task: false,
         })
@@ -608,7 +617,8 @@ impl CoveragePlanner {
                     new_path: false,
                 });
             }
-            if let Some((goal, face)) = self.explore_goal_from(robot) {
+            let boxed = self.boxed_in_now();
+            if let Some((goal, face)) = self.explore_goal_from(robot, !boxed) {
                 let mut path = self.cspace.path_to(goal).unwrap_or_default();
                 if !path.is_empty() {
                     path.remove(0);
@@ -624,6 +634,28 @@ impl CoveragePlanner {
                 return working(Task::Explore);
             }
             cands = self.patch_candidates(decomp);
+        }
+        // Boxed in: the robot can reach less than its own footprint, yet
+        // seen floor is left. Wait (plan nothing) rather than report all of
+        // it unreachable at once.
+        if cands.is_empty() && self.boxed_in_now() {
+            if self.boxed_in < BOXED_IN_UPDATES {
+                self.boxed_in += 1;
+                if self.boxed_in == 1 {
+                    log::warn!(
+                        "robot at ({:.2}, {:.2}) m is boxed in by the map; waiting for it to clear",
+                        p.x,
+                        p.y
+                    );
+                }
+                self.task = Task::Idle;
+                self.path.clear();
+                self.motions.clear();
+                self.final_heading = None;
+                return working(Task::Idle);
+            }
+        } else {
+            self.boxed_in = 0;
         }
         if cands.is_empty() {
             let report = self.done_report();
@@ -1080,8 +1112,9 @@ impl CoveragePlanner {
     }
 
     /// The nearest reachable place with unexplored space in view, and the
-    /// frontier point to face there.
-    fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
+    /// frontier point to face there; with `give_up`, a frontier no
+    /// reachable place has in view is never tried again.
+    fn explore_goal_from(&mut self, _robot: usize, give_up: bool) -> Option<(usize, Point2<f64>)> {
         let f = self.cspace.frame;
         let mut list = std::mem::take(&mut self.frontier);
         self.cspace.frontier(&mut list);
@@ -1114,7 +1147,7 @@ impl CoveragePlanner {
                 }
             }
         }
-        if best.is_none() {
+        if best.is_none() && give_up {
             // Unreachable frontier: never try it again.
             for &i in &list {
                 self.given_up[i] = true;
@@ -1122,6 +1155,12 @@ impl CoveragePlanner {
         }
         self.frontier = list;
         best.map(|(_, j, fp)| (j, fp))
+    }
+
+    /// Whether the space reachable from the robot is smaller than its own
+    /// footprint (see [`BOXED_IN_UPDATES`]).
+    fn boxed_in_now(&self) -> bool {
+        self.reachable_mask.iter().filter(|r| **r).count() < self.stamp.len()
     }
 
     fn frontier_in_view(&mut self, g: &Point2<f64>) -> bool {
@@ -1495,6 +1534,96 @@ mod tests {
         assert!(cands.len() > TOUR_CANDIDATES, "heuristic search in use");
         let (k, _) = tour_start(&cands, 1.0);
         assert!((xs[k] + 0.6).abs() < 1e-9, "starts at x = {}", xs[k]);
+    }
+
+    /// A 3 m x 2 m room; with `ring`, occupied cells 0.27-0.33 m around
+    /// (1.5, 1.0) box the robot standing there in.
+    fn room(ring: bool) -> Grid {
+        use crate::grid::CellState;
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 40);
+        for y in 0..40 {
+            for x in 0..60 {
+                let c = Point2::new(0.025 + 0.05 * x as f64, 0.025 + 0.05 * y as f64);
+                let r = (c - Point2::new(1.5, 1.0)).norm();
+                let wall = x == 0 || y == 0 || x == 59 || y == 39;
+                let s = if wall || (ring && (0.27..=0.33).contains(&r)) {
+                    CellState::Occupied
+                } else {
+                    CellState::Free
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn a_boxed_in_robot_waits_for_the_map_to_clear() {
+        let params = PlanParams {
+            look_around: false,
+            ..PlanParams::default()
+        };
+        let robot = RobotParams::default();
+        let empty = Decomposition::default();
+        let start = crate::geom::pose(1.5, 1.0, 0.0);
+        let mut p = CoveragePlanner::new(&params, &robot).unwrap();
+        let boxed = room(true);
+        // The robot has swept what it can reach inside the ring.
+        let sweep = |p: &mut CoveragePlanner| {
+            for k in 0..36 {
+                let a = f64::from(k) * 10f64.to_radians();
+                p.record_pose(&crate::geom::pose(
+                    1.5 + 0.1 * a.cos(),
+                    1.0 + 0.1 * a.sin(),
+                    0.0,
+                ));
+            }
+        };
+        p.update(&boxed, &empty, &start, None).unwrap();
+        sweep(&mut p);
+        p.interrupt();
+        for _ in 0..5 {
+            let st = p.update(&boxed, &empty, &start, None).unwrap();
+            assert!(
+                matches!(
+                    st,
+                    PlanStatus::Working {
+                        task: Task::Idle,
+                        ..
+                    }
+                ),
+                "{st:?}"
+            );
+            assert!(p.path().0.is_empty());
+        }
+        // The ghost ring is gone: coverage goes on.
+        let st = p.update(&room(false), &empty, &start, None).unwrap();
+        assert!(
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Cover(None),
+                    ..
+                }
+            ),
+            "{st:?}"
+        );
+        // Boxed in for good: after the wait, done, with the floor reported
+        // unreachable.
+        let mut q = CoveragePlanner::new(&params, &robot).unwrap();
+        q.update(&boxed, &empty, &start, None).unwrap();
+        sweep(&mut q);
+        q.interrupt();
+        let mut done = None;
+        for k in 0..=BOXED_IN_UPDATES + 1 {
+            if let PlanStatus::Done(r) = q.update(&boxed, &empty, &start, None).unwrap() {
+                done = Some((k, r));
+                break;
+            }
+        }
+        let (k, r) = done.expect("done after the wait");
+        assert_eq!(k, BOXED_IN_UPDATES);
+        assert!(r.unreachable_area > 4.0, "{r:?}");
     }
 
     #[test]
