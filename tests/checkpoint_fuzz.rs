@@ -17,7 +17,7 @@ use sweepline::pipeline::checkpoint::{
     FORMAT_VERSION, MAGIC,
 };
 use sweepline::plan::cspace::Frame;
-use sweepline::plan::SweptFloor;
+use sweepline::plan::{LatticePhase, SweptFloor};
 
 /// Two small keyframes: enough to cover every field, small enough that the
 /// every-bit-flip test stays quick.
@@ -61,6 +61,11 @@ fn sample() -> Checkpoint {
         covered: (0..15).map(|i| i % 4 == 0).collect(),
     })
     .unwrap();
+    cp.put(&LatticePhase {
+        x: Some(0.335),
+        y: None,
+    })
+    .unwrap();
     cp.put(&keyframes()).unwrap();
     cp.put(&ContactArcs {
         arcs: vec![ContactArc {
@@ -82,6 +87,7 @@ fn read_all(bytes: &[u8]) -> Result<(), CheckpointError> {
     cp.get::<RunProgress>()?;
     cp.get::<WrittenAt>()?;
     cp.get::<SweptFloor>()?;
+    cp.get::<LatticePhase>()?;
     cp.get::<TrackerState>()?;
     cp.get::<ContactArcs>()?;
     Ok(())
@@ -169,6 +175,7 @@ fn random_payloads_with_valid_checksums_never_panic() {
             b"progress",
             b"written",
             b"plan.swept",
+            b"plan.lattice",
             b"icp.keyframes",
             b"daemon.contacts",
         ] {

@@ -19,6 +19,7 @@ use sweepline::config::Config;
 use sweepline::geom::Pose;
 use sweepline::motor::BaseKind;
 use sweepline::pipeline::checkpoint::{CheckpointStore, ResumeLog, RunProgress};
+use sweepline::plan::LatticePhase;
 use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
 use sweepline::sim::coverage_metrics::CoverageTracker;
 use sweepline::sim::world::World;
@@ -144,6 +145,7 @@ fn killed_daemon_resumes_its_coverage() {
     let mut last_seen: Option<(RunProgress, f64)> = None;
     let mut killed: Option<(f64, f64)> = None; // (truth coverage, sim time) at the kill
     let mut at_kill: Option<RunProgress> = None;
+    let mut lattice_at_kill: Option<LatticePhase> = None;
     let mut first_resumed: Option<(RunProgress, f64)> = None;
     let mut last_poll = Instant::now();
     // Largest distance between a checkpointed pose and the nearest true pose
@@ -219,6 +221,7 @@ fn killed_daemon_resumes_its_coverage() {
             killed = Some((truth, t));
             timeline += &format!(" [kill -9 at {t:.0}s:{:.0}%]", truth * 100.0);
             at_kill = latest(&store);
+            lattice_at_kill = lattice(&store);
             std::thread::sleep(Duration::from_millis(200));
             daemon = spawn(&dir, &links, 2);
             continue;
@@ -308,7 +311,15 @@ fn killed_daemon_resumes_its_coverage() {
         "pose error after the resume {:.3} m",
         pose_err[1]
     );
+    // The resumed planner kept the lane lattice of the lanes driven before.
+    let lattice_at_kill = lattice_at_kill.expect("no lane lattice checkpointed before the kill");
+    assert_eq!(lattice(&store), Some(lattice_at_kill));
     check_report(&dir.join("state/run"), &at_kill, kill_t);
+}
+
+/// The lane lattice phase of the newest checkpoint.
+fn lattice(store: &CheckpointStore) -> Option<LatticePhase> {
+    store.load().ok()??.checkpoint.get::<LatticePhase>().ok()?
 }
 
 /// The resumed run's report says what the crash lost, consistently with the

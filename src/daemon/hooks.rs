@@ -106,6 +106,7 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
+        let lattice = self.shared.with_status(|s| s.lattice);
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)
@@ -116,6 +117,9 @@ impl DaemonHooks {
         }
         if let Some(s) = swept {
             r = r.and_then(|()| cp.put(&*s));
+        }
+        if let Some(l) = lattice {
+            r = r.and_then(|()| cp.put(&l));
         }
         if let Some(k) = keyframes {
             r = r.and_then(|()| cp.put(&*k));

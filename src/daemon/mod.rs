@@ -110,6 +110,9 @@ pub struct Resume {
     /// The planner's record of swept floor at the checkpoint (none: the
     /// floor is covered again).
     pub swept: Option<SweptFloor>,
+    /// The phase of the planner's lane lattice at the checkpoint (none: it
+    /// is chosen again at the first cover task).
+    pub lattice: Option<crate::plan::LatticePhase>,
     /// The scan tracker's keyframes at the checkpoint (none: a new local
     /// map is started at the resume pose).
     pub tracker: Option<TrackerState>,
@@ -202,6 +205,7 @@ impl Daemon {
                 }
                 s.grid = Some(Arc::new(r.grid.clone()));
                 s.keyframes = r.tracker.clone().map(Arc::new);
+                s.lattice = r.lattice;
                 if !r.contacts.is_empty() {
                     s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
                 }
@@ -249,6 +253,9 @@ impl Daemon {
             .map_err(|e| DaemonError::Config(e.to_string()))?;
         if let Some(swept) = setup.resume.as_ref().and_then(|r| r.swept.clone()) {
             planner.restore_swept(swept);
+        }
+        if let Some(l) = setup.resume.as_ref().and_then(|r| r.lattice) {
+            planner.restore_lattice(l);
         }
         planner.record_pose(&start);
         let follower = PathFollower::new(&cfg.control, &robot)

@@ -11,7 +11,7 @@ use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointError, CheckpointStore, ContactArcs, ProgressMark, ResumeEntry,
     RunProgress, WrittenAt,
 };
-use crate::plan::SweptFloor;
+use crate::plan::{LatticePhase, SweptFloor};
 
 /// File name of the heartbeat in the state folder: the run's progress and
 /// the wall time, rewritten every `pipeline.heartbeat_period` (unsynced).
@@ -111,6 +111,13 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             None
         }
     };
+    let lattice = match cp.get::<LatticePhase>() {
+        Ok(l) => l,
+        Err(e) => {
+            log::warn!("lane lattice record unreadable, choosing it again: {e}");
+            None
+        }
+    };
     let tracker = match cp.get::<TrackerState>() {
         Ok(t) => t,
         Err(e) => {
@@ -132,6 +139,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         grid,
         progress,
         swept,
+        lattice,
         tracker,
         contacts,
         entry,

@@ -126,6 +126,8 @@ pub struct LiveStatus {
     pub decomposition: Option<std::sync::Arc<crate::decomp::Decomposition>>,
     /// The planner's newest record of swept floor (checkpointed).
     pub swept: Option<std::sync::Arc<crate::plan::SweptFloor>>,
+    /// The phase of the planner's lane lattice (checkpointed).
+    pub lattice: Option<crate::plan::LatticePhase>,
     /// The scan tracker's keyframes as of its newest one (checkpointed;
     /// published only when checkpoints are written).
     pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
@@ -147,6 +149,7 @@ impl Default for LiveStatus {
             grid: None,
             decomposition: None,
             swept: None,
+            lattice: None,
             keyframes: None,
             contacts: None,
         }

@@ -443,10 +443,14 @@ impl Stage for PlanStage {
             PlanStatus::Done(_) => "Done".into(),
         };
         let swept = self.planner.swept().map(Arc::new);
+        let lattice = self.planner.lattice();
         self.shared.with_status(|s| {
             s.covered_area = covered;
             if swept.is_some() {
                 s.swept = swept;
+            }
+            if lattice != crate::plan::LatticePhase::default() {
+                s.lattice = Some(lattice);
             }
             s.task = task;
             if let Some(d) = snapshot {

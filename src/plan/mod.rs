@@ -14,7 +14,7 @@ pub mod planner;
 pub mod swept;
 
 pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
-pub use swept::SweptFloor;
+pub use swept::{LatticePhase, SweptFloor};
 
 /// Coverage planner settings.
 /// Loaded from the `[plan]` table of the config file; every field is documented

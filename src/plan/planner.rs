@@ -30,7 +30,7 @@ use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::{lanes, lattice_position, variants, Axis, Lane, LaneInput, Variant};
-use super::swept::SweptFloor;
+use super::swept::{LatticePhase, SweptFloor};
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
@@ -175,8 +175,13 @@ impl Candidate {
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
 
-/// Candidates considered jointly when ordering (the nearest ones).
+/// Up to this many candidates the tour is searched exhaustively; beyond,
+/// a greedy tour over all of them is improved by or-opt and 2-opt moves.
 const TOUR_CANDIDATES: usize = 9;
+
+/// Tour evaluations the heuristic search may spend (a fixed budget, so the
+/// result is deterministic and the update time bounded).
+const TOUR_EVALUATIONS: usize = 4000;
 
 /// The online coverage planner (see the module docs).
 pub struct CoveragePlanner {
@@ -216,7 +221,15 @@ pub struct CoveragePlanner {
     in_cell: Vec<bool>,
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
     phase: [Option<f64>; 2],
+    /// Consecutive updates that found the robot boxed in (see [`BOXED_IN_UPDATES`]).
+    boxed_in: usize,
 }
+
+/// Updates the planner waits, planning nothing, while the space reachable
+/// from the robot is smaller than its own footprint (ghost obstacles from a
+/// bad scan, or contact marks, around it) before it concludes that nothing
+/// reachable is left: the map may clear meanwhile.
+const BOXED_IN_UPDATES: usize = 25;
 
 /// Updates between re-evaluations while exploring (a cell may have become final).
 const EXPLORE_RECHECK: usize = 5;
@@ -279,6 +292,7 @@ impl CoveragePlanner {
             tries: Vec::new(),
             restored: None,
             phase: [None; 2],
+            boxed_in: 0,
             in_cell: Vec::new(),
             split_task: false,
         })
@@ -373,6 +387,25 @@ impl CoveragePlanner {
             }
         } else {
             self.restored = Some(swept);
+        }
+    }
+
+    /// The phase of the lane lattice, for a checkpoint (see [`LatticePhase`]).
+    pub fn lattice(&self) -> LatticePhase {
+        LatticePhase {
+            x: self.phase[Axis::X as usize],
+            y: self.phase[Axis::Y as usize],
+        }
+    }
+
+    /// Restores a lattice phase saved by [`CoveragePlanner::lattice`]: the
+    /// lanes planned from now on lie on the lattice of the lanes driven
+    /// before the restart. Non-finite values are ignored.
+    pub fn restore_lattice(&mut self, lattice: LatticePhase) {
+        for (k, v) in [(Axis::X, lattice.x), (Axis::Y, lattice.y)] {
+            if let Some(p) = v.filter(|p| p.is_finite()) {
+                self.phase[k as usize] = Some(p);
+            }
         }
     }
 
@@ -584,7 +617,8 @@ impl CoveragePlanner {
                     new_path: false,
                 });
             }
-            if let Some((goal, face)) = self.explore_goal_from(robot) {
+            let boxed = self.boxed_in_now();
+            if let Some((goal, face)) = self.explore_goal_from(robot, !boxed) {
                 let mut path = self.cspace.path_to(goal).unwrap_or_default();
                 if !path.is_empty() {
                     path.remove(0);
@@ -601,6 +635,28 @@ impl CoveragePlanner {
             }
             cands = self.patch_candidates(decomp);
         }
+        // Boxed in: the robot can reach less than its own footprint, yet
+        // seen floor is left. Wait (plan nothing) rather than report all of
+        // it unreachable at once.
+        if cands.is_empty() && self.boxed_in_now() {
+            if self.boxed_in < BOXED_IN_UPDATES {
+                self.boxed_in += 1;
+                if self.boxed_in == 1 {
+                    log::warn!(
+                        "robot at ({:.2}, {:.2}) m is boxed in by the map; waiting for it to clear",
+                        p.x,
+                        p.y
+                    );
+                }
+                self.task = Task::Idle;
+                self.path.clear();
+                self.motions.clear();
+                self.final_heading = None;
+                return working(Task::Idle);
+            }
+        } else {
+            self.boxed_in = 0;
+        }
         if cands.is_empty() {
             let report = self.done_report();
             self.report = Some(report);
@@ -610,8 +666,7 @@ impl CoveragePlanner {
         // Look-ahead: the order of the nearest candidates (and the corner
         // each is entered at) that minimises the whole tour, exhaustively.
         cands.sort_by(|a, b| a.cost().total_cmp(&b.cost()));
-        cands.truncate(TOUR_CANDIDATES);
-        let (k, v) = best_tour_start(&cands, self.params.lookahead_weight);
+        let (k, v) = tour_start(&cands, self.params.lookahead_weight);
         let chosen = cands.swap_remove(k);
         let mut lanes = chosen.variants[v].lanes.clone();
         // A long join between two lanes would drive over swept floor: the
@@ -1057,8 +1112,9 @@ impl CoveragePlanner {
     }
 
     /// The nearest reachable place with unexplored space in view, and the
-    /// frontier point to face there.
-    fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
+    /// frontier point to face there; with `give_up`, a frontier no
+    /// reachable place has in view is never tried again.
+    fn explore_goal_from(&mut self, _robot: usize, give_up: bool) -> Option<(usize, Point2<f64>)> {
         let f = self.cspace.frame;
         let mut list = std::mem::take(&mut self.frontier);
         self.cspace.frontier(&mut list);
@@ -1091,7 +1147,7 @@ impl CoveragePlanner {
                 }
             }
         }
-        if best.is_none() {
+        if best.is_none() && give_up {
             // Unreachable frontier: never try it again.
             for &i in &list {
                 self.given_up[i] = true;
@@ -1099,6 +1155,12 @@ impl CoveragePlanner {
         }
         self.frontier = list;
         best.map(|(_, j, fp)| (j, fp))
+    }
+
+    /// Whether the space reachable from the robot is smaller than its own
+    /// footprint (see [`BOXED_IN_UPDATES`]).
+    fn boxed_in_now(&self) -> bool {
+        self.reachable_mask.iter().filter(|r| **r).count() < self.stamp.len()
     }
 
     fn frontier_in_view(&mut self, g: &Point2<f64>) -> bool {
@@ -1187,6 +1249,133 @@ impl CoveragePlanner {
         }
         r
     }
+}
+
+/// The candidate and variant to start with, from a tour through all
+/// candidates: exhaustive for a few, heuristic for many.
+fn tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
+    if cands.len() <= TOUR_CANDIDATES {
+        best_tour_start(cands, weight)
+    } else {
+        heuristic_tour_start(cands, weight)
+    }
+}
+
+/// Cost of visiting `order` (the first from the robot), each candidate at
+/// its best variant given the order (dynamic programming over variants),
+/// and the variant of the first.
+fn order_cost(
+    cands: &[Candidate],
+    order: &[usize],
+    weight: f64,
+    dp: &mut Vec<(f64, usize)>,
+) -> (f64, usize) {
+    dp.clear();
+    let Some(&c0) = order.first() else {
+        return (f64::INFINITY, 0);
+    };
+    // dp holds, per variant of the current candidate: (cost, first variant).
+    for (v, var) in cands[c0].variants.iter().enumerate() {
+        dp.push((cands[c0].entry_cost[v] + var.length, v));
+    }
+    let mut next = Vec::with_capacity(4);
+    for w in order.windows(2) {
+        let (a, b) = (&cands[w[0]], &cands[w[1]]);
+        next.clear();
+        for vb in &b.variants {
+            let mut best = (f64::INFINITY, 0);
+            for (va, &(c, f0)) in a.variants.iter().zip(dp.iter()) {
+                let t = c + weight * ((vb.entry() - va.exit()).norm() + vb.length);
+                if t < best.0 {
+                    best = (t, f0);
+                }
+            }
+            next.push(best);
+        }
+        std::mem::swap(dp, &mut next);
+    }
+    dp.iter()
+        .copied()
+        .fold((f64::INFINITY, 0), |b, x| if x.0 < b.0 { x } else { b })
+}
+
+/// A greedy tour over all candidates (nearest next entry from the last
+/// exit), improved by moving runs of one to three candidates elsewhere
+/// (or-opt) and reversing stretches (2-opt) while that lowers
+/// [`order_cost`], within [`TOUR_EVALUATIONS`].
+fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
+    let n = cands.len();
+    let mut used = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    let mut at: Option<Point2<f64>> = None;
+    for _ in 0..n {
+        let mut pick: Option<(f64, usize, usize)> = None;
+        for (i, c) in cands.iter().enumerate().filter(|(i, _)| !used[*i]) {
+            for (v, var) in c.variants.iter().enumerate() {
+                let d = match at {
+                    None => c.entry_cost[v],
+                    Some(p) => (var.entry() - p).norm(),
+                };
+                if pick.is_none_or(|(b, _, _)| d < b) {
+                    pick = Some((d, i, v));
+                }
+            }
+        }
+        let Some((_, i, v)) = pick else { break };
+        used[i] = true;
+        order.push(i);
+        at = Some(cands[i].variants[v].exit());
+    }
+    let mut dp = Vec::with_capacity(4);
+    let mut best = order_cost(cands, &order, weight, &mut dp);
+    let mut evals = 1;
+    let mut trial = Vec::with_capacity(n);
+    let mut improved = true;
+    while improved && evals < TOUR_EVALUATIONS {
+        improved = false;
+        // Or-opt: move order[i..i + len] to before position j of the rest.
+        'moves: for len in 1..=3usize.min(n - 1) {
+            for i in 0..=n - len {
+                for j in 0..=n - len {
+                    if j == i {
+                        continue;
+                    }
+                    trial.clear();
+                    trial.extend(order[..i].iter().chain(&order[i + len..]));
+                    trial.splice(j..j, order[i..i + len].iter().copied());
+                    let c = order_cost(cands, &trial, weight, &mut dp);
+                    evals += 1;
+                    if c.0 + 1e-9 < best.0 {
+                        best = c;
+                        std::mem::swap(&mut order, &mut trial);
+                        improved = true;
+                    }
+                    if evals >= TOUR_EVALUATIONS {
+                        break 'moves;
+                    }
+                }
+            }
+        }
+        // 2-opt: reverse order[i..=j].
+        'rev: for i in 0..n {
+            for j in i + 1..n {
+                if evals >= TOUR_EVALUATIONS {
+                    break 'rev;
+                }
+                trial.clear();
+                trial.extend_from_slice(&order);
+                trial[i..=j].reverse();
+                let c = order_cost(cands, &trial, weight, &mut dp);
+                evals += 1;
+                if c.0 + 1e-9 < best.0 {
+                    best = c;
+                    std::mem::swap(&mut order, &mut trial);
+                    improved = true;
+                }
+            }
+        }
+    }
+    (order.first().copied().unwrap_or(0), best.1)
 }
 
 /// The candidate and variant to start with: exhaustive search (dynamic
@@ -1298,4 +1487,153 @@ fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One region per x: a single lane from (x, 0) to (x, 1), drivable
+    /// either way, entered from the robot at `robot`.
+    fn regions(xs: &[f64], robot: Point2<f64>) -> Vec<Candidate> {
+        xs.iter()
+            .map(|&x| {
+                let l = Lane {
+                    a: Point2::new(x, 0.0),
+                    b: Point2::new(x, 1.0),
+                    fixup: false,
+                };
+                let variants = variants(&[l]);
+                let entry_cost = variants
+                    .iter()
+                    .map(|v| (v.entry() - robot).norm())
+                    .collect();
+                Candidate {
+                    cell: None,
+                    variants,
+                    entry_cost,
+                    targets: Vec::new(),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_tour_over_many_regions_starts_with_the_short_side() {
+        // The robot stands just right of the middle of a row of regions:
+        // three to its left (0.7 m to the nearest), thirteen to its right
+        // (0.4 m). Nearest first would go right, to the far end, and all
+        // the way back; the whole tour is shorter clearing the left first.
+        let robot = Point2::new(0.1, 0.0);
+        let mut xs: Vec<f64> = (1..=3).map(|k| -0.6 * f64::from(k)).collect();
+        xs.extend((0..13).map(|k| 0.5 + 0.5 * f64::from(k)));
+        // Candidates arrive in no particular order.
+        xs.reverse();
+        xs.swap(2, 9);
+        let cands = regions(&xs, robot);
+        assert!(cands.len() > TOUR_CANDIDATES, "heuristic search in use");
+        let (k, _) = tour_start(&cands, 1.0);
+        assert!((xs[k] + 0.6).abs() < 1e-9, "starts at x = {}", xs[k]);
+    }
+
+    /// A 3 m x 2 m room; with `ring`, occupied cells 0.27-0.33 m around
+    /// (1.5, 1.0) box the robot standing there in.
+    fn room(ring: bool) -> Grid {
+        use crate::grid::CellState;
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 40);
+        for y in 0..40 {
+            for x in 0..60 {
+                let c = Point2::new(0.025 + 0.05 * x as f64, 0.025 + 0.05 * y as f64);
+                let r = (c - Point2::new(1.5, 1.0)).norm();
+                let wall = x == 0 || y == 0 || x == 59 || y == 39;
+                let s = if wall || (ring && (0.27..=0.33).contains(&r)) {
+                    CellState::Occupied
+                } else {
+                    CellState::Free
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn a_boxed_in_robot_waits_for_the_map_to_clear() {
+        let params = PlanParams {
+            look_around: false,
+            ..PlanParams::default()
+        };
+        let robot = RobotParams::default();
+        let empty = Decomposition::default();
+        let start = crate::geom::pose(1.5, 1.0, 0.0);
+        let mut p = CoveragePlanner::new(&params, &robot).unwrap();
+        let boxed = room(true);
+        // The robot has swept what it can reach inside the ring.
+        let sweep = |p: &mut CoveragePlanner| {
+            for k in 0..36 {
+                let a = f64::from(k) * 10f64.to_radians();
+                p.record_pose(&crate::geom::pose(
+                    1.5 + 0.1 * a.cos(),
+                    1.0 + 0.1 * a.sin(),
+                    0.0,
+                ));
+            }
+        };
+        p.update(&boxed, &empty, &start, None).unwrap();
+        sweep(&mut p);
+        p.interrupt();
+        for _ in 0..5 {
+            let st = p.update(&boxed, &empty, &start, None).unwrap();
+            assert!(
+                matches!(
+                    st,
+                    PlanStatus::Working {
+                        task: Task::Idle,
+                        ..
+                    }
+                ),
+                "{st:?}"
+            );
+            assert!(p.path().0.is_empty());
+        }
+        // The ghost ring is gone: coverage goes on.
+        let st = p.update(&room(false), &empty, &start, None).unwrap();
+        assert!(
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Cover(None),
+                    ..
+                }
+            ),
+            "{st:?}"
+        );
+        // Boxed in for good: after the wait, done, with the floor reported
+        // unreachable.
+        let mut q = CoveragePlanner::new(&params, &robot).unwrap();
+        q.update(&boxed, &empty, &start, None).unwrap();
+        sweep(&mut q);
+        q.interrupt();
+        let mut done = None;
+        for k in 0..=BOXED_IN_UPDATES + 1 {
+            if let PlanStatus::Done(r) = q.update(&boxed, &empty, &start, None).unwrap() {
+                done = Some((k, r));
+                break;
+            }
+        }
+        let (k, r) = done.expect("done after the wait");
+        assert_eq!(k, BOXED_IN_UPDATES);
+        assert!(r.unreachable_area > 4.0, "{r:?}");
+    }
+
+    #[test]
+    fn heuristic_and_exhaustive_search_agree_on_a_few_regions() {
+        let robot = Point2::new(0.1, 0.0);
+        let xs = [-1.2, -0.6, 0.5, 1.0, 1.5, 2.0, 2.5];
+        let cands = regions(&xs, robot);
+        let exact = best_tour_start(&cands, 1.0);
+        let heur = heuristic_tour_start(&cands, 1.0);
+        assert_eq!(exact.0, heur.0);
+        assert!((xs[exact.0] + 0.6).abs() < 1e-9, "{}", xs[exact.0]);
+    }
 }

@@ -16,6 +16,18 @@ pub struct SweptFloor {
     pub covered: Vec<bool>,
 }
 
+/// The phase of the planner's lane lattice per lane axis (m across the
+/// lanes; `None`: not fixed yet), as plain data a daemon checkpoints (the
+/// section's encoding lives in `pipeline::checkpoint::lattice`): lanes
+/// planned after a restart then line up with the lanes driven before it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LatticePhase {
+    /// Phase of lanes along x (their y positions).
+    pub x: Option<f64>,
+    /// Phase of lanes along y (their x positions).
+    pub y: Option<f64>,
+}
+
 impl SweptFloor {
     /// Swept area (m²).
     pub fn area(&self) -> f64 {

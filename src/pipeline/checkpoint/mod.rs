@@ -31,6 +31,7 @@
 pub mod codec;
 pub mod contacts;
 pub mod keyframes;
+mod lattice;
 pub mod resume_log;
 mod sections;
 mod swept;

@@ -1,0 +1,171 @@
+//! The phase of the planner's lane lattice ([`LatticePhase`]) as checkpoint
+//! section `plan.lattice`, so that lanes planned after a restart line up
+//! with the lanes driven before it.
+//!
+//! Payload, version 1 (little-endian): for lanes along x, then along y: a
+//! flag (u8: 0 not fixed yet, 1 fixed), then the phase (f64, m; 0 when not
+//! fixed).
+
+use super::{CheckpointError, Decoder, Encoder, Section};
+use crate::plan::LatticePhase;
+
+impl Section for LatticePhase {
+    const NAME: &'static str = "plan.lattice";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        for v in [self.x, self.y] {
+            e.u8(u8::from(v.is_some()));
+            e.f64(v.unwrap_or(0.0));
+        }
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let mut axis = |what: &str| -> Result<Option<f64>, CheckpointError> {
+            let flag = d.u8()?;
+            let v = d.finite(what)?;
+            match flag {
+                0 => Ok(None),
+                1 => Ok(Some(v)),
+                f => Err(d.error(format!("{what}: flag {f}, expected 0 or 1"))),
+            }
+        };
+        let x = axis("phase of lanes along x")?;
+        let y = axis("phase of lanes along y")?;
+        Ok(Self { x, y })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Point2;
+
+    use super::*;
+    use crate::config::RobotParams;
+    use crate::decomp::Decomposition;
+    use crate::geom::pose;
+    use crate::grid::{CellState, Grid};
+    use crate::pipeline::checkpoint::Checkpoint;
+    use crate::plan::{CoveragePlanner, PlanParams, Task};
+
+    fn room() -> Grid {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 40);
+        for y in 0..40 {
+            for x in 0..60 {
+                let wall = x == 0 || y == 0 || x == 59 || y == 39;
+                let s = if wall {
+                    CellState::Occupied
+                } else {
+                    CellState::Free
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        g
+    }
+
+    fn planner() -> CoveragePlanner {
+        let params = PlanParams {
+            look_around: false,
+            ..PlanParams::default()
+        };
+        CoveragePlanner::new(&params, &RobotParams::default()).unwrap()
+    }
+
+    /// Positions across the lanes (y: the room is wider than deep, so lanes
+    /// run along x) of the planned lanes' waypoints.
+    fn lane_rows(p: &CoveragePlanner) -> Vec<f64> {
+        let (path, _) = p.path();
+        path.windows(2)
+            .filter(|w| (w[1].y - w[0].y).abs() < 1e-9 && (w[1].x - w[0].x).abs() > 0.5)
+            .map(|w| w[0].y)
+            .collect()
+    }
+
+    #[test]
+    fn a_restored_lattice_places_the_lanes() {
+        let grid = room();
+        let empty = Decomposition::default();
+        let start = pose(1.5, 1.0, 0.0);
+        let mut a = planner();
+        assert_eq!(
+            a.lattice(),
+            LatticePhase::default(),
+            "not fixed before a lane"
+        );
+        a.update(&grid, &empty, &start, None).unwrap();
+        assert_eq!(a.task(), Task::Cover(None));
+        let saved = a.lattice();
+        let phase = saved.x.expect("lanes along x fix the x phase");
+        assert_eq!(saved.y, None);
+        let rows = lane_rows(&a);
+        assert!(rows.len() >= 3, "{rows:?}");
+
+        let mut cp = Checkpoint::new();
+        cp.put(&saved).unwrap();
+        let back: LatticePhase = Checkpoint::from_bytes(&cp.to_bytes())
+            .unwrap()
+            .require()
+            .unwrap();
+        assert_eq!(back, saved);
+
+        // A restart with the lattice shifted by a third of the spacing: the
+        // new lanes lie on the restored lattice, not on a recomputed one.
+        let spacing = RobotParams::default().tool_width - PlanParams::default().lane_overlap;
+        let shifted = phase + spacing / 3.0;
+        let mut b = planner();
+        b.restore_lattice(LatticePhase {
+            x: Some(shifted),
+            y: Some(f64::NAN),
+        });
+        b.update(&grid, &empty, &start, None).unwrap();
+        assert_eq!(b.lattice().x, Some(shifted));
+        assert_eq!(b.lattice().y, None, "non-finite phase ignored");
+        let on_lattice = |rows: &[f64], ph: f64| {
+            rows.iter().all(|r| {
+                let k = (r - ph) / spacing;
+                (k - k.round()).abs() < 1e-6
+            })
+        };
+        let rows_b = lane_rows(&b);
+        assert!(!rows_b.is_empty());
+        // Hugging lanes along a wall may lie off the lattice; most do not.
+        let inner: Vec<f64> = rows_b
+            .iter()
+            .copied()
+            .filter(|r| *r > 0.35 && *r < 1.6)
+            .collect();
+        assert!(!inner.is_empty(), "{rows_b:?}");
+        assert!(on_lattice(&inner, shifted), "{inner:?} on {shifted}");
+        assert!(!on_lattice(&inner, phase), "{inner:?} not on {phase}");
+    }
+
+    #[test]
+    fn bad_records_are_clear_errors() {
+        let good = LatticePhase {
+            x: Some(0.325),
+            y: None,
+        };
+        let mut e = Encoder::new();
+        good.encode(&mut e);
+        let bytes = e.into_bytes();
+        let mut d = Decoder::new(LatticePhase::NAME, &bytes);
+        assert_eq!(LatticePhase::decode(&mut d).unwrap(), good);
+        for cut in 0..bytes.len() {
+            let mut d = Decoder::new(LatticePhase::NAME, &bytes[..cut]);
+            assert!(LatticePhase::decode(&mut d).is_err(), "cut at {cut}");
+        }
+        let mut e = Encoder::new();
+        e.u8(2);
+        e.f64(0.1);
+        let bytes = e.into_bytes();
+        let err = LatticePhase::decode(&mut Decoder::new(LatticePhase::NAME, &bytes)).unwrap_err();
+        assert!(err.to_string().contains("flag 2"), "{err}");
+        let mut e = Encoder::new();
+        e.u8(1);
+        e.f64(f64::NAN);
+        let bytes = e.into_bytes();
+        let err = LatticePhase::decode(&mut Decoder::new(LatticePhase::NAME, &bytes)).unwrap_err();
+        assert!(err.to_string().contains("along x"), "{err}");
+    }
+}
