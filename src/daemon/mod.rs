@@ -51,6 +51,10 @@ pub const MOTOR_POLL_PERIOD: f64 = 0.02;
 pub const PLAN_INTERVAL: f64 = 0.2;
 /// Time the robot reverses after a bumper contact (s).
 pub const BUMP_BACKOFF: f64 = 1.0;
+/// Longest time it keeps reversing while the bumper stays closed (s): a
+/// contact far to the side is not freed by the first 5 cm straight back, and
+/// the bumper gate lets the wheels do nothing but reverse until it is.
+pub const BUMP_BACKOFF_MAX: f64 = 6.0;
 /// Longest range merged into the map (m).
 pub const MAP_MAX_RANGE: f64 = 5.0;
 

@@ -171,6 +171,9 @@ pub struct Shared {
     pub halt: AtomicBool,
     /// Bumper or wheel-drop latched: clock time (f64 bits) of the last event.
     pub bumped_at: AtomicU64,
+    /// The bumper is closed now (set on a bumper event, cleared when the
+    /// base reports it released): the gate lets the wheels only reverse.
+    pub bumper_closed: AtomicBool,
     /// Paths the control stage gave up for lack of headway.
     pub stuck_paths: AtomicU64,
     /// Safety events seen (bumper, wheel drop, dead-man, link lost).

@@ -587,7 +587,10 @@ impl ControlStage {
             || self.shared.done.load(Ordering::Relaxed)
         {
             WheelSpeeds::STOP
-        } else if now - self.shared.last_bump() < self.backoff {
+        } else if now - self.shared.last_bump() < self.backoff
+            || (self.shared.bumper_closed.load(Ordering::Relaxed)
+                && now - self.shared.last_bump() < super::BUMP_BACKOFF_MAX)
+        {
             if self.shared.last_bump() != self.bump_seen {
                 // The path runs into something the map did not show: drop
                 // it; the planner plans again around the contact.
@@ -722,6 +725,9 @@ impl MotorStage {
         for e in fb.events.iter() {
             match e {
                 SafetyEvent::Bumper(sides) | SafetyEvent::WheelDrop(sides) => {
+                    if matches!(e, SafetyEvent::Bumper(_)) {
+                        self.shared.bumper_closed.store(true, Ordering::Relaxed);
+                    }
                     let here = self.shared.with_status(|s| s.pose);
                     let mark = ContactMark::estimate(
                         &self.contact,
@@ -747,6 +753,9 @@ impl MotorStage {
                         self.last_wheels.left,
                         self.last_wheels.right,
                     );
+                }
+                SafetyEvent::BumperReleased => {
+                    self.shared.bumper_closed.store(false, Ordering::Relaxed);
                 }
                 SafetyEvent::DeadMan | SafetyEvent::LinkLost => {
                     self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
