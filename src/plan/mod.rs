@@ -12,6 +12,8 @@ pub mod cspace;
 pub mod lanes;
 pub mod planner;
 pub mod swept;
+#[cfg(test)]
+pub(crate) mod test_support;
 
 pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
 pub use swept::{LatticePhase, SweptFloor};

@@ -40,35 +40,9 @@ mod tests {
     use nalgebra::Point2;
 
     use super::*;
-    use crate::config::RobotParams;
     use crate::decomp::Decomposition;
     use crate::geom::pose;
-    use crate::grid::{CellState, Grid};
-    use crate::plan::{CoveragePlanner, PlanParams};
-
-    fn room() -> Grid {
-        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 40);
-        for y in 0..40 {
-            for x in 0..60 {
-                let wall = x == 0 || y == 0 || x == 59 || y == 39;
-                let s = if wall {
-                    CellState::Occupied
-                } else {
-                    CellState::Free
-                };
-                g.set_state((x, y), s);
-            }
-        }
-        g
-    }
-
-    fn planner() -> CoveragePlanner {
-        let params = PlanParams {
-            look_around: false,
-            ..PlanParams::default()
-        };
-        CoveragePlanner::new(&params, &RobotParams::default()).unwrap()
-    }
+    use crate::plan::test_support::{planner, walled_room as room};
 
     #[test]
     fn record_of_another_geometry_is_ignored() {
