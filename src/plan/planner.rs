@@ -439,9 +439,15 @@ impl CoveragePlanner {
         if self.report.is_some() {
             return;
         }
+        self.forgive_task();
+        self.task = Task::Idle;
+    }
+
+    /// Drops what the current task was after without charging it a try: the
+    /// next `set_task` then has nothing to charge.
+    fn forgive_task(&mut self) {
         self.task_targets.clear();
         self.explore_goal = None;
-        self.task = Task::Idle;
     }
 
     /// One planning step after a map update. `grid` is the explored map,
@@ -589,8 +595,7 @@ impl CoveragePlanner {
                 // The robot was pushed into an inflation zone (a cell seen
                 // occupied next to it, tracking error): the task it was on is
                 // not at fault, so its floor is not charged a try.
-                self.task_targets.clear();
-                self.explore_goal = None;
+                self.forgive_task();
                 self.stats.escapes += 1;
                 self.set_task(Task::Escape, vec![goal], None);
                 return working(Task::Escape);
