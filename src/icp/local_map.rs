@@ -112,6 +112,12 @@ impl KeyframeMap {
             kf.edges.push(edge);
         }
         self.keyframes.push_back(kf);
+        self.rebuild_reference(params)
+    }
+
+    /// Merges every keyframe's points, normals and edges into one list (the
+    /// buffers are reused) and rebuilds the reference from it.
+    fn rebuild_reference(&mut self, params: &IcpParams) -> Result<(), IcpError> {
         self.merged.clear();
         self.merged_normals.clear();
         self.merged_edges.clear();
@@ -165,20 +171,7 @@ impl KeyframeMap {
             kf.edges.extend_from_slice(&k.edges[..n]);
             self.keyframes.push_back(kf);
         }
-        self.merged.clear();
-        self.merged_normals.clear();
-        self.merged_edges.clear();
-        for k in &self.keyframes {
-            self.merged.extend_from_slice(&k.points);
-            self.merged_normals.extend_from_slice(&k.normals);
-            self.merged_edges.extend_from_slice(&k.edges);
-        }
-        let r = self.reference.rebuild_with_normals(
-            &self.merged,
-            &self.merged_normals,
-            &self.merged_edges,
-            params,
-        );
+        let r = self.rebuild_reference(params);
         if r.is_err() {
             self.clear();
         }
