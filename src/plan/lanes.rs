@@ -85,6 +85,10 @@ pub struct LaneInput<'a> {
     /// every region, so lanes of neighbouring regions line up and floor
     /// beside a virtual edge is swept by one lattice lane only.
     pub phase: f64,
+    /// May the lanes leave the lattice where the region is walled in across
+    /// (see [`lanes`])? False for leftover patches, whose floor lies between
+    /// lanes already driven on the lattice.
+    pub fit_walls: bool,
 }
 
 /// The lattice lane position (m across) nearest to `v_m`.
@@ -290,6 +294,13 @@ impl Sweep<'_> {
 /// high u): the lattice lanes inside the region; then, where floor along a
 /// wall is still out of reach, one lane hugging that wall on either side;
 /// then fix-up lanes along single rows for what blocked stretches left.
+///
+/// A region walled in across the lanes on both sides (no drivable space of
+/// another region directly beside it across) shares no lane with a
+/// neighbour, so its lanes may leave the lattice: they are also spread
+/// evenly from wall to wall, and that set is kept when it is cheaper (see
+/// [`lane_cost`]) — in a strip between two walls the lattice plus the lanes
+/// hugging both walls can take one lane more than the strip needs.
 pub fn lanes(input: &LaneInput) -> Vec<Lane> {
     let f = &input.frame;
     let (x0, y0, x1, y1) = input.bbox;
@@ -321,69 +332,157 @@ pub fn lanes(input: &LaneInput) -> Vec<Lane> {
             a_max = a_max.max(v);
         }
     }
-    if a_min == usize::MAX || sw.unserved_span().is_none() {
+    let Some((t_lo, t_hi)) = sw.unserved_span() else {
+        return Vec::new();
+    };
+    if a_min == usize::MAX {
         return Vec::new();
     }
     let (a_lo, a_hi) = (sw.coord(a_min, ov), sw.coord(a_max, ov));
-    let join = 2.0 * input.spacing;
-    // Lattice lanes.
     // Lattice lanes whose home row is admissible (a lane may lie up to half
     // a grid cell beyond the outermost admissible row centres).
     let (p_lo, p_hi) = (a_lo - res / 2.0, a_hi + res / 2.0);
+    let mut lattice = Vec::new();
     let mut pos = lattice_position(input.phase, input.spacing, p_lo);
     if pos < p_lo - 1e-9 {
         pos += input.spacing;
     }
     while pos < p_hi - 1e-9 {
-        sw.lanes_at(pos, join, false);
+        lattice.push(pos);
         pos += input.spacing;
     }
-    // Walls: floor beyond the outermost lattice lanes gets a lane hugging it.
+    let on_lattice = sw.finish(&lattice, (a_min, a_max));
+    if !input.fit_walls {
+        return on_lattice;
+    }
+    let contacts = sw.contacts_across(a_min, a_max);
+    // Beside another region, lanes off the lattice may sweep that region's
+    // floor again (about a tool width along each contact): the set must save
+    // at least that much driving.
+    let penalty = contacts as f64 * res;
+    let longest = on_lattice.iter().map(Lane::length).fold(0.0, f64::max);
+    if penalty >= longest + input.spacing {
+        return on_lattice;
+    }
+    // Evenly spread from the lane reaching the lowest unserved row to the
+    // one reaching the highest.
     let reach = sw.reach;
-    sw.mark_connections(join);
-    if let Some((lo, _)) = sw.unserved_span() {
-        let p = (sw.coord(lo, ov) - res / 2.0 + reach).clamp(a_lo, a_hi);
-        sw.lanes_at(p, join, false);
+    let lo = (sw.coord(t_lo, ov) - res / 2.0 + reach).clamp(a_lo, a_hi);
+    let hi = (sw.coord(t_hi, ov) + res / 2.0 - reach).clamp(a_lo, a_hi);
+    let fitted: Vec<f64> = if hi - lo < 1e-9 {
+        vec![(lo + hi) / 2.0]
+    } else {
+        let n = ((hi - lo) / input.spacing - 1e-9).ceil().max(1.0) as usize;
+        (0..=n)
+            .map(|k| lo + (hi - lo) * k as f64 / n as f64)
+            .collect()
+    };
+    sw.served.fill(false);
+    sw.out.clear();
+    let spread = sw.finish(&fitted, (a_min, a_max));
+    let (c_spread, c_lattice) = (
+        lane_cost(&spread, input.spacing),
+        lane_cost(&on_lattice, input.spacing),
+    );
+    if c_spread + penalty < c_lattice - 1e-9 {
+        spread
+    } else {
+        on_lattice
     }
-    if let Some((_, hi)) = sw.unserved_span() {
-        let p = (sw.coord(hi, ov) + res / 2.0 - reach).clamp(a_lo, a_hi);
-        sw.lanes_at(p, join, false);
-    }
-    sw.mark_connections(join);
-    // Fix-up: floor the lanes could not reach (their path between two rows
-    // was blocked there) gets short lanes along single admissible rows, the
-    // row reaching most of it first.
-    for _ in 0..16 {
-        let mut best: Option<(usize, usize)> = None;
-        for row in a_min..=a_max {
-            let mut count = 0;
-            for v in v_lo..=v_hi {
-                let dv = (sw.coord(v, ov) - sw.coord(row, ov)).abs();
-                if dv > reach {
+}
+
+/// What a set of lanes costs to drive, for choosing between two sets: the
+/// lanes' length plus one lane spacing for each lane (a U-turn's connection).
+pub fn lane_cost(lanes: &[Lane], spacing: f64) -> f64 {
+    lanes.iter().map(|l| l.length() + spacing).sum()
+}
+
+impl Sweep<'_> {
+    /// How many admissible cells have drivable space of another region
+    /// directly beside them across the lanes (rows `a_min..=a_max`); cells
+    /// on the bounding box's edge count (what lies beyond is not known).
+    fn contacts_across(&self, a_min: usize, a_max: usize) -> usize {
+        let (adm, drv) = (self.input.admissible, self.input.drivable);
+        let mut count = 0;
+        for v in a_min..=a_max {
+            for u in self.u_lo..=self.u_hi {
+                if !self.at(adm, u, v) {
                     continue;
                 }
-                let half = ((reach * reach - dv * dv).max(0.0).sqrt() / res).floor() as i64;
-                for u in u_lo..=u_hi {
-                    if !sw.unserved(u, v) {
-                        continue;
-                    }
-                    let lo = (u as i64 - half).max(u_lo as i64) as usize;
-                    let hi = ((u as i64 + half) as usize).min(u_hi);
-                    if (lo..=hi).any(|uu| sw.at(input.admissible, uu, row)) {
-                        count += 1;
-                    }
+                let beside = |n: usize| !self.at(adm, u, n) && self.at(drv, u, n);
+                if v == self.v_lo || v == self.v_hi || beside(v - 1) || beside(v + 1) {
+                    count += 1;
                 }
             }
-            if count >= 4 && best.is_none_or(|(c, _)| count > c) {
-                best = Some((count, row));
+        }
+        count
+    }
+
+    /// Lanes at `positions` (m across), then where floor along a wall is
+    /// still out of reach one lane hugging it, then fix-up lanes; returns
+    /// them and leaves the record of served floor filled.
+    fn finish(&mut self, positions: &[f64], (a_min, a_max): (usize, usize)) -> Vec<Lane> {
+        let input = self.input;
+        let (ov, res) = (self.ov, input.frame.res);
+        let (a_lo, a_hi) = (self.coord(a_min, ov), self.coord(a_max, ov));
+        let join = 2.0 * input.spacing;
+        for &pos in positions {
+            self.lanes_at(pos, join, false);
+        }
+        // Walls: floor beyond the outermost lanes gets a lane hugging it.
+        let reach = self.reach;
+        self.mark_connections(join);
+        let lowest = positions.iter().copied().fold(f64::INFINITY, f64::min);
+        let highest = positions.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if let Some((lo, _)) = self.unserved_span() {
+            let p = (self.coord(lo, ov) - res / 2.0 + reach).clamp(a_lo, a_hi);
+            if p < lowest - 1e-9 {
+                self.lanes_at(p, join, false);
             }
         }
-        let Some((_, row)) = best else { break };
-        if sw.lanes_at(sw.coord(row, ov), input.spacing / 2.0, true) == 0 {
-            break;
+        if let Some((_, hi)) = self.unserved_span() {
+            let p = (self.coord(hi, ov) + res / 2.0 - reach).clamp(a_lo, a_hi);
+            if p > highest + 1e-9 {
+                self.lanes_at(p, join, false);
+            }
         }
+        self.mark_connections(join);
+        // Fix-up: floor the lanes could not reach (their path between two
+        // rows was blocked there) gets short lanes along single admissible
+        // rows, the row reaching most of it first.
+        let (u_lo, u_hi, v_lo, v_hi) = (self.u_lo, self.u_hi, self.v_lo, self.v_hi);
+        for _ in 0..16 {
+            let mut best: Option<(usize, usize)> = None;
+            for row in a_min..=a_max {
+                let mut count = 0;
+                for v in v_lo..=v_hi {
+                    let dv = (self.coord(v, ov) - self.coord(row, ov)).abs();
+                    if dv > reach {
+                        continue;
+                    }
+                    let half = ((reach * reach - dv * dv).max(0.0).sqrt() / res).floor() as i64;
+                    for u in u_lo..=u_hi {
+                        if !self.unserved(u, v) {
+                            continue;
+                        }
+                        let lo = (u as i64 - half).max(u_lo as i64) as usize;
+                        let hi = ((u as i64 + half) as usize).min(u_hi);
+                        if (lo..=hi).any(|uu| self.at(input.admissible, uu, row)) {
+                            count += 1;
+                        }
+                    }
+                }
+                if count >= 4 && best.is_none_or(|(c, _)| count > c) {
+                    best = Some((count, row));
+                }
+            }
+            let Some((_, row)) = best else { break };
+            if self.lanes_at(self.coord(row, ov), input.spacing / 2.0, true) == 0 {
+                break;
+            }
+        }
+        self.out.clone()
     }
-    sw.out
 }
 
 /// One way to drive a region's lanes: the lanes in order and the length
@@ -416,7 +515,8 @@ impl Variant {
 
 /// The ways to drive `lanes`: starting with the first or the last lane
 /// (across), from either end, the rest chained greedily by the nearest lane
-/// end (a zig-zag in a simple cell). Up to four variants.
+/// end (a zig-zag in a simple cell), then improved by moving single lanes
+/// to where they lengthen the connections least. Up to four variants.
 pub fn variants(lanes: &[Lane]) -> Vec<Variant> {
     if lanes.is_empty() {
         return Vec::new();
@@ -450,7 +550,6 @@ pub fn variants(lanes: &[Lane]) -> Vec<Variant> {
             let mut used = vec![false; lanes.len()];
             used[s] = true;
             let mut seq = vec![l0];
-            let mut length = l0.length();
             let mut at = l0.b;
             let mut at_across = across(&l0);
             for _ in 1..lanes.len() {
@@ -470,15 +569,65 @@ pub fn variants(lanes: &[Lane]) -> Vec<Variant> {
                 let Some((_, i, r)) = pick else { break };
                 used[i] = true;
                 let l = if r { lanes[i].reversed() } else { lanes[i] };
-                length += (l.a - at).norm() + l.length();
                 at = l.b;
                 at_across = across(&l);
                 seq.push(l);
             }
+            improve_order(&mut seq);
+            let length = chain_length(&seq);
             out.push(Variant { lanes: seq, length });
         }
     }
     out
+}
+
+/// Length of lanes driven in order, with straight connections between them.
+fn chain_length(seq: &[Lane]) -> f64 {
+    let lanes: f64 = seq.iter().map(Lane::length).sum();
+    let joins: f64 = seq.windows(2).map(|w| (w[1].a - w[0].b).norm()).sum();
+    lanes + joins
+}
+
+/// Largest chain [`improve_order`] works on (its passes cost O(n²)).
+const MAX_IMPROVED: usize = 48;
+
+/// Moves single lanes (either way round) to the place in the chain where
+/// they lengthen the connections least, while that shortens the chain; the
+/// first lane (the entry) stays first.
+fn improve_order(seq: &mut Vec<Lane>) {
+    let n = seq.len();
+    if !(3..=MAX_IMPROVED).contains(&n) {
+        return;
+    }
+    let gap = |p: Option<&Lane>, q: Option<&Lane>| match (p, q) {
+        (Some(p), Some(q)) => (q.a - p.b).norm(),
+        _ => 0.0,
+    };
+    for _ in 0..4 * n {
+        let mut best: Option<(f64, usize, usize, bool)> = None;
+        for i in 1..n {
+            let l = seq[i];
+            // Saved by taking lane i out.
+            let saved = gap(seq.get(i - 1), Some(&l)) + gap(Some(&l), seq.get(i + 1))
+                - gap(seq.get(i - 1), seq.get(i + 1));
+            for j in 1..n {
+                // Insert between k-1 and k of the chain without lane i.
+                let at = |k: usize| if k < i { seq.get(k) } else { seq.get(k + 1) };
+                let (p, q) = (at(j - 1), at(j));
+                for rev in [false, true] {
+                    let m = if rev { l.reversed() } else { l };
+                    let added = gap(p, Some(&m)) + gap(Some(&m), q) - gap(p, q);
+                    let gain = saved - added;
+                    if gain > 1e-6 && best.is_none_or(|(g, ..)| gain > g) {
+                        best = Some((gain, i, j, rev));
+                    }
+                }
+            }
+        }
+        let Some((_, i, j, rev)) = best else { break };
+        let l = seq.remove(i);
+        seq.insert(j, if rev { l.reversed() } else { l });
+    }
 }
 
 /// The variant (see [`variants`]) with the least `start_cost(entry) +
@@ -533,6 +682,7 @@ mod tests {
             spacing: 0.29,
             reach: 0.145,
             phase: 0.225,
+            fit_walls: true,
         };
         let ls = lanes(&input);
         // Targets 0.075..1.925 → centres 0.205..1.795 → ceil(1.59/0.29)+1 = 7 lanes.
@@ -585,6 +735,7 @@ mod tests {
                 spacing: 0.29,
                 reach: 0.145,
                 phase: 0.225,
+                fit_walls: true,
             };
             let mut region: Vec<f64> = lanes(&input).iter().map(|l| l.a.y).collect();
             region.sort_by(f64::total_cmp);
@@ -623,6 +774,7 @@ mod tests {
             spacing: 0.29,
             reach: 0.145,
             phase: 0.225,
+            fit_walls: true,
         };
         let ls = lanes(&input);
         assert!(!ls.is_empty() && ls.len() <= 3, "{ls:?}");
@@ -647,6 +799,7 @@ mod tests {
             spacing: 0.29,
             reach: 0.145,
             phase: 0.225,
+            fit_walls: true,
         };
         assert!(lanes(&input).is_empty());
         assert!(order(&[], |_| 0.0).0.is_empty());

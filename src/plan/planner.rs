@@ -975,6 +975,7 @@ impl CoveragePlanner {
             spacing: self.spacing,
             reach: self.reach,
             phase,
+            fit_walls: cell.is_some(),
         };
         let ls = lanes(&input);
         let dist = &self.cspace.dist;
