@@ -418,6 +418,24 @@ impl Sweep<'_> {
         count
     }
 
+    /// Distance across from `pos` to the nearest lane passing along
+    /// `lo..=hi` (m along); infinite when none does.
+    fn clearance(&self, pos: f64, lo: f64, hi: f64) -> f64 {
+        let axis = self.input.axis;
+        let ua = |p: &Point2<f64>| match axis {
+            Axis::X => (p.x, p.y),
+            Axis::Y => (p.y, p.x),
+        };
+        self.out
+            .iter()
+            .filter(|l| {
+                let (a, b) = (ua(&l.a).0, ua(&l.b).0);
+                a.min(b) <= hi && a.max(b) >= lo
+            })
+            .map(|l| (ua(&l.a).1 - pos).abs())
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Lanes at `positions` (m across), then where floor along a wall is
     /// still out of reach one lane hugging it, then fix-up lanes; returns
     /// them and leaves the record of served floor filled.
@@ -449,12 +467,15 @@ impl Sweep<'_> {
         self.mark_connections(join);
         // Fix-up: floor the lanes could not reach (their path between two
         // rows was blocked there) gets short lanes along single admissible
-        // rows, the row reaching most of it first.
+        // rows, the row reaching most of it first; of rows reaching as much,
+        // the one farthest across from the lanes beside that floor (the
+        // least swept again).
         let (u_lo, u_hi, v_lo, v_hi) = (self.u_lo, self.u_hi, self.v_lo, self.v_hi);
         for _ in 0..16 {
-            let mut best: Option<(usize, usize)> = None;
+            let mut best: Option<(usize, f64, usize)> = None;
             for row in a_min..=a_max {
                 let mut count = 0;
+                let (mut first, mut last) = (usize::MAX, 0);
                 for v in v_lo..=v_hi {
                     let dv = (self.coord(v, ov) - self.coord(row, ov)).abs();
                     if dv > reach {
@@ -469,14 +490,24 @@ impl Sweep<'_> {
                         let hi = ((u as i64 + half) as usize).min(u_hi);
                         if (lo..=hi).any(|uu| self.at(input.admissible, uu, row)) {
                             count += 1;
+                            first = first.min(u);
+                            last = last.max(u);
                         }
                     }
                 }
-                if count >= 4 && best.is_none_or(|(c, _)| count > c) {
-                    best = Some((count, row));
+                if count < 4 || best.is_some_and(|(c, ..)| count < c) {
+                    continue;
+                }
+                let clear = self.clearance(
+                    self.coord(row, ov),
+                    self.coord(first, self.ou) - reach,
+                    self.coord(last, self.ou) + reach,
+                );
+                if best.is_none_or(|(c, d, _)| count > c || clear > d + 1e-9) {
+                    best = Some((count, clear, row));
                 }
             }
-            let Some((_, row)) = best else { break };
+            let Some((.., row)) = best else { break };
             if self.lanes_at(self.coord(row, ov), input.spacing / 2.0, true) == 0 {
                 break;
             }
