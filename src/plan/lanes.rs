@@ -837,4 +837,128 @@ mod tests {
         assert_eq!(Axis::from_angle(1.5), Axis::Y);
         assert_eq!(Axis::from_angle(-3.1), Axis::X);
     }
+
+    /// A strip between two walls, 2.5 m long, centres at y 0.2..0.8, and
+    /// (with `beside`) the drivable space of another region above it.
+    fn strip(f: &Frame, beside: bool) -> (Vec<bool>, Vec<bool>, Vec<bool>) {
+        let mut adm = vec![false; f.len()];
+        let mut drv = vec![false; f.len()];
+        let mut tgt = vec![false; f.len()];
+        for i in 0..f.len() {
+            let c = f.centre(i);
+            let along = c.x > 0.2 && c.x < 2.7;
+            adm[i] = along && c.y > 0.2 && c.y < 0.8;
+            drv[i] = adm[i] || (beside && along && c.y > 0.8 && c.y < 1.8);
+            // Beside the other region, floor nearer its lattice lane (0.88)
+            // than this region's (0.59) is the other region's.
+            let top = if beside { 0.735 } else { 0.92 };
+            tgt[i] = c.x > 0.07 && c.x < 2.83 && c.y > 0.08 && c.y < top;
+        }
+        (adm, drv, tgt)
+    }
+
+    fn strip_lanes(adm: &[bool], drv: &[bool], tgt: &[bool], fit_walls: bool) -> Vec<f64> {
+        let input = LaneInput {
+            frame: frame(),
+            admissible: adm,
+            drivable: drv,
+            targets: tgt,
+            bbox: (0, 0, 59, 39),
+            axis: Axis::X,
+            spacing: 0.29,
+            reach: 0.145,
+            // Lattice lanes at 0.30 and 0.59: both walls need a lane of their own.
+            phase: 0.30,
+            fit_walls,
+        };
+        let mut ys: Vec<f64> = lanes(&input).iter().map(|l| l.a.y).collect();
+        ys.sort_by(f64::total_cmp);
+        ys
+    }
+
+    #[test]
+    fn a_strip_walled_in_on_both_sides_spreads_its_lanes_and_saves_one() {
+        let f = frame();
+        let (adm, drv, tgt) = strip(&f, false);
+        // On the lattice: 0.30 and 0.59 plus a lane hugging each wall.
+        let lattice = strip_lanes(&adm, &drv, &tgt, false);
+        assert_eq!(lattice.len(), 4, "{lattice:?}");
+        // Spread from wall to wall: one lane fewer, evenly spaced, so that
+        // neighbouring lanes overlap by at most 5 cm of the 0.30 m tool
+        // (on the lattice, the lanes hugging the walls overlap theirs by
+        // 24 cm).
+        let ys = strip_lanes(&adm, &drv, &tgt, true);
+        assert_eq!(ys.len(), 3, "{ys:?}");
+        assert!(
+            (ys[0] - 0.245).abs() < 1e-5 && (ys[2] - 0.755).abs() < 1e-5,
+            "{ys:?}"
+        );
+        for w in ys.windows(2) {
+            assert!(w[1] - w[0] <= 0.29 + 1e-9 && w[1] - w[0] >= 0.25, "{ys:?}");
+        }
+        // The spread lanes reach every target.
+        for (i, _) in tgt.iter().enumerate().filter(|(_, t)| **t) {
+            let c = f.centre(i);
+            let near = ys.iter().any(|y| {
+                let dx = c.x - c.x.clamp(0.225, 2.675);
+                (c.y - y).powi(2) + dx * dx <= 0.145f64.powi(2) + 1e-6
+            });
+            // (Corners beyond the lane ends are the connections' floor.)
+            let corner = c.x < 0.225 || c.x > 2.675;
+            assert!(
+                near || corner,
+                "({:.3}, {:.3}) unreached by {ys:?}",
+                c.x,
+                c.y
+            );
+        }
+    }
+
+    #[test]
+    fn a_strip_beside_another_region_keeps_the_lattice() {
+        let f = frame();
+        let (adm, drv, tgt) = strip(&f, true);
+        // 2.5 m of contact with the region above: lanes off the lattice
+        // would sweep its floor again and save no lane, so the lattice
+        // lanes stay.
+        let ys = strip_lanes(&adm, &drv, &tgt, true);
+        assert!(
+            ys.iter().any(|y| (y - 0.30).abs() < 1e-6)
+                && ys.iter().any(|y| (y - 0.59).abs() < 1e-6),
+            "{ys:?}"
+        );
+    }
+
+    #[test]
+    fn moving_a_lane_left_behind_shortens_the_chain() {
+        let at = |x: f64| Lane {
+            a: Point2::new(x, 0.0),
+            b: Point2::new(x, 0.0),
+            fixup: true,
+        };
+        // Nearest-first from 0: 1, 2.2, then back to -1.5 (joins 5.9 m).
+        let mut seq = vec![at(0.0), at(1.0), at(2.2), at(-1.5)];
+        assert!((chain_length(&seq) - 5.9).abs() < 1e-9);
+        improve_order(&mut seq);
+        assert_eq!(seq[0], at(0.0), "the entry stays first");
+        assert!((chain_length(&seq) - 5.2).abs() < 1e-9, "{seq:?}");
+        assert_eq!(seq.len(), 4);
+        // A zig-zag is left as it is.
+        let lane = |y: f64, rev: bool| {
+            let l = Lane {
+                a: Point2::new(0.0, y),
+                b: Point2::new(2.0, y),
+                fixup: false,
+            };
+            if rev {
+                l.reversed()
+            } else {
+                l
+            }
+        };
+        let zig: Vec<Lane> = (0..5).map(|k| lane(0.29 * k as f64, k % 2 == 1)).collect();
+        let mut same = zig.clone();
+        improve_order(&mut same);
+        assert_eq!(same, zig);
+    }
 }
