@@ -623,8 +623,9 @@ fn chain_length(seq: &[Lane]) -> f64 {
 const MAX_IMPROVED: usize = 48;
 
 /// Moves single lanes (either way round) to the place in the chain where
-/// they lengthen the connections least, while that shortens the chain; the
-/// first lane (the entry) stays first.
+/// they lengthen the connections least, and else drives stretches of the
+/// chain backwards (2-opt), while that shortens the chain; the first lane
+/// (the entry) stays first.
 fn improve_order(seq: &mut Vec<Lane>) {
     let n = seq.len();
     if !(3..=MAX_IMPROVED).contains(&n) {
@@ -655,9 +656,30 @@ fn improve_order(seq: &mut Vec<Lane>) {
                 }
             }
         }
-        let Some((_, i, j, rev)) = best else { break };
-        let l = seq.remove(i);
-        seq.insert(j, if rev { l.reversed() } else { l });
+        if let Some((_, i, j, rev)) = best {
+            let l = seq.remove(i);
+            seq.insert(j, if rev { l.reversed() } else { l });
+            continue;
+        }
+        // No single lane to move: drive a stretch of the chain backwards
+        // where that shortens its two outer connections.
+        let mut flip: Option<(f64, usize, usize)> = None;
+        for i in 1..n {
+            for j in i + 1..n {
+                let before = gap(seq.get(i - 1), seq.get(i)) + gap(seq.get(j), seq.get(j + 1));
+                let (fi, fj) = (seq[j].reversed(), seq[i].reversed());
+                let after = gap(seq.get(i - 1), Some(&fi)) + gap(Some(&fj), seq.get(j + 1));
+                let gain = before - after;
+                if gain > 1e-6 && flip.is_none_or(|(g, ..)| gain > g) {
+                    flip = Some((gain, i, j));
+                }
+            }
+        }
+        let Some((_, i, j)) = flip else { break };
+        seq[i..=j].reverse();
+        for l in &mut seq[i..=j] {
+            *l = l.reversed();
+        }
     }
 }
 
