@@ -54,11 +54,12 @@ fn five_floor_plan_rooms() {
         // Target <= 1.25: measured 0.90-1.15.
         assert!(ratio <= 1.2, "{spec}: online/offline path {ratio}");
         // Target <= 15 %, not reached: measured 0.28-0.55 online and
-        // 0.26-0.51 offline (0.53-0.62 / 0.48-0.64 before the lane
+        // 0.20-0.50 offline (0.28-0.55 / 0.26-0.51 before the lane order was
+        // improved inside a region; 0.53-0.62 / 0.48-0.64 before the lane
         // lattice), most of it transits between cells and lane connections
         // among furniture with the tool always on.
         assert!(m.overlap <= 0.58, "{spec}: online overlap {}", m.overlap);
-        assert!(o.overlap <= 0.53, "{spec}: offline overlap {}", o.overlap);
+        assert!(o.overlap <= 0.52, "{spec}: offline overlap {}", o.overlap);
         sum_cov += m.coverage;
     }
     let mean = sum_cov / ROOMS.len() as f64;

@@ -29,7 +29,7 @@
 use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
-use super::lanes::{lanes, lattice_position, variants, Axis, Lane, LaneInput, Variant};
+use super::lanes::{lanes, lattice_position, turn_join, variants, Axis, Lane, LaneInput, Variant};
 use super::swept::{LatticePhase, SweptFloor};
 use super::PlanParams;
 use crate::config::RobotParams;
@@ -981,7 +981,7 @@ impl CoveragePlanner {
         let dist = &self.cspace.dist;
         let mut vars = Vec::new();
         let mut entry_cost = Vec::new();
-        for var in variants(&ls) {
+        for var in variants(&ls, turn_join(self.spacing)) {
             let c = f
                 .index_of(&var.entry())
                 .map(|i| dist[i])
@@ -1509,7 +1509,7 @@ mod tests {
                     b: Point2::new(x, 1.0),
                     fixup: false,
                 };
-                let variants = variants(&[l]);
+                let variants = variants(&[l], 0.58);
                 let entry_cost = variants
                     .iter()
                     .map(|v| (v.entry() - robot).norm())
