@@ -56,11 +56,10 @@ pub struct PlanParams {
     pub explore_view_distance: f64,
     /// Frontier clusters with fewer cells than this are ignored (ray speckle).
     pub min_frontier_cells: usize,
-    /// Longest move out of a part of the space with nothing left to do,
-    /// through a passage only the bare body fits, to another part with work
-    /// (m of travel, steps outside the inflated free space counted three
-    /// times; 0 = never).
-    pub way_out_distance: f64,
+    /// Longest passage (m) where only the bare body fits (no safety margin)
+    /// that the robot may take out of a part of the space with nothing left
+    /// to do, to another part with work (0 = never).
+    pub way_out_passage: f64,
     /// Turn in place once at the start to see all around.
     pub look_around: bool,
     /// When no cell is final, cover closed cells whose size still settles
@@ -80,7 +79,7 @@ impl Default for PlanParams {
             min_patch_area: 0.05,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
-            way_out_distance: 3.0,
+            way_out_passage: 1.0,
             look_around: true,
             cover_settling_cells: true,
         }
@@ -98,7 +97,7 @@ impl PlanParams {
             ("min_patch_area", self.min_patch_area),
             ("swept_travel_cost", self.swept_travel_cost),
             ("max_lane_join", self.max_lane_join),
-            ("way_out_distance", self.way_out_distance),
+            ("way_out_passage", self.way_out_passage),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PlanError::BadParam {

@@ -749,7 +749,7 @@ impl CoveragePlanner {
             self.boxed_in = 0;
         }
         if cands.is_empty() {
-            let report = self.done_report();
+            let report = self.done_report(robot);
             self.report = Some(report);
             self.set_task(Task::Done, Vec::new(), None);
             return Ok(PlanStatus::Done(report));
@@ -1248,7 +1248,7 @@ impl CoveragePlanner {
     /// in view), through a passage only the bare body fits; `None` when
     /// there is none, or after [`MAX_WAYS_OUT`] in a row.
     fn way_out(&mut self, robot: usize) -> Option<Vec<Point2<f64>>> {
-        if self.ways_out_in_a_row >= MAX_WAYS_OUT || self.params.way_out_distance <= 0.0 {
+        if self.ways_out_in_a_row >= MAX_WAYS_OUT || self.params.way_out_passage <= 0.0 {
             return None;
         }
         let f = self.cspace.frame;
@@ -1261,12 +1261,16 @@ impl CoveragePlanner {
         let view = self.params.explore_view_distance;
         let vr = (view / f.res).ceil() as i64;
         let (covered, abandoned, reach_disk) = (&self.covered, &self.abandoned, &self.reach_disk);
+        // Floor the robot's own part reaches is left to it (it found nothing
+        // it could plan there): only what the other part alone reaches counts.
+        let own = &self.targets;
         let state = &self.cspace.state;
         let mut counted = vec![false; f.len()];
         let mut in_part = vec![false; f.len()];
         let has_work = |part: &[usize]| {
-            // Uncovered floor its centres reach.
-            let mut floor = 0;
+            // Uncovered floor its centres reach, and the robot's part does
+            // not, in a patch the planner would cover (see `min_patch_area`).
+            let mut floor = Vec::new();
             for &c in part {
                 let (x, y) = ((c % f.w) as i64, (c / f.w) as i64);
                 for &(dx, dy) in reach_disk {
@@ -1275,14 +1279,14 @@ impl CoveragePlanner {
                         continue;
                     }
                     let j = ny as usize * f.w + nx as usize;
-                    if state[j] == FREE && !covered[j] && !abandoned[j] && !counted[j] {
+                    if state[j] == FREE && !covered[j] && !abandoned[j] && !own[j] && !counted[j] {
                         counted[j] = true;
-                        floor += 1;
+                        floor.push(j);
                     }
                 }
             }
-            counted.fill(false);
-            if floor >= min_floor {
+            let big = largest_patch(&floor, &mut counted, f) >= min_floor;
+            if big {
                 return true;
             }
             // Unexplored space in view of one of its centres (sampled as
@@ -1313,7 +1317,7 @@ impl CoveragePlanner {
             &self.cspace,
             robot,
             &self.reachable_mask,
-            self.params.way_out_distance,
+            self.params.way_out_passage,
             has_work,
         )
     }
@@ -1427,13 +1431,14 @@ impl CoveragePlanner {
         None
     }
 
-    fn done_report(&self) -> DoneReport {
+    fn done_report(&self, robot: usize) -> DoneReport {
         let f = self.cspace.frame;
         let a = f.res * f.res;
         // Seen free floor no reachable centre can touch with the body.
         let body = disk(self.cspace.inflation() + 2.0 * f.res, f.res);
         let mut touch = vec![false; f.len()];
-        for i in (0..f.len()).filter(|&i| self.reachable_mask[i]) {
+        let reachable = super::unbox::reachable_with_ways_out(&self.cspace, robot);
+        for i in (0..f.len()).filter(|&i| reachable[i]) {
             let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
             for &(dx, dy) in &body {
                 let (nx, ny) = (x + dx, y + dy);
@@ -1456,6 +1461,38 @@ impl CoveragePlanner {
         }
         r
     }
+}
+
+/// The size of the largest 8-connected patch of `cells`, which are marked
+/// in `mark` on entry; unmarks them all.
+fn largest_patch(cells: &[usize], mark: &mut [bool], f: Frame) -> usize {
+    let mut best = 0;
+    let mut stack = Vec::new();
+    for &s in cells {
+        if !mark[s] {
+            continue;
+        }
+        mark[s] = false;
+        stack.push(s);
+        let mut n = 0;
+        while let Some(i) = stack.pop() {
+            n += 1;
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for (dx, dy) in crate::grid::NEIGHBOURS_8 {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                    continue;
+                }
+                let j = ny as usize * f.w + nx as usize;
+                if mark[j] {
+                    mark[j] = false;
+                    stack.push(j);
+                }
+            }
+        }
+        best = best.max(n);
+    }
+    best
 }
 
 /// The candidate and variant to start with, from a tour through all

@@ -134,14 +134,15 @@ fn shorten(cs: &CSpace, cells: &[usize]) -> Vec<Point2<f64>> {
 /// The way out of the robot's part of the space (see the module docs):
 /// waypoints (the robot's own cell excluded) to the nearest traversable
 /// cell outside `reachable` whose part of the traversable space passes
-/// `has_work` (called once per part, with its cells), at most `max_cost`
-/// metres of travel away (steps off the traversable space count
-/// [`TIGHT_STEP_COST`] times). `None` when there is no such place.
+/// `has_work` (called once per part, with its cells), with at most
+/// `max_tight` metres of the way off the traversable space (steps there
+/// count [`TIGHT_STEP_COST`] times in the choice of the way). `None` when
+/// there is no such place.
 pub fn way_out(
     cs: &CSpace,
     robot: usize,
     reachable: &[bool],
-    max_cost: f64,
+    max_tight: f64,
     mut has_work: impl FnMut(&[usize]) -> bool,
 ) -> Option<Vec<Point2<f64>>> {
     let n = cs.frame.len();
@@ -149,6 +150,8 @@ pub fn way_out(
         return None;
     }
     let mut dist = vec![f64::INFINITY; n];
+    // Length of the way to each cell off the traversable space.
+    let mut tight = vec![0.0; n];
     let mut prev = vec![usize::MAX; n];
     let mut labels = vec![u32::MAX; n];
     // Per label: whether that part of the space has work.
@@ -181,20 +184,45 @@ pub fn way_out(
             }
         }
         for (j, step) in neighbours(cs, i, |j| passable(cs, j)) {
-            let c = cost
-                + if cs.traversable[j] {
-                    step
-                } else {
-                    step * TIGHT_STEP_COST
-                };
-            if c < dist[j] && c <= max_cost {
+            let (c, t) = if cs.traversable[j] {
+                (cost + step, tight[i])
+            } else {
+                (cost + step * TIGHT_STEP_COST, tight[i] + step)
+            };
+            if c < dist[j] && t <= max_tight {
                 dist[j] = c;
+                tight[j] = t;
                 prev[j] = i;
                 heap.push(Entry { cost: c, idx: j });
             }
         }
     }
     None
+}
+
+/// The traversable cells the robot at `robot` can get to when it may take
+/// passages where only the bare body fits (of any length): what it could
+/// reach with ways out, for the report of unreachable floor.
+pub fn reachable_with_ways_out(cs: &CSpace, robot: usize) -> Vec<bool> {
+    let n = cs.frame.len();
+    let mut seen = vec![false; n];
+    if robot >= n {
+        return seen;
+    }
+    seen[robot] = true;
+    let mut stack = vec![robot];
+    while let Some(i) = stack.pop() {
+        for (j, _) in neighbours(cs, i, |j| passable(cs, j)) {
+            if !seen[j] {
+                seen[j] = true;
+                stack.push(j);
+            }
+        }
+    }
+    for (s, t) in seen.iter_mut().zip(&cs.traversable) {
+        *s &= *t;
+    }
+    seen
 }
 
 #[cfg(test)]
@@ -258,10 +286,13 @@ mod tests {
             assert!(segment_passable(&cs, &from, p), "{from} -> {p}");
             from = *p;
         }
+        // Both sides count as reachable with ways out.
+        let all = reachable_with_ways_out(&cs, robot);
+        assert!(all[right] && all[robot]);
         // The other side has nothing to do: no way out.
         assert!(way_out(&cs, robot, &reach, 3.0, |_| false).is_none());
-        // Too far for the budget.
-        assert!(way_out(&cs, robot, &reach, 0.5, |_| true).is_none());
+        // A passage longer than allowed.
+        assert!(way_out(&cs, robot, &reach, 0.1, |_| true).is_none());
     }
 
     #[test]
@@ -272,6 +303,8 @@ mod tests {
         let robot = f.index_of(&Point2::new(1.0, 1.0)).unwrap();
         let reach = reachable_from(&mut cs, robot);
         assert!(way_out(&cs, robot, &reach, 10.0, |_| true).is_none());
+        let all = reachable_with_ways_out(&cs, robot);
+        assert_eq!(all, reach);
         // Out of range or inconsistent input: no way out, no panic.
         assert!(way_out(&cs, f.len(), &reach, 10.0, |_| true).is_none());
         assert!(way_out(&cs, robot, &[], 10.0, |_| true).is_none());
