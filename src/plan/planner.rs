@@ -237,6 +237,8 @@ pub struct CoveragePlanner {
     forgiven_at: usize,
     /// Interruptions forgiven since (see [`MAX_FORGIVEN`]).
     forgiven: usize,
+    /// Floor given up has had its second round (see `retry_given_up`).
+    retried: bool,
 }
 
 /// Updates the planner waits, planning nothing, while the space reachable
@@ -336,6 +338,7 @@ impl CoveragePlanner {
             fruitless_explores: 0,
             forgiven_at: 0,
             forgiven: 0,
+            retried: false,
             in_cell: Vec::new(),
             split_task: false,
         })
@@ -747,6 +750,12 @@ impl CoveragePlanner {
             }
         } else {
             self.boxed_in = 0;
+        }
+        // Floor given up while the map was still changing (tasks interrupted
+        // again and again at furniture seen from closer) gets one more
+        // round, once, when nothing else is left.
+        if cands.is_empty() && !self.retried && self.retry_given_up() {
+            cands = self.patch_candidates(decomp);
         }
         if cands.is_empty() {
             let report = self.done_report(robot);
@@ -1337,6 +1346,24 @@ impl CoveragePlanner {
             .iter()
             .any(|&i| !self.given_up[i] && (f.centre(i) - g).norm() <= view);
         self.frontier = list;
+        any
+    }
+
+    /// Takes back every give-up of floor not swept yet (see [`Self::choose`]);
+    /// false when there is none.
+    fn retry_given_up(&mut self) -> bool {
+        self.retried = true;
+        let mut any = false;
+        for i in 0..self.abandoned.len() {
+            if self.abandoned[i] && !self.covered[i] {
+                self.abandoned[i] = false;
+                self.tries[i] = 0;
+                any = true;
+            }
+        }
+        if any {
+            self.compute_targets();
+        }
         any
     }
 
