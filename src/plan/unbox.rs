@@ -101,19 +101,21 @@ fn component(cs: &CSpace, start: usize, label: u32, labels: &mut [u32]) -> Vec<u
     out
 }
 
-/// Whether the straight segment `a`–`b` stays on passable cells (sampled
-/// every quarter cell).
-fn segment_passable(cs: &CSpace, a: &Point2<f64>, b: &Point2<f64>) -> bool {
+/// Whether the straight segment `a`–`b` stays on traversable cells
+/// (sampled every quarter cell).
+fn segment_traversable(cs: &CSpace, a: &Point2<f64>, b: &Point2<f64>) -> bool {
     let d = b - a;
     let n = ((d.norm() / (cs.frame.res * 0.25)).ceil() as usize).max(1);
     (0..=n).all(|k| {
         cs.frame
             .index_of(&(a + d * (k as f64 / n as f64)))
-            .is_some_and(|i| passable(cs, i))
+            .is_some_and(|i| cs.traversable[i])
     })
 }
 
-/// String-pulls a cell path over passable cells.
+/// String-pulls a cell path where it runs over traversable cells; through
+/// the tight stretch (body-clear cells only, a few millimetres to spare) it
+/// keeps to the cell centres, step by step.
 fn shorten(cs: &CSpace, cells: &[usize]) -> Vec<Point2<f64>> {
     let pts: Vec<Point2<f64>> = cells.iter().map(|&i| cs.frame.centre(i)).collect();
     let mut out = Vec::new();
@@ -121,7 +123,10 @@ fn shorten(cs: &CSpace, cells: &[usize]) -> Vec<Point2<f64>> {
     while anchor + 1 < pts.len() {
         let mut far = anchor + 1;
         for j in anchor + 2..pts.len() {
-            if segment_passable(cs, &pts[anchor], &pts[j]) {
+            if !cs.traversable[cells[j - 1]] {
+                break;
+            }
+            if segment_traversable(cs, &pts[anchor], &pts[j]) {
                 far = j;
             }
         }
@@ -280,10 +285,17 @@ mod tests {
         assert_eq!(asked, 1);
         let end = *path.last().unwrap();
         assert!(end.x > 2.0, "{path:?}");
-        // Every point of the way keeps the bare body on free floor.
+        // Every point of the way keeps the bare body on free floor, and the
+        // tight stretch is driven cell by cell.
         let mut from = f.centre(robot);
         for p in &path {
-            assert!(segment_passable(&cs, &from, p), "{from} -> {p}");
+            assert!(cs.segment_safe(&from, p), "{from} -> {p}");
+            let tight = [from, *p]
+                .iter()
+                .any(|q| !cs.traversable[f.index_of(q).unwrap()]);
+            if tight {
+                assert!((p - from).norm() < 0.08, "{from} -> {p}");
+            }
             from = *p;
         }
         // Both sides count as reachable with ways out.
