@@ -1898,6 +1898,55 @@ mod tests {
     }
 
     #[test]
+    fn interruptions_are_forgiven_only_while_new_floor_gets_swept() {
+        let g = crate::plan::test_support::walled_room();
+        let mut p = crate::plan::test_support::planner();
+        let at = crate::geom::pose(1.5, 1.0, 0.0);
+        p.update(&g, &Decomposition::default(), &at, None).unwrap();
+        for _ in 0..MAX_FORGIVEN {
+            assert!(p.may_forgive());
+        }
+        assert!(!p.may_forgive(), "no progress: charged again");
+        // A metre of new floor swept: forgiven again.
+        for k in 0..20 {
+            p.record_pose(&crate::geom::pose(0.5 + 0.05 * f64::from(k), 1.0, 0.0));
+        }
+        assert!(p.may_forgive());
+    }
+
+    #[test]
+    fn floor_given_up_gets_one_more_round_before_done() {
+        let g = crate::plan::test_support::walled_room();
+        let mut p = crate::plan::test_support::planner();
+        let empty = Decomposition::default();
+        let at = crate::geom::pose(1.5, 1.0, 0.0);
+        p.update(&g, &empty, &at, None).unwrap();
+        // All of it given up, as after tasks interrupted again and again.
+        p.abandoned.iter_mut().for_each(|a| *a = true);
+        p.interrupt();
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        assert!(
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Cover(None),
+                    ..
+                }
+            ),
+            "{st:?}"
+        );
+        assert!(p.abandoned.iter().all(|a| !a));
+        // Given up again: there is no third round.
+        p.abandoned.iter_mut().for_each(|a| *a = true);
+        p.interrupt();
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        assert!(
+            matches!(st, PlanStatus::Done(r) if r.abandoned_area > 4.0),
+            "{st:?}"
+        );
+    }
+
+    #[test]
     fn heuristic_and_exhaustive_search_agree_on_a_few_regions() {
         let robot = Point2::new(0.1, 0.0);
         let xs = [-1.2, -0.6, 0.5, 1.0, 1.5, 2.0, 2.5];
