@@ -269,6 +269,23 @@ impl CSpace {
         }
     }
 
+    /// Whether the bare robot body (radius, no margin) centred on cell `i`
+    /// lies on seen-free floor only: no seen obstacle and no unexplored cell
+    /// under it. Weaker than [`CSpace::traversable`] (no safety margin, no
+    /// clearance from the grid border), for short moves through a passage
+    /// just wide enough for the body.
+    pub fn body_clear(&self, i: usize) -> bool {
+        let (w, h) = (self.frame.w as i64, self.frame.h as i64);
+        if i >= self.frame.len() || self.state[i] != FREE {
+            return false;
+        }
+        let (x, y) = ((i as i64) % w, (i as i64) / w);
+        self.hard.iter().all(|&(dx, dy)| {
+            let (nx, ny) = (x + dx, y + dy);
+            nx >= 0 && ny >= 0 && nx < w && ny < h && self.state[(ny * w + nx) as usize] == FREE
+        })
+    }
+
     /// Sets the extra travel cost factor of every cell (`f(i)` for cell
     /// `i`, at least 0): paths and travel costs then prefer cheap cells, e.g.
     /// floor the tool has not swept yet. Reset on a change of the grid's

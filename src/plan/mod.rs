@@ -14,6 +14,7 @@ pub mod planner;
 pub mod swept;
 #[cfg(test)]
 pub(crate) mod test_support;
+pub mod unbox;
 
 pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
 pub use swept::{LatticePhase, SweptFloor};
@@ -55,6 +56,10 @@ pub struct PlanParams {
     pub explore_view_distance: f64,
     /// Frontier clusters with fewer cells than this are ignored (ray speckle).
     pub min_frontier_cells: usize,
+    /// Longest passage (m) where only the bare body fits (no safety margin)
+    /// that the robot may take out of a part of the space with nothing left
+    /// to do, to another part with work (0 = never).
+    pub way_out_passage: f64,
     /// Turn in place once at the start to see all around.
     pub look_around: bool,
     /// When no cell is final, cover closed cells whose size still settles
@@ -74,6 +79,7 @@ impl Default for PlanParams {
             min_patch_area: 0.05,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
+            way_out_passage: 1.0,
             look_around: true,
             cover_settling_cells: true,
         }
@@ -91,6 +97,7 @@ impl PlanParams {
             ("min_patch_area", self.min_patch_area),
             ("swept_travel_cost", self.swept_travel_cost),
             ("max_lane_join", self.max_lane_join),
+            ("way_out_passage", self.way_out_passage),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PlanError::BadParam {

@@ -142,6 +142,9 @@ pub struct PlanStats {
     pub lanes: usize,
     /// Escapes from an inflation zone the robot found itself in.
     pub escapes: usize,
+    /// Moves out of a part of the space with nothing left to do, through a
+    /// passage only the bare body fits (see [`super::unbox`]).
+    pub ways_out: usize,
 }
 
 /// One planned task, for reports and pictures.
@@ -223,6 +226,19 @@ pub struct CoveragePlanner {
     phase: [Option<f64>; 2],
     /// Consecutive updates that found the robot boxed in (see [`BOXED_IN_UPDATES`]).
     boxed_in: usize,
+    /// Ways out planned since the last cover or explore task (see [`MAX_WAYS_OUT`]).
+    ways_out_in_a_row: usize,
+    /// Seen-free cells when the current exploration move began.
+    free_at_explore: usize,
+    /// Exploration moves in a row that showed little new floor (see
+    /// [`MAX_FRUITLESS_EXPLORES`]).
+    fruitless_explores: usize,
+    /// Swept cells when the count of forgiven interruptions was last reset.
+    forgiven_at: usize,
+    /// Interruptions forgiven since (see [`MAX_FORGIVEN`]).
+    forgiven: usize,
+    /// Floor given up has had its second round (see `retry_given_up`).
+    retried: bool,
 }
 
 /// Updates the planner waits, planning nothing, while the space reachable
@@ -230,6 +246,30 @@ pub struct CoveragePlanner {
 /// bad scan, or contact marks, around it) before it concludes that nothing
 /// reachable is left: the map may clear meanwhile.
 const BOXED_IN_UPDATES: usize = 25;
+
+/// Ways out (see [`super::unbox`]) in a row, with no cover or explore task
+/// between them, after which the planner stops looking for one: the parts
+/// they led to had no work the planner could plan.
+const MAX_WAYS_OUT: usize = 2;
+
+/// Interruptions not charged to the interrupted task (escapes from an
+/// inflation zone, transits blocked on the way) while the tool sweeps less
+/// than a footprint of new floor; beyond, they are charged a try again, so
+/// that a place the robot keeps being pushed out of, or a passage that keeps
+/// closing, cannot hold it in an endless loop.
+const MAX_FORGIVEN: usize = 3;
+
+/// Cells on each side of a given-up frontier cell given up with it (see
+/// `give_up_frontier_near`).
+const FRONTIER_SPREAD: i64 = 2;
+
+/// An exploration move that shows fewer new seen-free cells than this is
+/// fruitless (0.1 m² on the 5 cm grid: less than the robot's footprint).
+const FRUITFUL_EXPLORE_CELLS: usize = 40;
+
+/// Fruitless exploration moves in a row after which all frontier there is
+/// is given up (see `count_fruitless_explore`).
+const MAX_FRUITLESS_EXPLORES: usize = 8;
 
 /// Updates between re-evaluations while exploring (a cell may have become final).
 const EXPLORE_RECHECK: usize = 5;
@@ -293,6 +333,12 @@ impl CoveragePlanner {
             restored: None,
             phase: [None; 2],
             boxed_in: 0,
+            ways_out_in_a_row: 0,
+            free_at_explore: 0,
+            fruitless_explores: 0,
+            forgiven_at: 0,
+            forgiven: 0,
+            retried: false,
             in_cell: Vec::new(),
             split_task: false,
         })
@@ -443,6 +489,21 @@ impl CoveragePlanner {
         self.task = Task::Idle;
     }
 
+    /// Whether an interruption may be forgiven (see [`MAX_FORGIVEN`]);
+    /// counts it when so.
+    fn may_forgive(&mut self) -> bool {
+        let swept = self.covered.iter().filter(|c| **c).count();
+        if swept >= self.forgiven_at + self.stamp.len() {
+            self.forgiven_at = swept;
+            self.forgiven = 0;
+        }
+        let ok = self.forgiven < MAX_FORGIVEN;
+        if ok {
+            self.forgiven += 1;
+        }
+        ok
+    }
+
     /// Drops what the current task was after without charging it a try: the
     /// next `set_task` then has nothing to charge.
     fn forgive_task(&mut self) {
@@ -503,6 +564,14 @@ impl CoveragePlanner {
                 .any(|s| !self.cspace.segment_safe(&s[0], &s[1]))
             {
                 replan = true;
+                // Still on the way to the task's first lane: the region is
+                // not at fault (the transit ran into something seen on the
+                // way, typically at a gap between furniture seen closer);
+                // its floor is not charged a try, up to a bound.
+                let in_transit = self.motions.get(from) == Some(&Motion::Transit);
+                if in_transit && self.may_forgive() {
+                    self.forgive_task();
+                }
             }
             if self.task == Task::Explore {
                 let resolved = match self.explore_goal {
@@ -543,6 +612,13 @@ impl CoveragePlanner {
             if let Some(g) = self.explore_goal.take() {
                 self.give_up_frontier_near(&g, MAX_TRIES);
             }
+            self.count_fruitless_explore();
+        }
+        if task == Task::Explore {
+            self.free_at_explore = self.known_free();
+        }
+        if matches!(task, Task::Cover(_) | Task::Explore) {
+            self.ways_out_in_a_row = 0;
         }
         self.task = task;
         let m = match task {
@@ -592,10 +668,13 @@ impl CoveragePlanner {
         }
         if !self.cspace.traversable[robot] {
             if let Some(goal) = self.escape_target(robot) {
+                let forgive = self.may_forgive();
                 // The robot was pushed into an inflation zone (a cell seen
                 // occupied next to it, tracking error): the task it was on is
                 // not at fault, so its floor is not charged a try.
-                self.forgive_task();
+                if forgive {
+                    self.forgive_task();
+                }
                 self.stats.escapes += 1;
                 self.set_task(Task::Escape, vec![goal], None);
                 return working(Task::Escape);
@@ -622,8 +701,7 @@ impl CoveragePlanner {
                     new_path: false,
                 });
             }
-            let boxed = self.boxed_in_now();
-            if let Some((goal, face)) = self.explore_goal_from(robot, !boxed) {
+            if let Some((goal, face)) = self.explore_goal_from(robot) {
                 let mut path = self.cspace.path_to(goal).unwrap_or_default();
                 if !path.is_empty() {
                     path.remove(0);
@@ -639,6 +717,17 @@ impl CoveragePlanner {
                 return working(Task::Explore);
             }
             cands = self.patch_candidates(decomp);
+        }
+        // Nothing left where the robot can go with the full clearance, but
+        // its body fits through to another part of the space with work.
+        if cands.is_empty() {
+            if let Some(path) = self.way_out(robot) {
+                self.forgive_task();
+                self.stats.ways_out += 1;
+                self.ways_out_in_a_row += 1;
+                self.set_task(Task::Escape, path, None);
+                return working(Task::Escape);
+            }
         }
         // Boxed in: the robot can reach less than its own footprint, yet
         // seen floor is left. Wait (plan nothing) rather than report all of
@@ -662,8 +751,14 @@ impl CoveragePlanner {
         } else {
             self.boxed_in = 0;
         }
+        // Floor given up while the map was still changing (tasks interrupted
+        // again and again at furniture seen from closer) gets one more
+        // round, once, when nothing else is left.
+        if cands.is_empty() && !self.retried && self.retry_given_up() {
+            cands = self.patch_candidates(decomp);
+        }
         if cands.is_empty() {
-            let report = self.done_report();
+            let report = self.done_report(robot);
             self.report = Some(report);
             self.set_task(Task::Done, Vec::new(), None);
             return Ok(PlanStatus::Done(report));
@@ -1118,9 +1213,10 @@ impl CoveragePlanner {
     }
 
     /// The nearest reachable place with unexplored space in view, and the
-    /// frontier point to face there; with `give_up`, a frontier no
-    /// reachable place has in view is never tried again.
-    fn explore_goal_from(&mut self, _robot: usize, give_up: bool) -> Option<(usize, Point2<f64>)> {
+    /// frontier point to face there. A frontier no reachable place has in
+    /// view now is kept: it may come into reach later (through a way out,
+    /// or once a passage is seen from closer).
+    fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
         let f = self.cspace.frame;
         let mut list = std::mem::take(&mut self.frontier);
         self.cspace.frontier(&mut list);
@@ -1153,14 +1249,87 @@ impl CoveragePlanner {
                 }
             }
         }
-        if best.is_none() && give_up {
-            // Unreachable frontier: never try it again.
-            for &i in &list {
-                self.given_up[i] = true;
-            }
-        }
         self.frontier = list;
         best.map(|(_, j, fp)| (j, fp))
+    }
+
+    /// The way out of the robot's part of the space to another part with
+    /// work left (uncovered floor the lanes could reach, or unexplored space
+    /// in view), through a passage only the bare body fits; `None` when
+    /// there is none, or after [`MAX_WAYS_OUT`] in a row.
+    fn way_out(&mut self, robot: usize) -> Option<Vec<Point2<f64>>> {
+        if self.ways_out_in_a_row >= MAX_WAYS_OUT || self.params.way_out_passage <= 0.0 {
+            return None;
+        }
+        let f = self.cspace.frame;
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        list.retain(|&i| !self.given_up[i]);
+        let frontier = cluster_filter(&list, f, self.params.min_frontier_cells);
+        self.frontier = list;
+        let min_floor = self.min_patch_cells();
+        let view = self.params.explore_view_distance;
+        let vr = (view / f.res).ceil() as i64;
+        let (covered, abandoned, reach_disk) = (&self.covered, &self.abandoned, &self.reach_disk);
+        // Floor the robot's own part reaches is left to it (it found nothing
+        // it could plan there): only what the other part alone reaches counts.
+        let own = &self.targets;
+        let state = &self.cspace.state;
+        let mut counted = vec![false; f.len()];
+        let mut in_part = vec![false; f.len()];
+        let has_work = |part: &[usize]| {
+            // Uncovered floor its centres reach, and the robot's part does
+            // not, in a patch the planner would cover (see `min_patch_area`).
+            let mut floor = Vec::new();
+            for &c in part {
+                let (x, y) = ((c % f.w) as i64, (c / f.w) as i64);
+                for &(dx, dy) in reach_disk {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                        continue;
+                    }
+                    let j = ny as usize * f.w + nx as usize;
+                    if state[j] == FREE && !covered[j] && !abandoned[j] && !own[j] && !counted[j] {
+                        counted[j] = true;
+                        floor.push(j);
+                    }
+                }
+            }
+            let big = largest_patch(&floor, &mut counted, f) >= min_floor;
+            if big {
+                return true;
+            }
+            // Unexplored space in view of one of its centres (sampled as
+            // the exploration goal is).
+            for &c in part {
+                in_part[c] = true;
+            }
+            let seen = frontier.iter().any(|&fi| {
+                let (x, y) = ((fi % f.w) as i64, (fi / f.w) as i64);
+                (-vr..=vr).step_by(2).any(|dy| {
+                    (-vr..=vr).step_by(2).any(|dx| {
+                        let (nx, ny) = (x + dx, y + dy);
+                        nx >= 0
+                            && ny >= 0
+                            && (nx as usize) < f.w
+                            && (ny as usize) < f.h
+                            && ((dx * dx + dy * dy) as f64).sqrt() * f.res <= view
+                            && in_part[ny as usize * f.w + nx as usize]
+                    })
+                })
+            });
+            for &c in part {
+                in_part[c] = false;
+            }
+            seen
+        };
+        super::unbox::way_out(
+            &self.cspace,
+            robot,
+            &self.reachable_mask,
+            self.params.way_out_passage,
+            has_work,
+        )
     }
 
     /// Whether the space reachable from the robot is smaller than its own
@@ -1181,6 +1350,66 @@ impl CoveragePlanner {
         any
     }
 
+    /// Takes back every give-up of floor not swept yet (see [`Self::choose`]);
+    /// false when there is none.
+    fn retry_given_up(&mut self) -> bool {
+        self.retried = true;
+        let mut any = false;
+        for i in 0..self.abandoned.len() {
+            if self.abandoned[i] && !self.covered[i] {
+                self.abandoned[i] = false;
+                self.tries[i] = 0;
+                any = true;
+            }
+        }
+        if any {
+            self.compute_targets();
+        }
+        any
+    }
+
+    /// Seen-free cells of the map.
+    fn known_free(&self) -> usize {
+        self.cspace.state.iter().filter(|&&s| s == FREE).count()
+    }
+
+    /// Counts an exploration move (just ended) that showed less new floor
+    /// than [`FRUITFUL_EXPLORE_CELLS`]; after [`MAX_FRUITLESS_EXPLORES`] in a
+    /// row, gives up every frontier cell there is now (a wall seen at a
+    /// grazing angle keeps showing new frontier cells as its cells flip
+    /// between free and occupied: an endless walk along it otherwise).
+    fn count_fruitless_explore(&mut self) {
+        if self.known_free() >= self.free_at_explore + FRUITFUL_EXPLORE_CELLS {
+            self.fruitless_explores = 0;
+            return;
+        }
+        self.fruitless_explores += 1;
+        if self.fruitless_explores < MAX_FRUITLESS_EXPLORES {
+            return;
+        }
+        self.fruitless_explores = 0;
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        for &i in &list {
+            self.give_up_around(i);
+        }
+        self.frontier = list;
+    }
+
+    /// Gives up frontier cell `i` and the cells within [`FRONTIER_SPREAD`].
+    fn give_up_around(&mut self, i: usize) {
+        let f = self.cspace.frame;
+        let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+        for dy in -FRONTIER_SPREAD..=FRONTIER_SPREAD {
+            for dx in -FRONTIER_SPREAD..=FRONTIER_SPREAD {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
+                    self.given_up[ny as usize * f.w + nx as usize] = true;
+                }
+            }
+        }
+    }
+
     /// Frontier cells in view of `g` get one more try; at `limit` tries (0:
     /// at once) they are given up.
     fn give_up_frontier_near(&mut self, g: &Point2<f64>, limit: u8) {
@@ -1192,7 +1421,11 @@ impl CoveragePlanner {
             if (f.centre(i) - g).norm() <= view + f.res {
                 self.tries[i] = self.tries[i].saturating_add(1);
                 if self.tries[i] >= limit {
-                    self.given_up[i] = true;
+                    // With the cells beside it: the frontier along a wall
+                    // seen at a grazing angle shifts by a cell or two as
+                    // rays go on clearing and marking it, and must not come
+                    // back as new frontier.
+                    self.give_up_around(i);
                 }
             }
         }
@@ -1226,13 +1459,14 @@ impl CoveragePlanner {
         None
     }
 
-    fn done_report(&self) -> DoneReport {
+    fn done_report(&self, robot: usize) -> DoneReport {
         let f = self.cspace.frame;
         let a = f.res * f.res;
         // Seen free floor no reachable centre can touch with the body.
         let body = disk(self.cspace.inflation() + 2.0 * f.res, f.res);
         let mut touch = vec![false; f.len()];
-        for i in (0..f.len()).filter(|&i| self.reachable_mask[i]) {
+        let reachable = super::unbox::reachable_with_ways_out(&self.cspace, robot);
+        for i in (0..f.len()).filter(|&i| reachable[i]) {
             let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
             for &(dx, dy) in &body {
                 let (nx, ny) = (x + dx, y + dy);
@@ -1255,6 +1489,38 @@ impl CoveragePlanner {
         }
         r
     }
+}
+
+/// The size of the largest 8-connected patch of `cells`, which are marked
+/// in `mark` on entry; unmarks them all.
+fn largest_patch(cells: &[usize], mark: &mut [bool], f: Frame) -> usize {
+    let mut best = 0;
+    let mut stack = Vec::new();
+    for &s in cells {
+        if !mark[s] {
+            continue;
+        }
+        mark[s] = false;
+        stack.push(s);
+        let mut n = 0;
+        while let Some(i) = stack.pop() {
+            n += 1;
+            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+            for (dx, dy) in crate::grid::NEIGHBOURS_8 {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                    continue;
+                }
+                let j = ny as usize * f.w + nx as usize;
+                if mark[j] {
+                    mark[j] = false;
+                    stack.push(j);
+                }
+            }
+        }
+        best = best.max(n);
+    }
+    best
 }
 
 /// The candidate and variant to start with, from a tour through all
@@ -1630,6 +1896,55 @@ mod tests {
         let (k, r) = done.expect("done after the wait");
         assert_eq!(k, BOXED_IN_UPDATES);
         assert!(r.unreachable_area > 4.0, "{r:?}");
+    }
+
+    #[test]
+    fn interruptions_are_forgiven_only_while_new_floor_gets_swept() {
+        let g = crate::plan::test_support::walled_room();
+        let mut p = crate::plan::test_support::planner();
+        let at = crate::geom::pose(1.5, 1.0, 0.0);
+        p.update(&g, &Decomposition::default(), &at, None).unwrap();
+        for _ in 0..MAX_FORGIVEN {
+            assert!(p.may_forgive());
+        }
+        assert!(!p.may_forgive(), "no progress: charged again");
+        // A metre of new floor swept: forgiven again.
+        for k in 0..20 {
+            p.record_pose(&crate::geom::pose(0.5 + 0.05 * f64::from(k), 1.0, 0.0));
+        }
+        assert!(p.may_forgive());
+    }
+
+    #[test]
+    fn floor_given_up_gets_one_more_round_before_done() {
+        let g = crate::plan::test_support::walled_room();
+        let mut p = crate::plan::test_support::planner();
+        let empty = Decomposition::default();
+        let at = crate::geom::pose(1.5, 1.0, 0.0);
+        p.update(&g, &empty, &at, None).unwrap();
+        // All of it given up, as after tasks interrupted again and again.
+        p.abandoned.iter_mut().for_each(|a| *a = true);
+        p.interrupt();
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        assert!(
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Cover(None),
+                    ..
+                }
+            ),
+            "{st:?}"
+        );
+        assert!(p.abandoned.iter().all(|a| !a));
+        // Given up again: there is no third round.
+        p.abandoned.iter_mut().for_each(|a| *a = true);
+        p.interrupt();
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        assert!(
+            matches!(st, PlanStatus::Done(r) if r.abandoned_area > 4.0),
+            "{st:?}"
+        );
     }
 
     #[test]
