@@ -1533,13 +1533,42 @@ fn tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
     }
 }
 
+/// The tour costs between candidates' variants, computed once per search:
+/// node `base[i] + v` is variant `v` of candidate `i`; `step[a * m + b]` is
+/// `weight` times the straight line from node `a`'s exit to node `b`'s
+/// entry plus node `b`'s length.
+struct TourTable {
+    base: Vec<usize>,
+    step: Vec<f64>,
+    m: usize,
+}
+
+impl TourTable {
+    fn new(cands: &[Candidate], weight: f64) -> Self {
+        let mut base = Vec::with_capacity(cands.len());
+        let mut nodes = Vec::new();
+        for c in cands {
+            base.push(nodes.len());
+            nodes.extend(c.variants.iter());
+        }
+        let m = nodes.len();
+        let mut step = Vec::with_capacity(m * m);
+        for a in &nodes {
+            for b in &nodes {
+                step.push(weight * ((b.entry() - a.exit()).norm() + b.length));
+            }
+        }
+        Self { base, step, m }
+    }
+}
+
 /// Cost of visiting `order` (the first from the robot), each candidate at
 /// its best variant given the order (dynamic programming over variants),
 /// and the variant of the first.
 fn order_cost(
     cands: &[Candidate],
+    table: &TourTable,
     order: &[usize],
-    weight: f64,
     dp: &mut Vec<(f64, usize)>,
 ) -> (f64, usize) {
     dp.clear();
@@ -1550,14 +1579,15 @@ fn order_cost(
     for (v, var) in cands[c0].variants.iter().enumerate() {
         dp.push((cands[c0].entry_cost[v] + var.length, v));
     }
-    let mut next = Vec::with_capacity(4);
+    let mut next = Vec::with_capacity(dp.len());
     for w in order.windows(2) {
-        let (a, b) = (&cands[w[0]], &cands[w[1]]);
+        let (a, b) = (w[0], w[1]);
         next.clear();
-        for vb in &b.variants {
+        for vb in 0..cands[b].variants.len() {
+            let col = table.base[b] + vb;
             let mut best = (f64::INFINITY, 0);
-            for (va, &(c, f0)) in a.variants.iter().zip(dp.iter()) {
-                let t = c + weight * ((vb.entry() - va.exit()).norm() + vb.length);
+            for (va, &(c, f0)) in dp.iter().enumerate() {
+                let t = c + table.step[(table.base[a] + va) * table.m + col];
                 if t < best.0 {
                     best = (t, f0);
                 }
@@ -1598,8 +1628,9 @@ fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
         order.push(i);
         at = Some(cands[i].variants[v].exit());
     }
-    let mut dp = Vec::with_capacity(4);
-    let mut best = order_cost(cands, &order, weight, &mut dp);
+    let table = TourTable::new(cands, weight);
+    let mut dp = Vec::with_capacity(8);
+    let mut best = order_cost(cands, &table, &order, &mut dp);
     let mut evals = 1;
     let mut trial = Vec::with_capacity(n);
     let mut improved = true;
@@ -1615,7 +1646,7 @@ fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
                     trial.clear();
                     trial.extend(order[..i].iter().chain(&order[i + len..]));
                     trial.splice(j..j, order[i..i + len].iter().copied());
-                    let c = order_cost(cands, &trial, weight, &mut dp);
+                    let c = order_cost(cands, &table, &trial, &mut dp);
                     evals += 1;
                     if c.0 + 1e-9 < best.0 {
                         best = c;
@@ -1637,7 +1668,7 @@ fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
                 trial.clear();
                 trial.extend_from_slice(&order);
                 trial[i..=j].reverse();
-                let c = order_cost(cands, &trial, weight, &mut dp);
+                let c = order_cost(cands, &table, &trial, &mut dp);
                 evals += 1;
                 if c.0 + 1e-9 < best.0 {
                     best = c;
