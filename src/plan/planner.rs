@@ -780,18 +780,6 @@ impl CoveragePlanner {
                 self.split_task = true;
             }
         }
-        if std::env::var_os("DBG").is_some() {
-            eprintln!("COVER {:?} n {}", chosen.cell, lanes.len());
-            for w in lanes.windows(2) {
-                let d = (w[1].a - w[0].b).norm();
-                if d > 0.8 {
-                    eprintln!(
-                        "   long conn {:.2}: {:.2},{:.2} -> {:.2},{:.2}",
-                        d, w[0].b.x, w[0].b.y, w[1].a.x, w[1].a.y
-                    );
-                }
-            }
-        }
         let (path, motions) = self.cover_path(&lanes);
         self.motions = motions;
         match chosen.cell {
