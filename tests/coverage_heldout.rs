@@ -25,41 +25,21 @@
 //!   below is what this build measures plus a margin; `lab_c_scan:0`
 //!   likewise measures 1.305.
 
-use sweepline::config::Config;
+mod coverage_support;
+
 use sweepline::sim::floorplan;
-use sweepline::sim::lockstep::{run, LockstepOptions, Mode};
+use sweepline::sim::lockstep::LockstepOptions;
 
 /// Runs `spec` online and offline and checks the targets, with
 /// `ratio_bound` on online / offline path length.
 fn covered(spec: &str, ratio_bound: f64) {
     let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
-    let cfg = Config::default();
     let opts = LockstepOptions {
         time_cap: 3600.0,
         ..LockstepOptions::default()
     };
     let room = floorplan::load_room(&dir, spec).unwrap();
-    let world = room.world();
-    let on = run(&world, &cfg, &opts, Mode::Online).unwrap();
-    let off = run(&world, &cfg, &opts, Mode::Offline).unwrap();
-    let (m, o) = (&on.metrics, &off.metrics);
-    let ratio = m.path_length / o.path_length;
-    eprintln!(
-        "{spec}: online coverage {:.4} overlap {:.3} path {:.1} m | offline coverage {:.4} overlap {:.3} path {:.1} m | ratio {ratio:.3} | ways out {} escapes {}",
-        m.coverage, m.overlap, m.path_length, o.coverage, o.overlap, o.path_length,
-        on.stats.ways_out, on.stats.escapes
-    );
-    assert!(on.finished, "{spec}: online finishes before the cap");
-    assert!(off.finished, "{spec}: offline finishes before the cap");
-    assert_eq!(m.collisions, 0, "{spec}: online collisions");
-    assert_eq!(o.collisions, 0, "{spec}: offline collisions");
-    assert!(m.coverage >= 0.99, "{spec}: online coverage {}", m.coverage);
-    assert!(
-        o.coverage >= 0.99,
-        "{spec}: offline coverage {}",
-        o.coverage
-    );
-    assert!(ratio <= ratio_bound, "{spec}: online/offline path {ratio}");
+    coverage_support::online_and_offline(spec, &room.world(), &opts, ratio_bound);
 }
 
 #[test]

@@ -890,13 +890,7 @@ impl CoveragePlanner {
         while let Some(i) = queue.pop_front() {
             let o = self.owner[i] as usize;
             let oc = f.centre(o);
-            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-            for (dx, dy) in crate::grid::NEIGHBOURS_8 {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                    continue;
-                }
-                let j = ny as usize * f.w + nx as usize;
+            for j in f.neighbours8(i) {
                 if self.owner[j] == u32::MAX
                     && self.cspace.state[j] == FREE
                     && (f.centre(j) - oc).norm() <= limit
@@ -1493,13 +1487,7 @@ fn largest_patch(cells: &[usize], mark: &mut [bool], f: Frame) -> usize {
         let mut n = 0;
         while let Some(i) = stack.pop() {
             n += 1;
-            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-            for (dx, dy) in crate::grid::NEIGHBOURS_8 {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                    continue;
-                }
-                let j = ny as usize * f.w + nx as usize;
+            for j in f.neighbours8(i) {
                 if mark[j] {
                     mark[j] = false;
                     stack.push(j);
@@ -1809,6 +1797,17 @@ mod tests {
             .collect()
     }
 
+    /// Whether the planner is covering floor outside any cell.
+    fn covers_floor(st: &PlanStatus) -> bool {
+        matches!(
+            st,
+            PlanStatus::Working {
+                task: Task::Cover(None),
+                ..
+            }
+        )
+    }
+
     #[test]
     fn the_tour_over_many_regions_starts_with_the_short_side() {
         // The robot stands just right of the middle of a row of regions:
@@ -1889,16 +1888,7 @@ mod tests {
         }
         // The ghost ring is gone: coverage goes on.
         let st = p.update(&room(false), &empty, &start, None).unwrap();
-        assert!(
-            matches!(
-                st,
-                PlanStatus::Working {
-                    task: Task::Cover(None),
-                    ..
-                }
-            ),
-            "{st:?}"
-        );
+        assert!(covers_floor(&st), "{st:?}");
         // Boxed in for good: after the wait, done, with the floor reported
         // unreachable.
         let mut q = CoveragePlanner::new(&params, &robot).unwrap();
@@ -1945,16 +1935,7 @@ mod tests {
         p.abandoned.iter_mut().for_each(|a| *a = true);
         p.interrupt();
         let st = p.update(&g, &empty, &at, None).unwrap();
-        assert!(
-            matches!(
-                st,
-                PlanStatus::Working {
-                    task: Task::Cover(None),
-                    ..
-                }
-            ),
-            "{st:?}"
-        );
+        assert!(covers_floor(&st), "{st:?}");
         assert!(p.abandoned.iter().all(|a| !a));
         // Given up again: there is no third round.
         p.abandoned.iter_mut().for_each(|a| *a = true);

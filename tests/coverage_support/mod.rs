@@ -1,0 +1,40 @@
+//! The coverage targets shared by the room tests: one online and one
+//! offline lock-step run of a world, checked for finishing, collisions,
+//! coverage and the online/offline path ratio.
+
+use sweepline::config::Config;
+use sweepline::sim::lockstep::{run, LockstepOptions, Mode, RunResult};
+use sweepline::sim::world::World;
+
+/// Runs `world` online and offline, prints one line of figures, asserts
+/// both finished with zero collisions and >= 99 % coverage and the online
+/// path at most `ratio_bound` x the offline one; returns both runs.
+pub fn online_and_offline(
+    spec: &str,
+    world: &World,
+    opts: &LockstepOptions,
+    ratio_bound: f64,
+) -> (RunResult, RunResult) {
+    let cfg = Config::default();
+    let on = run(world, &cfg, opts, Mode::Online).unwrap();
+    let off = run(world, &cfg, opts, Mode::Offline).unwrap();
+    let (m, o) = (&on.metrics, &off.metrics);
+    let ratio = m.path_length / o.path_length;
+    eprintln!(
+        "{spec}: free {:.1} m² reachable {:.1} m² | online coverage {:.4} overlap {:.3} path {:.1} m | offline coverage {:.4} overlap {:.3} path {:.1} m | ratio {ratio:.3} | ways out {} escapes {}",
+        m.free_area, m.reachable_area, m.coverage, m.overlap, m.path_length, o.coverage, o.overlap, o.path_length,
+        on.stats.ways_out, on.stats.escapes
+    );
+    assert!(on.finished, "{spec}: online finishes before the cap");
+    assert!(off.finished, "{spec}: offline finishes before the cap");
+    assert_eq!(m.collisions, 0, "{spec}: online collisions");
+    assert_eq!(o.collisions, 0, "{spec}: offline collisions");
+    assert!(m.coverage >= 0.99, "{spec}: online coverage {}", m.coverage);
+    assert!(
+        o.coverage >= 0.99,
+        "{spec}: offline coverage {}",
+        o.coverage
+    );
+    assert!(ratio <= ratio_bound, "{spec}: online/offline path {ratio}");
+    (on, off)
+}
