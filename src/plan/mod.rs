@@ -58,7 +58,9 @@ pub struct PlanParams {
     pub min_frontier_cells: usize,
     /// Longest passage (m) where only the bare body fits (no safety margin)
     /// that the robot may take out of a part of the space with nothing left
-    /// to do, to another part with work (0 = never).
+    /// to do, to another part with work (0 = never, the default: such a
+    /// passage leaves millimetres of clearance, below the closed loop's
+    /// tracking error).
     pub way_out_passage: f64,
     /// Turn in place once at the start to see all around.
     pub look_around: bool,
@@ -79,7 +81,7 @@ impl Default for PlanParams {
             min_patch_area: 0.05,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
-            way_out_passage: 1.0,
+            way_out_passage: 0.0,
             look_around: true,
             cover_settling_cells: true,
         }

@@ -6,18 +6,18 @@ use sweepline::config::Config;
 use sweepline::sim::lockstep::{run, LockstepOptions, Mode, RunResult};
 use sweepline::sim::world::World;
 
-/// Runs `world` online and offline, prints one line of figures, asserts
+/// Runs `world` online and offline with the configuration `cfg`, prints one line of figures, asserts
 /// both finished with zero collisions and >= 99 % coverage and the online
 /// path at most `ratio_bound` x the offline one; returns both runs.
 pub fn online_and_offline(
     spec: &str,
     world: &World,
+    cfg: &Config,
     opts: &LockstepOptions,
     ratio_bound: f64,
 ) -> (RunResult, RunResult) {
-    let cfg = Config::default();
-    let on = run(world, &cfg, opts, Mode::Online).unwrap();
-    let off = run(world, &cfg, opts, Mode::Offline).unwrap();
+    let on = run(world, cfg, opts, Mode::Online).unwrap();
+    let off = run(world, cfg, opts, Mode::Offline).unwrap();
     let (m, o) = (&on.metrics, &off.metrics);
     let ratio = m.path_length / o.path_length;
     eprintln!(
