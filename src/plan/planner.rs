@@ -1577,6 +1577,26 @@ fn order_cost(
         .fold((f64::INFINITY, 0), |b, x| if x.0 < b.0 { x } else { b })
 }
 
+/// Costs the tour `trial` (one [`order_cost`] evaluation); when it beats
+/// `best`, makes it the current `order` and its cost the best.
+fn adopt_if_cheaper(
+    cands: &[Candidate],
+    table: &TourTable,
+    dp: &mut Vec<(f64, usize)>,
+    trial: &mut Vec<usize>,
+    order: &mut Vec<usize>,
+    best: &mut (f64, usize),
+) -> bool {
+    let c = order_cost(cands, table, trial, dp);
+    if c.0 + 1e-9 < best.0 {
+        *best = c;
+        std::mem::swap(order, trial);
+        true
+    } else {
+        false
+    }
+}
+
 /// A greedy tour over all candidates (nearest next entry from the last
 /// exit), improved by moving runs of one to three candidates elsewhere
 /// (or-opt) and reversing stretches (2-opt) while that lowers
@@ -1622,13 +1642,9 @@ fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
                     trial.clear();
                     trial.extend(order[..i].iter().chain(&order[i + len..]));
                     trial.splice(j..j, order[i..i + len].iter().copied());
-                    let c = order_cost(cands, &table, &trial, &mut dp);
                     evals += 1;
-                    if c.0 + 1e-9 < best.0 {
-                        best = c;
-                        std::mem::swap(&mut order, &mut trial);
-                        improved = true;
-                    }
+                    improved |=
+                        adopt_if_cheaper(cands, &table, &mut dp, &mut trial, &mut order, &mut best);
                     if evals >= TOUR_EVALUATIONS {
                         break 'moves;
                     }
@@ -1644,13 +1660,9 @@ fn heuristic_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
                 trial.clear();
                 trial.extend_from_slice(&order);
                 trial[i..=j].reverse();
-                let c = order_cost(cands, &table, &trial, &mut dp);
                 evals += 1;
-                if c.0 + 1e-9 < best.0 {
-                    best = c;
-                    std::mem::swap(&mut order, &mut trial);
-                    improved = true;
-                }
+                improved |=
+                    adopt_if_cheaper(cands, &table, &mut dp, &mut trial, &mut order, &mut best);
             }
         }
     }
