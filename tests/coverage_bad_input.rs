@@ -142,4 +142,8 @@ fn bad_settings_are_refused() {
     cfg.control.heading_gain = -1.0;
     let e = run(&world, &cfg, &opts(), Mode::Online).unwrap_err();
     assert!(e.to_string().contains("heading_gain"), "{e}");
+    let mut cfg = Config::default();
+    cfg.plan.way_out_passage = -0.5;
+    let e = run(&world, &cfg, &opts(), Mode::Online).unwrap_err();
+    assert!(e.to_string().contains("plan.way_out_passage"), "{e}");
 }
