@@ -175,6 +175,11 @@ impl Candidate {
     }
 }
 
+/// Uncovered floor in clusters smaller than this (grid cells) is left to
+/// lanes passing anyway: single cells at lane ends along a wall, where no
+/// connection passes, are not worth a lane of their own.
+const MIN_TARGET_CLUSTER: usize = 4;
+
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
 
@@ -1039,7 +1044,11 @@ impl CoveragePlanner {
                 }
             }
         }
-        if targets.len() < self.min_patch_cells() {
+        // Scattered leftovers (single cells at lane ends along a wall, where
+        // no connection passes) are not worth a drive: a region needs one
+        // patch of at least the smallest patch worth covering.
+        let min = self.min_patch_cells();
+        if drop_specks(&mut targets, &mut self.scratch_t, f, MIN_TARGET_CLUSTER) < min {
             return None;
         }
         let input = LaneInput {
@@ -1277,7 +1286,7 @@ impl CoveragePlanner {
                     }
                 }
             }
-            let big = largest_patch(&floor, &mut counted, f) >= min_floor;
+            let big = drop_specks(&mut floor, &mut counted, f, usize::MAX) >= min_floor;
             if big {
                 return true;
             }
@@ -1473,20 +1482,22 @@ impl CoveragePlanner {
     }
 }
 
-/// The size of the largest 8-connected patch of `cells`, which are marked
-/// in `mark` on entry; unmarks them all.
-fn largest_patch(cells: &[usize], mark: &mut [bool], f: Frame) -> usize {
+/// Keeps of `cells` (marked in `mark`) the 8-connected clusters of at
+/// least `min_keep` cells, unmarking the rest; returns the largest
+/// cluster's size (`min_keep = usize::MAX`: only measures, unmarking all).
+fn drop_specks(cells: &mut Vec<usize>, mark: &mut [bool], f: Frame, min_keep: usize) -> usize {
+    let mut kept = Vec::with_capacity(cells.len());
     let mut best = 0;
     let mut stack = Vec::new();
-    for &s in cells {
+    for &s in cells.iter() {
         if !mark[s] {
             continue;
         }
         mark[s] = false;
         stack.push(s);
-        let mut n = 0;
+        let start = kept.len();
         while let Some(i) = stack.pop() {
-            n += 1;
+            kept.push(i);
             for j in f.neighbours8(i) {
                 if mark[j] {
                     mark[j] = false;
@@ -1494,8 +1505,16 @@ fn largest_patch(cells: &[usize], mark: &mut [bool], f: Frame) -> usize {
                 }
             }
         }
+        let n = kept.len() - start;
         best = best.max(n);
+        if n < min_keep {
+            kept.truncate(start);
+        }
     }
+    for &i in &kept {
+        mark[i] = true;
+    }
+    *cells = kept;
     best
 }
 
@@ -1968,5 +1987,26 @@ mod tests {
         let heur = heuristic_tour_start(&cands, 1.0);
         assert_eq!(exact.0, heur.0);
         assert!((xs[exact.0] + 0.6).abs() < 1e-9, "{}", xs[exact.0]);
+    }
+
+    #[test]
+    fn specks_of_leftover_floor_are_dropped_and_patches_kept() {
+        let f = Frame {
+            origin: Point2::new(0.0, 0.0),
+            res: 0.05,
+            w: 10,
+            h: 10,
+        };
+        // A 2 x 3 patch, a diagonal pair (8-connected) and a lone cell.
+        let mut cells = vec![11, 12, 13, 21, 22, 23, 55, 66, 90];
+        let mut mark = vec![false; f.len()];
+        cells.iter().for_each(|&i| mark[i] = true);
+        assert_eq!(drop_specks(&mut cells, &mut mark, f, 2), 6);
+        cells.sort_unstable();
+        assert_eq!(cells, vec![11, 12, 13, 21, 22, 23, 55, 66]);
+        assert!(!mark[90] && mark[55] && mark[66] && mark[22]);
+        assert_eq!(drop_specks(&mut cells, &mut mark, f, 3), 6);
+        assert_eq!(cells.len(), 6);
+        assert!(!mark[55] && !mark[66]);
     }
 }
