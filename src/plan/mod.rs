@@ -78,7 +78,7 @@ impl Default for PlanParams {
             lookahead_weight: 1.0,
             swept_travel_cost: 0.0,
             max_lane_join: 0.7,
-            min_patch_area: 0.05,
+            min_patch_area: 0.08,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
             way_out_passage: 0.0,
