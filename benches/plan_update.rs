@@ -2,7 +2,10 @@
 //! decomposition's cells all final): `plan_decision` is an update that plans
 //! a new task (configuration space, Dijkstra, lanes of every candidate cell,
 //! the tour search), `plan_steady` an update that keeps the current task
-//! (configuration space rebuild and the blocked-path check).
+//! (configuration space rebuild and the blocked-path check);
+//! `plan_decision_plain_distance` is `plan_decision` with travel priced by
+//! distance alone (`plan.new_overlap_cost = 0`), the price of the overlap
+//! term as a ratio within one run.
 
 use std::hint::black_box;
 
@@ -37,6 +40,17 @@ fn bench(c: &mut Criterion) {
     c.bench_function("plan_decision", |b| {
         b.iter_batched(
             || CoveragePlanner::new(&params, &cfg.robot).expect("planner"),
+            |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
+            BatchSize::SmallInput,
+        )
+    });
+    let plain = PlanParams {
+        new_overlap_cost: 0.0,
+        ..params.clone()
+    };
+    c.bench_function("plan_decision_plain_distance", |b| {
+        b.iter_batched(
+            || CoveragePlanner::new(&plain, &cfg.robot).expect("planner"),
             |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
             BatchSize::SmallInput,
         )

@@ -52,14 +52,15 @@ fn paper_workspace_online_against_offline() {
     // the bound leaves room for changes in the decomposition).
     let ratio = m.path_length / o.path_length;
     assert!(ratio <= 1.3, "online/offline path {ratio}");
-    // Target: overlap <= 15 %; not reached (measured 0.225 offline, 0.328
-    // online; 0.281 / 0.298 before the lane order was improved inside a
+    // Target: overlap <= 15 %; not reached (measured 0.187 offline, 0.328
+    // online with travel priced by the overlap it adds; 0.225 / 0.328
+    // before, 0.281 / 0.298 before the lane order was improved inside a
     // region, 0.339 / 0.476 before the lane lattice): what is left is mostly
     // transits between cells, exploration and lane connections with the
     // tool always on, the seam between neighbouring lanes and the one lane
     // hugging the far wall. The online run moves by ±3 points with any
     // change of the cell order. See the README's coverage section.
-    assert!(o.overlap <= 0.25, "offline overlap {}", o.overlap);
+    assert!(o.overlap <= 0.22, "offline overlap {}", o.overlap);
     assert!(m.overlap <= 0.35, "online overlap {}", m.overlap);
     // The breakdown by cause adds up to the overlap.
     let sum: f64 = m.overlap_by.iter().sum();

@@ -40,13 +40,14 @@ fn five_floor_plan_rooms() {
             1.2,
         );
         let (m, o) = (&on.metrics, &off.metrics);
-        // Target <= 15 %, not reached: measured 0.28-0.55 online and
-        // 0.20-0.50 offline (0.28-0.55 / 0.26-0.51 before the lane order was
+        // Target <= 15 %, not reached: measured 0.21-0.43 online and
+        // 0.18-0.39 offline with travel priced by the overlap it adds
+        // (0.28-0.55 / 0.20-0.50 before; 0.28-0.55 / 0.26-0.51 before the lane order was
         // improved inside a region; 0.53-0.62 / 0.48-0.64 before the lane
         // lattice), most of it transits between cells and lane connections
         // among furniture with the tool always on.
-        assert!(m.overlap <= 0.58, "{spec}: online overlap {}", m.overlap);
-        assert!(o.overlap <= 0.52, "{spec}: offline overlap {}", o.overlap);
+        assert!(m.overlap <= 0.50, "{spec}: online overlap {}", m.overlap);
+        assert!(o.overlap <= 0.45, "{spec}: offline overlap {}", o.overlap);
         sum_cov += m.coverage;
     }
     let mean = sum_cov / ROOMS.len() as f64;

@@ -44,6 +44,11 @@ pub struct PlanParams {
     /// over the paper world and five rooms, and 1.0 once left 10 % of a
     /// room uncovered online.
     pub swept_travel_cost: f64,
+    /// Extra cost factor of travel over floor not yet swept twice, scaled
+    /// by its share of the tool's width (0 = plain distance): floor swept
+    /// twice already is overlap whatever drives over it again, so transits
+    /// that share a corridor add no more.
+    pub new_overlap_cost: f64,
     /// Longest connection between two consecutive lanes of one cover task
     /// (m): a region whose next lane is farther is finished in a later task,
     /// chosen again with the whole tour in view, instead of by a long drive
@@ -77,6 +82,7 @@ impl Default for PlanParams {
             reach_margin: 0.005,
             lookahead_weight: 1.0,
             swept_travel_cost: 0.0,
+            new_overlap_cost: 2.0,
             max_lane_join: 0.7,
             min_patch_area: 0.08,
             explore_view_distance: 1.0,
@@ -98,6 +104,7 @@ impl PlanParams {
             ("lookahead_weight", self.lookahead_weight),
             ("min_patch_area", self.min_patch_area),
             ("swept_travel_cost", self.swept_travel_cost),
+            ("new_overlap_cost", self.new_overlap_cost),
             ("max_lane_join", self.max_lane_join),
             ("way_out_passage", self.way_out_passage),
         ] {

@@ -180,6 +180,10 @@ impl Candidate {
 /// connection passes, are not worth a lane of their own.
 const MIN_TARGET_CLUSTER: usize = 4;
 
+/// Pose records a cell may be out from under the tool and still count as
+/// the same pass when it comes back (jitter at the tool's edge).
+const SAME_PASS_RECORDS: u32 = 10;
+
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
 
@@ -198,6 +202,16 @@ pub struct CoveragePlanner {
     reach: f64,
     cspace: CSpace,
     covered: Vec<bool>,
+    /// Passes of the tool over each cell (saturating; see `record_pose`).
+    passes: Vec<u8>,
+    /// The pose record at which each cell was last under the tool.
+    last_under: Vec<u32>,
+    /// Pose records so far (starts at 1: 0 marks "never under the tool").
+    records: u32,
+    /// Per cell: share of the floor around it not yet swept twice (see `fresh_share`).
+    fresh: Vec<f32>,
+    /// Summed-area table scratch for `fresh_share`: free cells, cells swept less than twice.
+    sat: Vec<[u32; 2]>,
     abandoned: Vec<bool>,
     given_up: Vec<bool>,
     stamp: Vec<(i64, i64)>,
@@ -311,6 +325,11 @@ impl CoveragePlanner {
             reach,
             cspace: CSpace::new(robot.radius + params.safety_margin, robot.radius),
             covered: Vec::new(),
+            passes: Vec::new(),
+            last_under: Vec::new(),
+            records: 1,
+            fresh: Vec::new(),
+            sat: Vec::new(),
             abandoned: Vec::new(),
             given_up: Vec::new(),
             stamp: Vec::new(),
@@ -394,6 +413,8 @@ impl CoveragePlanner {
         let n = self.cspace.frame.len();
         if self.covered.len() != n {
             self.covered = vec![false; n];
+            self.passes = vec![0; n];
+            self.last_under = vec![0; n];
             self.abandoned = vec![false; n];
             self.given_up = vec![false; n];
             self.reachable_mask = vec![false; n];
@@ -412,6 +433,7 @@ impl CoveragePlanner {
                 for (c, s) in self.covered.iter_mut().zip(&r.covered) {
                     *c |= *s;
                 }
+                self.passes_from_covered();
             } else {
                 log::warn!("swept-floor record of a different map geometry ignored");
             }
@@ -436,6 +458,7 @@ impl CoveragePlanner {
             for (c, s) in self.covered.iter_mut().zip(&swept.covered) {
                 *c |= *s;
             }
+            self.passes_from_covered();
         } else {
             self.restored = Some(swept);
         }
@@ -470,6 +493,7 @@ impl CoveragePlanner {
         let Some(i) = f.index_of(&p) else { return };
         let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
         let r2 = self.stamp_radius * self.stamp_radius;
+        self.records = self.records.saturating_add(1);
         for &(dx, dy) in &self.stamp {
             let (nx, ny) = (x + dx, y + dy);
             if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
@@ -477,6 +501,12 @@ impl CoveragePlanner {
                 // Exact distance from the pose, not from its cell's centre.
                 if (f.centre(j) - p).norm_squared() <= r2 {
                     self.covered[j] = true;
+                    if self.last_under[j] == 0
+                        || self.records - self.last_under[j] > SAME_PASS_RECORDS
+                    {
+                        self.passes[j] = self.passes[j].saturating_add(1);
+                    }
+                    self.last_under[j] = self.records;
                 }
             }
         }
@@ -687,10 +717,14 @@ impl CoveragePlanner {
             return Err(PlanError::Trapped { x: p.x, y: p.y });
         }
         // Travel over swept floor sweeps it again (the tool is always on):
-        // transits and the choice of the next cell prefer unswept floor.
+        // transits and the choice of the next cell prefer unswept floor
+        // (`swept_travel_cost`), and floor already swept twice, where more
+        // passes add no overlap (`new_overlap_cost`).
+        self.fresh_share();
         let (covered, w) = (&self.covered, self.params.swept_travel_cost);
+        let (fresh, wo) = (&self.fresh, self.params.new_overlap_cost);
         self.cspace
-            .set_extra_cost(|i| if covered[i] { w } else { 0.0 });
+            .set_extra_cost(|i| (if covered[i] { w } else { 0.0 }) + wo * f64::from(fresh[i]));
         self.cspace.distances_from(robot);
         self.compute_targets();
         self.mark_cells(decomp);
@@ -873,6 +907,63 @@ impl CoveragePlanner {
         path.truncate(k);
         motions.truncate(k);
         (path, motions)
+    }
+
+    /// Sets the swept passes from the swept record (after a restore: one
+    /// pass where swept, the number of passes before is not saved).
+    fn passes_from_covered(&mut self) {
+        for (p, c) in self.passes.iter_mut().zip(&self.covered) {
+            if *c && *p == 0 {
+                *p = 1;
+            }
+        }
+    }
+
+    /// Per cell: the share of the free floor in a tool-sized square around
+    /// it that is not yet swept twice (from a summed-area table): driving
+    /// there adds that floor to the overlap, now (floor swept once) or when
+    /// its lane sweeps it later (floor not swept yet), while floor swept
+    /// twice is overlap already.
+    fn fresh_share(&mut self) {
+        let f = self.cspace.frame;
+        let (w, h) = (f.w, f.h);
+        self.fresh.resize(f.len(), 0.0);
+        if self.params.new_overlap_cost <= 0.0 {
+            return;
+        }
+        let k = (self.reach / f.res).floor() as usize;
+        let sw = w + 1;
+        self.sat.clear();
+        self.sat.resize(sw * (h + 1), [0; 2]);
+        for y in 0..h {
+            let mut row = [0u32; 2];
+            for x in 0..w {
+                let i = y * w + x;
+                if self.cspace.state[i] == FREE {
+                    row[0] += 1;
+                    row[1] += u32::from(self.passes[i] < 2);
+                }
+                let up = self.sat[y * sw + x + 1];
+                self.sat[(y + 1) * sw + x + 1] = [up[0] + row[0], up[1] + row[1]];
+            }
+        }
+        for y in 0..h {
+            let (y0, y1) = (y.saturating_sub(k), (y + k + 1).min(h));
+            for x in 0..w {
+                let (x0, x1) = (x.saturating_sub(k), (x + k + 1).min(w));
+                let box_sum = |c: usize| {
+                    self.sat[y1 * sw + x1][c] + self.sat[y0 * sw + x0][c]
+                        - self.sat[y0 * sw + x1][c]
+                        - self.sat[y1 * sw + x0][c]
+                };
+                let (free, fresh) = (box_sum(0), box_sum(1));
+                self.fresh[y * w + x] = if free == 0 {
+                    0.0
+                } else {
+                    fresh as f32 / free as f32
+                };
+            }
+        }
     }
 
     /// Marks reachable centres, the uncovered floor they reach, and for every
@@ -2008,5 +2099,69 @@ mod tests {
         assert_eq!(drop_specks(&mut cells, &mut mark, f, 3), 6);
         assert_eq!(cells.len(), 6);
         assert!(!mark[55] && !mark[66]);
+    }
+
+    /// A planner on the walled room with a frame, and the room.
+    fn planner_in_room() -> (CoveragePlanner, Grid) {
+        let grid = crate::plan::test_support::walled_room();
+        let mut p = crate::plan::test_support::planner();
+        let start = crate::geom::pose(0.5, 1.0, 0.0);
+        p.update(&grid, &Decomposition::default(), &start, None)
+            .unwrap();
+        (p, grid)
+    }
+
+    /// Records the robot driving from x = `x0` to `x1` along y = 1.0 m.
+    fn drive(p: &mut CoveragePlanner, x0: f64, x1: f64) {
+        let n = ((x1 - x0).abs() / 0.02).round() as i32;
+        for k in 0..=n {
+            let x = x0 + (x1 - x0) * f64::from(k) / f64::from(n);
+            p.record_pose(&crate::geom::pose(x, 1.0, 0.0));
+        }
+    }
+
+    #[test]
+    fn a_cell_back_under_the_tool_after_a_gap_is_a_second_pass() {
+        let (mut p, _) = planner_in_room();
+        let f = p.cspace.frame;
+        let c = f.index_of(&Point2::new(1.0, 1.0)).unwrap();
+        drive(&mut p, 0.5, 1.5);
+        // Standing (turning in place) keeps the floor under the tool.
+        for _ in 0..100 {
+            p.record_pose(&crate::geom::pose(1.5, 1.0, 0.0));
+        }
+        assert_eq!(p.passes[c], 1);
+        // Driving back over it after a while is a second pass.
+        drive(&mut p, 1.5, 0.5);
+        assert_eq!(p.passes[c], 2);
+        let far = f.index_of(&Point2::new(2.5, 1.0)).unwrap();
+        assert_eq!(p.passes[far], 0);
+    }
+
+    #[test]
+    fn travel_prefers_floor_swept_twice_where_more_adds_no_overlap() {
+        let (mut p, _) = planner_in_room();
+        drive(&mut p, 0.5, 2.5);
+        drive(&mut p, 2.5, 0.5);
+        let f = p.cspace.frame;
+        let robot = f.index_of(&Point2::new(0.5, 1.0)).unwrap();
+        let along = f.index_of(&Point2::new(1.2, 1.0)).unwrap();
+        let across = f.index_of(&Point2::new(0.5, 1.7)).unwrap();
+        let travel = |p: &mut CoveragePlanner, w: f64| {
+            p.params.new_overlap_cost = w;
+            p.fresh_share();
+            let fresh = p.fresh.clone();
+            p.cspace.set_extra_cost(|i| w * f64::from(fresh[i]));
+            p.cspace.distances_from(robot);
+            (p.cspace.dist[along], p.cspace.dist[across])
+        };
+        // The same 0.7 m, plain distance:
+        let (a0, c0) = travel(&mut p, 0.0);
+        assert!((a0 - c0).abs() < 0.06, "{a0} {c0}");
+        // Along the corridor swept twice it stays about its length; across
+        // fresh floor it costs up to (1 + w) times as much.
+        let (a, c) = travel(&mut p, 2.0);
+        assert!(a < 1.15 * a0, "{a} against {a0}");
+        assert!(c > 2.0 * c0, "{c} against {c0}");
     }
 }
