@@ -203,7 +203,7 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
         }
     );
     let _ = writeln!(s, "|---|---|---|");
-    let rows: [Row; 13] = [
+    let rows: [Row; 15] = [
         ("coverage of reachable area", |m| {
             format!("{:.2} %", m.coverage * 100.0)
         }),
@@ -211,6 +211,12 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
             format!("{:.2} %", m.footprint_coverage * 100.0)
         }),
         ("reachable area", |m| format!("{:.2} m²", m.reachable_area)),
+        ("coverage of area reachable with the safety margin", |m| {
+            format!("{:.2} %", m.clear_coverage * 100.0)
+        }),
+        ("area reachable with the safety margin", |m| {
+            format!("{:.2} m²", m.clear_reachable_area)
+        }),
         ("free area", |m| format!("{:.2} m²", m.free_area)),
         ("unreachable area", |m| {
             format!("{:.2} m²", m.unreachable_area)

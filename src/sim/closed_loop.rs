@@ -429,7 +429,8 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
         robot.radius,
         robot.tool_width,
         &opts.world.start,
-    )?;
+    )?
+    .with_clearance(opts.config.plan.safety_margin);
     let wall0 = Instant::now();
     let clock: SharedClock = Arc::new(ScaledClock::new(opts.speed));
     let seen: TruthLog = Arc::default();

@@ -200,7 +200,8 @@ pub fn run(
         }
     }
     let robot = &config.robot;
-    let mut tracker = CoverageTracker::new(world, robot.radius, robot.tool_width, &world.start)?;
+    let mut tracker = CoverageTracker::new(world, robot.radius, robot.tool_width, &world.start)?
+        .with_clearance(config.plan.safety_margin);
     let mut decomposer = Decomposer::new(&config.decomp, robot.radius)?;
     let mut planner = CoveragePlanner::new(&config.plan, robot)?;
     let mut follower = PathFollower::new(&config.control, robot)?;

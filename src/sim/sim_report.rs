@@ -144,6 +144,14 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             format!("{:.2} %", m.footprint_coverage * 100.0),
         ),
         ("reachable area", format!("{:.2} m²", m.reachable_area)),
+        (
+            "coverage of floor reachable with the safety margin",
+            format!(
+                "{:.2} % of {:.2} m²",
+                m.clear_coverage * 100.0,
+                m.clear_reachable_area
+            ),
+        ),
         ("covered area", format!("{:.2} m²", m.covered_area)),
         ("overlap", format!("{:.1} %", m.overlap * 100.0)),
         ("path length", format!("{:.1} m", m.path_length)),
