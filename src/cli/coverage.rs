@@ -156,6 +156,17 @@ fn write_pictures(
         ),
     );
     coverage_svg::save(&out.join(format!("overlap_{tag}.svg")), &doc)?;
+    let doc = coverage_svg::motions_svg(
+        world,
+        &r.passes,
+        &r.trajectory,
+        &r.doing,
+        &format!(
+            "{} ({tag}): path by motion, numbers where each task began",
+            world.name
+        ),
+    );
+    coverage_svg::save(&out.join(format!("motions_{tag}.svg")), &doc)?;
     if tag == "online" {
         for (k, s) in r.snapshots.iter().enumerate() {
             let n = r.trajectory.len().min((s.time / 0.05).round() as usize + 1);

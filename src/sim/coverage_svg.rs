@@ -11,6 +11,7 @@ use svg::Document;
 
 use crate::decomp::{CellStatus, Decomposition};
 use crate::geom::Pose;
+use crate::plan::Motion;
 use crate::sim::coverage_metrics::CoverageMetrics;
 use crate::sim::world::{FreeRaster, World};
 use crate::svg_canvas::{canvas, label};
@@ -250,23 +251,153 @@ pub fn overlap_svg(
         .add(walls(world, &v))
         .add(track(trajectory, &v, "#08306b", 0.8))
         .add(label(8.0, v.h + 22.0, title, 14));
-    for (k, name) in legend.iter().enumerate() {
-        let y = v.h + 30.0 + line * k as f64;
+    let entries = legend
+        .iter()
+        .enumerate()
+        .map(|(k, name)| (CAUSE_COLOURS[k % CAUSE_COLOURS.len()], *name));
+    add_legend(doc, v.h + 30.0, line, 14.0, entries)
+}
+
+/// `doc` with one legend line per `(colour, name)` from `y0` down, `line`
+/// apart, each with a swatch `swatch` high (a square, or a bar for a path).
+fn add_legend<'a>(
+    mut doc: Document,
+    y0: f64,
+    line: f64,
+    swatch: f64,
+    entries: impl Iterator<Item = (&'a str, &'a str)>,
+) -> Document {
+    for (k, (colour, name)) in entries.enumerate() {
+        let y = y0 + line * k as f64;
         doc = doc
             .add(
                 Rectangle::new()
                     .set("x", 8.0)
-                    .set("y", y)
+                    .set("y", y + (14.0 - swatch) / 2.0)
                     .set("width", 14.0)
-                    .set("height", 14.0)
-                    .set("fill", CAUSE_COLOURS[k % CAUSE_COLOURS.len()]),
+                    .set("height", swatch)
+                    .set("fill", colour),
             )
-            .add(label(28.0, y + 12.0, *name, 13));
+            .add(label(28.0, y + 12.0, name, 13));
     }
     doc
+}
+
+/// Motions of [`motions_svg`] with their colour and legend, in drawing order.
+const MOTION_STYLES: [(Motion, &str, &str); 6] = [
+    (Motion::Lane, "#252525", "lane"),
+    (Motion::FixUp, "#984ea3", "fix-up lane"),
+    (Motion::Connection, "#31a354", "connection between lanes"),
+    (Motion::Transit, "#2171b5", "transit to a region"),
+    (Motion::Explore, "#17becf", "exploration"),
+    (
+        Motion::Other,
+        "#e6550d",
+        "turns in place, look-around, escape, idle",
+    ),
+];
+
+/// The path coloured by what the robot was doing (`doing`: per pose of
+/// `trajectory`, its motion and task number), over the floor swept once
+/// (light grey) and more (darker), each task's number written where it
+/// began: where a lane's order or a transit went wrong, at a glance.
+pub fn motions_svg(
+    world: &World,
+    passes: &[u16],
+    trajectory: &[Pose],
+    doing: &[(Motion, u32)],
+    title: &str,
+) -> Document {
+    let r = &world.free;
+    let v = View::of(r);
+    let line = 18.0;
+    let mut doc = v.doc(30.0 + line * MOTION_STYLES.len() as f64);
+    let colour = |i: usize| -> Option<&'static str> {
+        if !r.free[i] {
+            return Some("#bdbdbd");
+        }
+        match passes.get(i).copied().unwrap_or(0) {
+            0 => None,
+            1 => Some("#f0f0f0"),
+            _ => Some("#d0d0d0"),
+        }
+    };
+    doc = doc.add(raster_cells(r, &v, colour)).add(walls(world, &v));
+    let n = trajectory.len().min(doing.len());
+    let style = |m: Motion| MOTION_STYLES.iter().position(|s| s.0 == m).unwrap_or(5);
+    let mut start = 0;
+    while start + 1 < n {
+        // One polyline per run of equal motion, sharing its first pose with
+        // the run before so that the path has no gaps.
+        let k = style(doing[start + 1].0);
+        let mut end = start + 1;
+        while end + 1 < n && style(doing[end + 1].0) == k {
+            end += 1;
+        }
+        doc = doc.add(track(
+            &trajectory[start..=end],
+            &v,
+            MOTION_STYLES[k].1,
+            if k == 0 { 1.0 } else { 1.6 },
+        ));
+        start = end;
+    }
+    let mut last_task = u32::MAX;
+    for (p, &(_, task)) in trajectory.iter().zip(doing).take(n) {
+        if task != last_task && task > 0 {
+            doc = doc.add(
+                label(
+                    v.x(p.translation.x) + 3.0,
+                    v.y(p.translation.y) - 3.0,
+                    task.to_string(),
+                    9,
+                )
+                .set("fill", "#a50f15"),
+            );
+        }
+        last_task = task;
+    }
+    doc = doc.add(label(8.0, v.h + 22.0, title, 14));
+    let entries = MOTION_STYLES.iter().map(|(_, col, name)| (*col, *name));
+    add_legend(doc, v.h + 30.0, line, 3.0, entries)
 }
 
 /// Writes `doc` to `path`.
 pub fn save(path: &Path, doc: &Document) -> std::io::Result<()> {
     svg::save(path, doc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    #[test]
+    fn motions_picture_colours_each_run_and_numbers_each_task() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\nstart 0.5 0.5 0\n").unwrap();
+        let traj: Vec<Pose> = (0..30)
+            .map(|k| pose(0.5 + 0.1 * f64::from(k), 0.5, 0.0))
+            .collect();
+        // A look-around, a transit and a lane of task 1, a connection and a
+        // lane of task 2.
+        let doing: Vec<(Motion, u32)> = (0..30)
+            .map(|k| match k {
+                0..=2 => (Motion::Other, 0),
+                3..=9 => (Motion::Transit, 1),
+                10..=19 => (Motion::Lane, 1),
+                20..=22 => (Motion::Connection, 2),
+                _ => (Motion::Lane, 2),
+            })
+            .collect();
+        let text = motions_svg(&w, &[], &traj, &doing, "t").to_string();
+        let runs = text.matches("<polyline").count();
+        assert_eq!(runs, 5, "{text}");
+        for colour in ["#2171b5", "#252525", "#31a354", "#e6550d"] {
+            assert!(text.contains(colour), "{colour}");
+        }
+        assert!(
+            text.contains(">\n1\n</text>") && text.contains(">\n2\n</text>"),
+            "{text}"
+        );
+    }
 }

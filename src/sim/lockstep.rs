@@ -121,6 +121,9 @@ pub struct RunResult {
     pub stats: PlanStats,
     /// Executed poses, one per control step.
     pub trajectory: Vec<Pose>,
+    /// Per pose of `trajectory`: what the robot was doing on the way to it
+    /// and the number of the task it belonged to (for the motions picture).
+    pub doing: Vec<(crate::plan::Motion, u32)>,
     /// Decomposition snapshots (see [`LockstepOptions::snapshot_every`]) and the last one.
     pub snapshots: Vec<Snapshot>,
     /// The final evidence grid.
@@ -214,6 +217,7 @@ pub fn run(
     let mut next_scan = 0.0;
     let mut next_snapshot = 0.0;
     let mut trajectory = vec![pose];
+    let mut doing = vec![(crate::plan::Motion::Other, 0)];
     let mut snapshots = Vec::new();
     let (mut decomp_seconds, mut plan_seconds) = (Vec::new(), Vec::new());
     let mut finished = false;
@@ -269,7 +273,9 @@ pub fn run(
         } else {
             planner.motion(follower.next_index())
         };
-        tracker.record_doing(&pose, t, motion, planner.stats().tasks as u32);
+        let task = planner.stats().tasks as u32;
+        doing.push((motion, task));
+        tracker.record_doing(&pose, t, motion, task);
         planner.record_pose(&pose);
     }
     snapshots.push(Snapshot {
@@ -283,6 +289,7 @@ pub fn run(
         report,
         stats: planner.stats(),
         trajectory,
+        doing,
         snapshots,
         grid,
         decomp_seconds,
