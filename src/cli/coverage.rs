@@ -303,6 +303,20 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
             "\nOnline path length / offline reference: **{ratio:.3}**"
         );
     }
+    let angle = |r: &RunResult| {
+        r.snapshots
+            .last()
+            .map(|k| format!("{:.1}°", k.decomposition.sweep_angle.to_degrees()))
+            .unwrap_or_else(|| "-".into())
+    };
+    let _ = writeln!(
+        s,
+        "\nLane direction (from x): online {}{}",
+        angle(online),
+        offline
+            .map(|o| format!(", offline {}", angle(o)))
+            .unwrap_or_default()
+    );
     if let Some(r) = online.report {
         let _ = writeln!(
             s,

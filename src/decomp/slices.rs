@@ -117,6 +117,7 @@ pub struct Slices {
     raw_intervals: Vec<(u32, f64, f64)>,
     sorted_intervals: Vec<(f64, f64)>,
     counts: Vec<u32>,
+    col_last_free: Vec<usize>,
     seg_mask: Vec<bool>,
     excl: Vec<(f64, f64, End)>,
     grid_box: (usize, usize, usize, usize),
@@ -246,14 +247,27 @@ impl Slices {
         // a multiple of 90° (axis-aligned rooms): integer index arithmetic.
         if let Some(m) = lattice_map(f, g) {
             let (gw, gh) = (g.width() as i64, g.height() as i64);
-            for k in k0..k1 {
-                for i in i0..i1 {
-                    let (x, y) = m.apply(i as i64, k as i64);
-                    self.px[k * f.nu + i] = if x >= 0 && y >= 0 && x < gw && y < gh {
-                        class(g.state((x as usize, y as usize)))
-                    } else {
-                        UNK
-                    };
+            // One table lookup per pixel into the raw evidence, in tiles so
+            // that a frame turned by 90° (pixel rows along grid columns)
+            // still reads the grid from cache.
+            let mut lut = [UNK; 256];
+            for (v, c) in lut.iter_mut().enumerate() {
+                *c = class(Grid::state_of(v as u8));
+            }
+            let raw = g.raw_evidence();
+            const TILE: usize = 32;
+            for kt in (k0..k1).step_by(TILE) {
+                for it in (i0..i1).step_by(TILE) {
+                    for k in kt..(kt + TILE).min(k1) {
+                        for i in it..(it + TILE).min(i1) {
+                            let (x, y) = m.apply(i as i64, k as i64);
+                            self.px[k * f.nu + i] = if x >= 0 && y >= 0 && x < gw && y < gh {
+                                lut[raw[(y * gw + x) as usize] as usize]
+                            } else {
+                                UNK
+                            };
+                        }
+                    }
                 }
             }
             return;
@@ -278,9 +292,14 @@ impl Slices {
         for k in k0..k1 {
             fill_line(&mut self.px, k * nu + i0, 1, i1 - i0, max);
         }
-        for i in i0..i1 {
-            fill_line(&mut self.px, k0 * nu + i, nu, k1 - k0, max);
-        }
+        fill_columns(
+            &mut self.px,
+            nu,
+            i0..i1,
+            k0..k1,
+            max,
+            &mut self.col_last_free,
+        );
     }
 
     fn collect_points(&mut self, f: &SweepFrame, input: &SliceInput<'_>) {
@@ -617,6 +636,40 @@ fn fill_line(px: &mut [u8], start: usize, stride: usize, n: usize, max: usize) {
     }
 }
 
+/// [`fill_line`] down every column `cols` over the rows `rows` of a raster
+/// `nu` pixels wide, walking the rows in memory order (one last free row per
+/// column in `last`) instead of each column across the rows.
+fn fill_columns(
+    px: &mut [u8],
+    nu: usize,
+    cols: std::ops::Range<usize>,
+    rows: std::ops::Range<usize>,
+    max: usize,
+    last: &mut Vec<usize>,
+) {
+    last.clear();
+    last.resize(cols.len(), usize::MAX);
+    for k in rows {
+        for (c, i) in cols.clone().enumerate() {
+            match px[k * nu + i] & CLASS {
+                FREE => {
+                    // Between two free pixels of a column with no occupied
+                    // one between, every pixel is unknown.
+                    let lf = last[c];
+                    if lf != usize::MAX && k - lf > 1 && k - lf - 1 <= max {
+                        for t in lf + 1..k {
+                            px[t * nu + i] = FREE;
+                        }
+                    }
+                    last[c] = k;
+                }
+                OCC => last[c] = usize::MAX,
+                _ => {}
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -637,6 +690,33 @@ mod tests {
         let mut col = vec![FREE, 9, UNK, 9, FREE];
         fill_line(&mut col, 0, 2, 3, 1);
         assert_eq!(col, vec![FREE, 9, FREE, 9, FREE]);
+    }
+
+    #[test]
+    fn columns_filled_row_by_row_as_column_by_column() {
+        // A pseudo-random 37 x 23 raster of the three classes, mostly free.
+        let (nu, nv) = (37, 23);
+        let mut seed = 12345u32;
+        let px: Vec<u8> = (0..nu * nv)
+            .map(|_| {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                match (seed >> 16) % 10 {
+                    0..=4 => FREE,
+                    5..=8 => UNK,
+                    _ => OCC,
+                }
+            })
+            .collect();
+        for max in [1, 2, 3, 5] {
+            let mut want = px.clone();
+            for i in 2..35 {
+                fill_line(&mut want, nu + i, nu, 21, max);
+            }
+            let mut got = px.clone();
+            fill_columns(&mut got, nu, 2..35, 1..22, max, &mut Vec::new());
+            assert_eq!(got, want, "max {max}");
+            assert_ne!(got, px, "max {max}: something was filled");
+        }
     }
 
     #[test]
