@@ -392,6 +392,13 @@ impl Slices {
             used += 1;
         }
         self.points.truncate(used);
+        // Along `u` within each row: neighbouring points' blocked intervals
+        // then come one after the other (see `inflate`).
+        for k in 0..f.nv {
+            let row =
+                &mut self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize];
+            row.sort_unstable_by(|a, b| a.u.total_cmp(&b.u));
+        }
         self.max_extent = self.points.iter().map(|p| p.e + p.r).fold(0.0, f64::max);
     }
 
@@ -399,15 +406,39 @@ impl Slices {
         let (i0, i1, k0, k1) = self.window;
         self.raw_intervals.clear();
         for k in 0..f.nv {
-            for p in &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize] {
-                let reach = ((p.r + p.e) / f.h).ceil() as usize + 1;
-                for kk in k.saturating_sub(reach)..(k + reach + 1).min(f.nv) {
-                    if kk < k0 || kk >= k1 {
+            let row = &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize];
+            let Some(reach) = row
+                .iter()
+                .map(|p| ((p.r + p.e) / f.h).ceil() as usize + 1)
+                .max()
+            else {
+                continue;
+            };
+            for kk in k.saturating_sub(reach)..(k + reach + 1).min(f.nv) {
+                if kk < k0 || kk >= k1 {
+                    continue;
+                }
+                // The row's points in order of `u`: a run of overlapping
+                // intervals goes in as its union (a wall along the row gives
+                // one interval per row instead of one per point).
+                let v = f.row_v(kk);
+                let mut run: Option<(f64, f64)> = None;
+                for p in row {
+                    let Some(d) = p.half_width_at(v) else {
                         continue;
-                    }
-                    if let Some(d) = p.half_width_at(f.row_v(kk)) {
-                        self.raw_intervals.push((kk as u32, p.u - d, p.u + d));
-                    }
+                    };
+                    let (l, r) = (p.u - d, p.u + d);
+                    run = match run {
+                        Some((cl, cr)) if l <= cr && r >= cl => Some((cl.min(l), cr.max(r))),
+                        Some((cl, cr)) => {
+                            self.raw_intervals.push((kk as u32, cl, cr));
+                            Some((l, r))
+                        }
+                        None => Some((l, r)),
+                    };
+                }
+                if let Some((cl, cr)) = run {
+                    self.raw_intervals.push((kk as u32, cl, cr));
                 }
             }
         }
