@@ -7,9 +7,7 @@ Usage: scripts/covrun.py BIN CONFIG OUT WORLD...
   OUT     folder for each world's metrics.md and pictures
   WORLD   `paper` (hw/worlds/paper.world) or a floor-plan room MAP:N
 Prints per world the online / offline overlap (%), coverage (%), the
-online/offline path ratio and the U-turns' share of the swept area (%, the
-overlap floor of round-tool U-turns, see metrics.md), and the means; two
-runs at a time."""
+online/offline path ratio, and the means; two runs at a time."""
 import sys, subprocess, re, os, concurrent.futures as cf
 PAPER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "hw", "worlds", "paper.world")
 def run(binp, cfg, out, w, par_jobs=None):
@@ -25,11 +23,9 @@ def run(binp, cfg, out, w, par_jobs=None):
         return (float(m.group(1)), float(m.group(2))) if m else (None, None)
     ov = row("overlap"); cov = row("coverage of reachable area"); pl = row("path length")
     fin = re.search(r"finished before the time cap \| (\w+) \| (\w+)", md)
-    turns = re.search(r"U-turns between lanes.*: online (\d+) joins, ([0-9.]+) %, offline (\d+) joins, ([0-9.]+) %", md)
-    uturn = (float(turns.group(2)), float(turns.group(4))) if turns else (None, None)
     return {"world": w, "ov_on": ov[0], "ov_off": ov[1], "cov_on": cov[0], "cov_off": cov[1],
             "path_on": pl[0], "path_off": pl[1], "ratio": pl[0]/pl[1] if pl[1] else None,
-            "fin": fin.groups() if fin else None, "uturn_on": uturn[0], "uturn_off": uturn[1]}
+            "fin": fin.groups() if fin else None}
 def run_all(binp, cfg, out, worlds, jobs=2):
     with cf.ThreadPoolExecutor(jobs) as ex:
         return list(ex.map(lambda w: run(binp, cfg, out, w), worlds))
@@ -38,10 +34,6 @@ if __name__ == "__main__":
     rs = run_all(binp, cfg, out, worlds)
     for r in rs:
         if "error" in r: print(r); continue
-        ut = f"  u-turns {r['uturn_on']:4.1f} / {r['uturn_off']:4.1f}" if r['uturn_on'] is not None else ""
-        print(f"{r['world']:20s} ov {r['ov_on']:5.1f} / {r['ov_off']:5.1f}  cov {r['cov_on']:6.2f} / {r['cov_off']:6.2f}  ratio {r['ratio']:.3f} fin {r['fin']}{ut}")
+        print(f"{r['world']:20s} ov {r['ov_on']:5.1f} / {r['ov_off']:5.1f}  cov {r['cov_on']:6.2f} / {r['cov_off']:6.2f}  ratio {r['ratio']:.3f} fin {r['fin']}")
     ok = [r for r in rs if "error" not in r]
-    ut = [r for r in ok if r['uturn_on'] is not None]
-    if ut:
-        print(f"MEAN u-turns {sum(r['uturn_on'] for r in ut)/len(ut):.1f} / {sum(r['uturn_off'] for r in ut)/len(ut):.1f}")
     print(f"MEAN ov {sum(r['ov_on'] for r in ok)/len(ok):.1f} / {sum(r['ov_off'] for r in ok)/len(ok):.1f}  min cov {min(r['cov_on'] for r in ok):.2f} / {min(r['cov_off'] for r in ok):.2f}  max ratio {max(r['ratio'] for r in ok):.3f}")
