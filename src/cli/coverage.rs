@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use super::CliResult;
 use crate::config::Config;
-use crate::sim::coverage_metrics::{lane_joins, CoverageMetrics, CoverageTracker, OVERLAP_CAUSES};
+use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, OVERLAP_CAUSES};
 use crate::sim::coverage_svg;
 use crate::sim::floorplan;
 use crate::sim::lockstep::{self, LockstepOptions, Mode, RunResult};
@@ -111,7 +111,7 @@ pub fn run(args: Args) -> CliResult {
     if let Some(off) = &offline {
         write_pictures(&args.out, &world, &config, off, "offline")?;
     }
-    let md = markdown(&world.name, &config, &online, offline.as_ref());
+    let md = markdown(&world.name, &online, offline.as_ref());
     std::fs::write(args.out.join("metrics.md"), &md)?;
     std::fs::write(
         args.out.join("metrics.csv"),
@@ -201,12 +201,7 @@ fn p99(v: &[f64]) -> f64 {
 type Row = (&'static str, fn(&CoverageMetrics) -> String);
 
 /// The metrics of a run (and its offline reference) as a Markdown table.
-pub fn markdown(
-    name: &str,
-    config: &Config,
-    online: &RunResult,
-    offline: Option<&RunResult>,
-) -> String {
+pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Coverage: {name}\n");
     let _ = writeln!(
@@ -308,31 +303,20 @@ pub fn markdown(
             "\nOnline path length / offline reference: **{ratio:.3}**"
         );
     }
-    // The overlap the U-turns of these lanes leave with a round tool, whatever
-    // their path (see `lane_joins`).
-    let r_tool = config.robot.tool_width / 2.0;
-    let spacing = config.robot.tool_width - config.plan.lane_overlap;
-    let joins = |r: &RunResult| {
-        let n = lane_joins(&r.doing);
-        let share = n as f64 * r_tool * spacing / r.metrics.covered_area.max(1e-9);
-        format!("{n} joins, {:.1} %", share * 100.0)
-    };
-    let both = |f: &dyn Fn(&RunResult) -> String| {
-        let off = offline.map(|o| format!(", offline {}", f(o)));
-        format!("online {}{}", f(online), off.unwrap_or_default())
-    };
-    let _ = writeln!(
-        s,
-        "\nU-turns between lanes (a round tool sweeps tool radius × spacing again at each, whatever the path): {}",
-        both(&joins)
-    );
     let angle = |r: &RunResult| {
         r.snapshots
             .last()
             .map(|k| format!("{:.1}°", k.decomposition.sweep_angle.to_degrees()))
             .unwrap_or_else(|| "-".into())
     };
-    let _ = writeln!(s, "\nLane direction (from x): {}", both(&angle));
+    let _ = writeln!(
+        s,
+        "\nLane direction (from x): online {}{}",
+        angle(online),
+        offline
+            .map(|o| format!(", offline {}", angle(o)))
+            .unwrap_or_default()
+    );
     if let Some(r) = online.report {
         let _ = writeln!(
             s,

@@ -54,19 +54,6 @@ pub const OVERLAP_CAUSES: [&str; 7] = [
     "turns in place, look-around, escape",
 ];
 
-/// Joins between two lanes driven in `doing` (per pose: motion and task):
-/// each run of [`Motion::Connection`] that follows a lane. With a round tool
-/// a U-turn onto the neighbouring lane sweeps a strip `tool_width / 2` by
-/// the lane spacing a second time whatever the path, so joins × that area is
-/// overlap no path between the same lanes removes: a floor under the overlap
-/// figure that only fewer, longer lanes lower.
-pub fn lane_joins(doing: &[(Motion, u32)]) -> usize {
-    doing
-        .windows(2)
-        .filter(|w| matches!(w[0].0, Motion::Lane | Motion::FixUp) && w[1].0 == Motion::Connection)
-        .count()
-}
-
 /// Why metrics cannot be set up.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MetricsError {
@@ -755,20 +742,5 @@ mod tests {
         let plain = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
         let p = plain.metrics();
         assert_eq!(p.clear_reachable_area, p.reachable_area);
-    }
-
-    #[test]
-    fn lane_joins_count_connections_that_follow_a_lane() {
-        use Motion::*;
-        let doing: Vec<(Motion, u32)> = [
-            Other, Transit, Lane, Lane, Connection, Connection, Lane, Connection, FixUp,
-            Connection, Lane, Transit, Connection, Lane,
-        ]
-        .iter()
-        .map(|&m| (m, 1))
-        .collect();
-        // The connection after the transit joins no lane to a lane.
-        assert_eq!(lane_joins(&doing), 3);
-        assert_eq!(lane_joins(&[]), 0);
     }
 }
