@@ -26,6 +26,18 @@ fn config() -> Config {
     Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
 }
 
+/// Runs one closed loop at a time. Each run is a real-time daemon at ×8
+/// with its emulators, and three at once on a 2-core CI machine starve each
+/// other's pipeline: once, with other load besides, a run finished at
+/// 98.25 % (99.3-99.8 % alone).
+fn run_alone(opts: &SimOptions) -> closed_loop::SimReport {
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    closed_loop::run(opts).unwrap()
+}
+
 fn out(name: &str) -> Option<std::path::PathBuf> {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&d);
@@ -54,7 +66,7 @@ fn coverage_survives_scanner_unplug_motor_silence_and_corruption() {
         },
     ];
     opts.out = out("sim_faults_links");
-    let r = closed_loop::run(&opts).unwrap();
+    let r = run_alone(&opts);
     let m = &r.metrics;
     eprintln!(
         "{}: coverage {:.2} %, pose RMSE {:.1} mm, urg reconnects {}, base {:?}, emu {:?}",
@@ -90,7 +102,7 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     opts.speed = 8.0;
     opts.time_cap = 1200.0;
     opts.out = out("sim_faults_bump");
-    let r = closed_loop::run(&opts).unwrap();
+    let r = run_alone(&opts);
     let m = &r.metrics;
     eprintln!(
         "{}: coverage {:.2} %, bumps {}, safety events {}, collisions {}",
@@ -122,7 +134,7 @@ fn create2_bumper_sides_place_the_contact_and_the_run_goes_on() {
     opts.speed = 8.0;
     opts.time_cap = 1200.0;
     opts.out = out("sim_faults_bump_create2");
-    let r = closed_loop::run(&opts).unwrap();
+    let r = run_alone(&opts);
     let m = &r.metrics;
     eprintln!(
         "{}: coverage {:.2} %, bumps {}, safety events {}",
