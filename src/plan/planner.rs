@@ -819,6 +819,19 @@ impl CoveragePlanner {
                 self.split_task = true;
             }
         }
+        if log::log_enabled!(log::Level::Debug) {
+            let list: Vec<String> = lanes
+                .iter()
+                .map(|l| {
+                    let f = if l.fixup { " fix-up" } else { "" };
+                    format!(
+                        "({:.2}, {:.2})->({:.2}, {:.2}){f}",
+                        l.a.x, l.a.y, l.b.x, l.b.y
+                    )
+                })
+                .collect();
+            log::debug!("task {}: lanes {}", self.stats.tasks + 1, list.join(", "));
+        }
         let (path, motions) = self.cover_path(&lanes);
         self.motions = motions;
         match chosen.cell {
