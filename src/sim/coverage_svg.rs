@@ -151,9 +151,6 @@ pub fn path_svg(
     let mut doc = v.doc(30.0);
     // Run-length rows of equal colour.
     let colour = |i: usize| -> Option<&'static str> {
-        if !r.free[i] {
-            return Some("#bdbdbd");
-        }
         match passes.get(i).copied().unwrap_or(0) {
             0 if reachable.get(i).copied().unwrap_or(false) => Some("#de2d26"),
             0 => None,
@@ -162,7 +159,7 @@ pub fn path_svg(
             _ => Some("#2171b5"),
         }
     };
-    let cells = raster_cells(r, &v, colour);
+    let cells = floor_cells(r, &v, colour);
     doc = doc
         .add(cells)
         .add(walls(world, &v))
@@ -187,6 +184,18 @@ pub fn path_svg(
         m.collisions
     );
     doc.add(label(8.0, v.h + 22.0, caption, 14))
+}
+
+/// [`raster_cells`] with every non-free cell grey and `colour` deciding the
+/// free ones: the ground of the path, overlap and motions pictures.
+fn floor_cells(r: &FreeRaster, v: &View, colour: impl Fn(usize) -> Option<&'static str>) -> Group {
+    raster_cells(r, v, |i| {
+        if r.free[i] {
+            colour(i)
+        } else {
+            Some("#bdbdbd")
+        }
+    })
 }
 
 /// The raster's cells as run-length rows of equal colour (`colour` of a
@@ -238,14 +247,11 @@ pub fn overlap_svg(
     let line = 18.0;
     let mut doc = v.doc(30.0 + line * legend.len() as f64);
     let colour = |i: usize| -> Option<&'static str> {
-        if !r.free[i] {
-            return Some("#bdbdbd");
-        }
         causes
             .get(i)
             .and_then(|&c| CAUSE_COLOURS.get(c as usize).copied())
     };
-    let cells = raster_cells(r, &v, colour);
+    let cells = floor_cells(r, &v, colour);
     doc = doc
         .add(cells)
         .add(walls(world, &v))
@@ -313,16 +319,13 @@ pub fn motions_svg(
     let line = 18.0;
     let mut doc = v.doc(30.0 + line * MOTION_STYLES.len() as f64);
     let colour = |i: usize| -> Option<&'static str> {
-        if !r.free[i] {
-            return Some("#bdbdbd");
-        }
         match passes.get(i).copied().unwrap_or(0) {
             0 => None,
             1 => Some("#f0f0f0"),
             _ => Some("#d0d0d0"),
         }
     };
-    doc = doc.add(raster_cells(r, &v, colour)).add(walls(world, &v));
+    doc = doc.add(floor_cells(r, &v, colour)).add(walls(world, &v));
     let n = trajectory.len().min(doing.len());
     let style = |m: Motion| MOTION_STYLES.iter().position(|s| s.0 == m).unwrap_or(5);
     let mut start = 0;
