@@ -237,8 +237,8 @@ impl Grid {
 
     fn bump(&mut self, cx: usize, cy: usize, hit: bool) {
         let v = &mut self.cells[cy * self.width + cx];
-        let base = if *v == UNKNOWN { NEUTRAL } else { *v };
         let first = *v == UNKNOWN;
+        let base = if first { NEUTRAL } else { *v };
         *v = if hit {
             base.saturating_add(HIT)
         } else {
