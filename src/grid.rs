@@ -22,6 +22,11 @@ const UNKNOWN: u8 = 0;
 const NEUTRAL: u8 = 128;
 /// Evidence at or above which a cell counts as occupied.
 const OCCUPIED_AT: u8 = 150;
+/// How far (cells) a beam's end point is moved along the beam before the
+/// cell holding it is found: far above rounding error, far below the
+/// scanner's 1 mm range step.
+const END_NUDGE: f64 = 1e-4;
+
 /// Step added by a hit.
 const HIT: u8 = 40;
 /// Step removed by a pass-through.
@@ -55,6 +60,65 @@ pub fn cell_centre(origin: Point2<f64>, resolution: f64, c: CellIndex) -> Point2
     )
 }
 
+/// Exact walk over the cells a straight line passes through, in order
+/// (Amanatides and Woo): the one traversal of the evidence grid's beams and
+/// the simulator's ray casts. Positions are in cell units; `t` is the line's
+/// parameter, `start + t * delta`.
+#[derive(Clone, Copy, Debug)]
+pub struct CellWalk {
+    /// Current cell (column, row); may lie outside any raster.
+    pub cell: (i64, i64),
+    step: (i64, i64),
+    next: (f64, f64),
+    delta: (f64, f64),
+}
+
+impl CellWalk {
+    /// A walk from `start` (cell units) along `delta` (cell units per unit
+    /// of `t`), in the cell holding `start`.
+    pub fn new(start: (f64, f64), delta: (f64, f64)) -> Self {
+        let axis = |p: f64, d: f64| -> (i64, f64, f64) {
+            let c = p.floor();
+            if d > 0.0 {
+                (1, (c + 1.0 - p) / d, 1.0 / d)
+            } else if d < 0.0 {
+                (-1, (p - c) / -d, -1.0 / d)
+            } else {
+                (0, f64::INFINITY, f64::INFINITY)
+            }
+        };
+        let (sx, tx, dx) = axis(start.0, delta.0);
+        let (sy, ty, dy) = axis(start.1, delta.1);
+        Self {
+            cell: (start.0.floor() as i64, start.1.floor() as i64),
+            step: (sx, sy),
+            next: (tx, ty),
+            delta: (dx, dy),
+        }
+    }
+
+    /// The step from one cell to the next (-1, 0 or 1 on each axis).
+    pub fn direction(&self) -> (i64, i64) {
+        self.step
+    }
+
+    /// `t` at which the line leaves the current cell.
+    pub fn exit(&self) -> f64 {
+        self.next.0.min(self.next.1)
+    }
+
+    /// Moves to the next cell along the line.
+    pub fn advance(&mut self) {
+        if self.next.0 < self.next.1 {
+            self.cell.0 += self.step.0;
+            self.next.0 += self.delta.0;
+        } else {
+            self.cell.1 += self.step.1;
+            self.next.1 += self.delta.1;
+        }
+    }
+}
+
 /// An evidence grid over a fixed rectangle of the world.
 #[derive(Clone, Debug)]
 pub struct Grid {
@@ -63,6 +127,9 @@ pub struct Grid {
     width: usize,
     height: usize,
     cells: Vec<u8>,
+    /// Per cell: a beam has ended in it (a surface passes through it), even
+    /// if beams passing beside that surface made it free on balance.
+    hit: Vec<bool>,
     /// Bounding box of every observed cell, kept as cells are observed (the
     /// decomposer asks for it on every update; a scan of a 40 m grid cost
     /// a tenth of the update).
@@ -95,6 +162,7 @@ impl Grid {
             width,
             height,
             cells: vec![UNKNOWN; width * height],
+            hit: vec![false; width * height],
             explored: None,
         }
     }
@@ -228,7 +296,10 @@ impl Grid {
                 CellState::Occupied => 255,
             };
             match s {
-                CellState::Unknown if was_known => self.explored = self.scan_explored(),
+                CellState::Unknown if was_known => {
+                    self.hit[i] = false;
+                    self.explored = self.scan_explored();
+                }
                 CellState::Unknown => {}
                 _ => self.mark_explored(c.0, c.1),
             }
@@ -260,18 +331,28 @@ impl Grid {
             return;
         }
         let (dx, dy) = (x1 - x0, y1 - y0);
-        let steps = dx.abs().max(dy.abs()).ceil() as usize;
-        let n = steps.max(1);
-        let end = (x1.floor() as i64, y1.floor() as i64);
-        for i in 0..n {
-            let t = i as f64 / n as f64;
-            let (cx, cy) = ((x0 + dx * t).floor() as i64, (y0 + dy * t).floor() as i64);
+        // A surface on a cell boundary is in the cell the beam enters there:
+        // the end point is nudged a hair along the beam, so rounding cannot
+        // put the hit into the free cell in front of it.
+        let len = dx.hypot(dy).max(1e-12);
+        let end = (
+            (x1 + dx / len * END_NUDGE).floor() as i64,
+            (y1 + dy / len * END_NUDGE).floor() as i64,
+        );
+        // Every cell the beam passes through before the end cell, in order
+        // (a beam along a cell boundary or through a corner skips no cell,
+        // the one in front of the surface included).
+        let mut walk = CellWalk::new((x0, y0), (dx, dy));
+        let cells = (end.0 - walk.cell.0).abs() + (end.1 - walk.cell.1).abs();
+        for _ in 0..cells {
+            let (cx, cy) = walk.cell;
             if (cx, cy) == end {
                 break;
             }
             if cx >= 0 && cy >= 0 && (cx as usize) < self.width && (cy as usize) < self.height {
                 self.bump(cx as usize, cy as usize, false);
             }
+            walk.advance();
         }
         if hit
             && end.0 >= 0
@@ -280,6 +361,7 @@ impl Grid {
             && (end.1 as usize) < self.height
         {
             self.bump(end.0 as usize, end.1 as usize, true);
+            self.hit[end.1 as usize * self.width + end.0 as usize] = true;
         }
     }
 
@@ -323,7 +405,18 @@ impl Grid {
         self.height = other.height;
         self.cells.clear();
         self.cells.extend_from_slice(&other.cells);
+        self.hit.clear();
+        self.hit.extend_from_slice(&other.hit);
         self.explored = other.explored;
+    }
+
+    /// Whether a beam has ever ended in cell `c`: a surface passes through
+    /// it, even when beams passing beside that surface left it free on
+    /// balance (a wall seen at a grazing angle, a face on the cell's edge).
+    /// Unknown space behind such a cell is not a way into unexplored floor.
+    /// Not kept in checkpoints: a restored grid starts with no cell hit.
+    pub fn was_hit(&self, c: CellIndex) -> bool {
+        self.hit[c.1 * self.width + c.0]
     }
 
     /// Raw evidence of every cell, row-major from row 0 (for checkpoints).
@@ -352,6 +445,7 @@ impl Grid {
                 resolution,
                 width,
                 height,
+                hit: vec![false; cells.len()],
                 cells,
                 explored: None,
             };
@@ -435,6 +529,66 @@ mod tests {
         assert_eq!(at(-1.1, 2.1), None);
         assert_eq!(at(f64::NAN, 2.1), None);
         assert_eq!(cell_centre(o, 0.5, (3, 2)), Point2::new(0.75, 3.25));
+    }
+
+    #[test]
+    fn a_cell_walk_visits_every_cell_the_line_crosses_in_order() {
+        // From (0.5, 0.2) to (3.5, 2.2): 3 columns and 2 rows to cross.
+        let mut w = CellWalk::new((0.5, 0.2), (3.0, 2.0));
+        let mut cells = vec![w.cell];
+        let mut t = 0.0;
+        while w.exit() <= 1.0 {
+            assert!(w.exit() >= t, "t never goes back");
+            t = w.exit();
+            w.advance();
+            cells.push(w.cell);
+        }
+        assert_eq!(cells, [(0, 0), (1, 0), (1, 1), (2, 1), (3, 1), (3, 2)]);
+        // Along a cell boundary and through a corner: no cell skipped.
+        let mut w = CellWalk::new((0.0, 0.0), (2.0, 2.0));
+        let mut cells = vec![w.cell];
+        for _ in 0..4 {
+            w.advance();
+            cells.push(w.cell);
+        }
+        assert_eq!(cells, [(0, 0), (0, 1), (1, 1), (1, 2), (2, 2)]);
+        assert_eq!(CellWalk::new((1.5, 1.5), (0.0, -1.0)).direction(), (0, -1));
+    }
+
+    #[test]
+    fn a_hit_on_a_cell_boundary_is_in_the_cell_beyond_it() {
+        // Cells 0.05 m from x = 0: a surface at x = 1.0 (a cell boundary,
+        // 1.0 / 0.05 rounds either way) is hit from both sides.
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 10);
+        let y = 0.225;
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(1.0, y), true);
+        g.integrate_ray(&Point2::new(2.93, y), &Point2::new(2.0, y), true);
+        assert_eq!(g.state((19, 4)), CellState::Free, "in front of x = 1.0");
+        assert_eq!(g.state((20, 4)), CellState::Occupied, "beyond x = 1.0");
+        assert_eq!(g.state((40, 4)), CellState::Free, "in front of x = 2.0");
+        assert_eq!(g.state((39, 4)), CellState::Occupied, "beyond x = 2.0");
+        // Off a boundary the end point's own cell holds the hit.
+        g.integrate_ray(&Point2::new(0.1, 0.375), &Point2::new(1.01, 0.375), true);
+        assert_eq!(g.state((20, 7)), CellState::Occupied);
+        assert_eq!(g.state((19, 7)), CellState::Free);
+    }
+
+    #[test]
+    fn a_cell_a_beam_ended_in_stays_marked_hit_when_it_turns_free() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 50, 50);
+        g.integrate_ray(&Point2::new(0.05, 0.05), &Point2::new(1.05, 0.05), true);
+        assert!(g.was_hit((10, 0)));
+        for _ in 0..20 {
+            g.integrate_ray(&Point2::new(0.05, 0.05), &Point2::new(2.05, 0.05), false);
+        }
+        assert_eq!(g.state((10, 0)), CellState::Free);
+        assert!(g.was_hit((10, 0)), "a surface passed through it");
+        assert!(!g.was_hit((5, 0)) && !g.was_hit((20, 0)));
+        let mut copy = Grid::new(Point2::new(0.0, 0.0), 0.1, 1, 1);
+        copy.copy_from(&g);
+        assert!(copy.was_hit((10, 0)));
+        g.set_state((10, 0), CellState::Unknown);
+        assert!(!g.was_hit((10, 0)), "a forgotten cell forgets its hits");
     }
 
     #[test]

@@ -155,8 +155,8 @@ impl Sweep {
             self.chain_of[j] = chain;
             chains[chain as usize].push(j as u32);
         }
-        // Groups: chains cut at isolated wall steps (never at frontier sides,
-        // which move as exploration goes on).
+        // Groups: chains cut at isolated wall steps (never where the inner
+        // side is a frontier, which moves as exploration goes on).
         let mut groups: Vec<Vec<u32>> = Vec::new();
         for chain in &chains {
             let m = chain.len();
@@ -169,12 +169,18 @@ impl Sweep {
                     && (t == 0 || d(t - 1).abs() <= x * 0.5)
                     && (t + 2 >= m || d(t + 1).abs() <= x * 0.5)
             };
+            // The inner of the two sides must be a wall: the outer one may
+            // still be unexplored (a wall ending where unexplored space
+            // begins, a critical point), since exploring only pushes it
+            // farther out and the step stays.
             let walled = |t: usize, left: bool| {
                 let (a, b) = (piece(t), piece(t + 1));
                 if left {
-                    a.left != End::Frontier && b.left != End::Frontier
+                    let inner = if b.l >= a.l { b } else { a };
+                    inner.left != End::Frontier
                 } else {
-                    a.right != End::Frontier && b.right != End::Frontier
+                    let inner = if b.r <= a.r { b } else { a };
+                    inner.right != End::Frontier
                 }
             };
             let mut start = 0;

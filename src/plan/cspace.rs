@@ -97,6 +97,8 @@ pub struct CSpace {
     pub frame: Frame,
     /// Per-cell [`UNKNOWN`]/[`FREE`]/[`OCCUPIED`].
     pub state: Vec<u8>,
+    /// Free cells a beam has ended in (see [`Grid::was_hit`]): not frontier.
+    pub surface: Vec<bool>,
     /// Where the robot centre may be.
     pub traversable: Vec<bool>,
     /// Where the robot body touches no seen obstacle (clearance of the bare
@@ -178,6 +180,7 @@ impl CSpace {
                 h: 0,
             },
             state: Vec::new(),
+            surface: Vec::new(),
             traversable: Vec::new(),
             collision_free: Vec::new(),
             hard: Vec::new(),
@@ -208,6 +211,7 @@ impl CSpace {
             self.frame = frame;
             let n = frame.len();
             self.state = vec![UNKNOWN; n];
+            self.surface = vec![false; n];
             self.traversable = vec![false; n];
             self.collision_free = vec![true; n];
             self.dist = vec![f64::INFINITY; n];
@@ -225,6 +229,7 @@ impl CSpace {
                     CellState::Free => FREE,
                     CellState::Occupied => OCCUPIED,
                 };
+                self.surface[y * w + x] = grid.was_hit((x, y));
             }
         }
         for (t, s) in self.traversable.iter_mut().zip(&self.state) {
@@ -511,7 +516,9 @@ impl CSpace {
         out
     }
 
-    /// Known-free cells with at least one unexplored 4-neighbour.
+    /// Known-free cells with at least one unexplored 4-neighbour, except
+    /// cells a beam has ended in (a surface lies there: what is unknown
+    /// behind it is behind that surface, not a way into unexplored floor).
     pub fn frontier(&self, out: &mut Vec<usize>) {
         out.clear();
         let (w, h) = (self.frame.w, self.frame.h);
@@ -519,6 +526,7 @@ impl CSpace {
             for x in 1..w.saturating_sub(1) {
                 let i = y * w + x;
                 if self.state[i] == FREE
+                    && !self.surface[i]
                     && [i - 1, i + 1, i - w, i + w]
                         .iter()
                         .any(|&j| self.state[j] == UNKNOWN)
@@ -552,6 +560,33 @@ mod tests {
             }
         }
         g
+    }
+
+    #[test]
+    fn a_cell_a_beam_ended_in_is_no_frontier() {
+        // Seen free up to x = 1.0 (cells 0..20), unknown beyond; a beam
+        // once ended in cell (19, 10) and later beams made it free again:
+        // a surface lies there, so it is no way into unknown space.
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 40, 20);
+        for y in 0..20 {
+            for x in 0..20 {
+                g.set_state((x, y), CellState::Free);
+            }
+        }
+        let y = 10.5 * 0.05;
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(0.97, y), true);
+        for _ in 0..10 {
+            g.integrate_ray(&Point2::new(0.97, 0.1), &Point2::new(0.97, 0.9), false);
+        }
+        assert_eq!(g.state((19, 10)), CellState::Free);
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&g);
+        let mut list = Vec::new();
+        c.frontier(&mut list);
+        let f = c.frame;
+        assert!(!list.contains(&(10 * f.w + 19)), "the hit cell");
+        assert!(list.contains(&(9 * f.w + 19)) && list.contains(&(11 * f.w + 19)));
+        assert_eq!(list.len(), 17, "{list:?}");
     }
 
     #[test]

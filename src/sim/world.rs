@@ -22,6 +22,7 @@ use std::fmt;
 use nalgebra::{Point2, Vector2};
 
 use crate::geom::{pose, Pose, Segment};
+use crate::grid::CellWalk;
 
 /// One wall segment with the reflectivity of its surface (0..1).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -397,43 +398,12 @@ impl World {
         if !(fx.is_finite() && fy.is_finite() && max_range.is_finite()) {
             return None;
         }
-        let mut cx = fx.floor() as i64;
-        let mut cy = fy.floor() as i64;
-        let step_x: i64 = if dir.x >= 0.0 { 1 } else { -1 };
-        let step_y: i64 = if dir.y >= 0.0 { 1 } else { -1 };
-        let t_delta_x = if dir.x != 0.0 {
-            idx.cell / dir.x.abs()
-        } else {
-            f64::INFINITY
-        };
-        let t_delta_y = if dir.y != 0.0 {
-            idx.cell / dir.y.abs()
-        } else {
-            f64::INFINITY
-        };
-        let next_bx = if step_x > 0 {
-            cx as f64 + 1.0 - fx
-        } else {
-            fx - cx as f64
-        };
-        let next_by = if step_y > 0 {
-            cy as f64 + 1.0 - fy
-        } else {
-            fy - cy as f64
-        };
-        let mut t_max_x = if dir.x != 0.0 {
-            next_bx * t_delta_x
-        } else {
-            f64::INFINITY
-        };
-        let mut t_max_y = if dir.y != 0.0 {
-            next_by * t_delta_y
-        } else {
-            f64::INFINITY
-        };
+        let mut walk = CellWalk::new((fx, fy), (dir.x / idx.cell, dir.y / idx.cell));
+        let (step_x, step_y) = walk.direction();
         let mut best: Option<(f64, usize)> = None;
         let mut t_cell_start = 0.0f64;
         loop {
+            let (cx, cy) = walk.cell;
             if cx >= 0 && cy >= 0 && (cx as usize) < idx.nx && (cy as usize) < idx.ny {
                 for &wi in &idx.buckets[cy as usize * idx.nx + cx as usize] {
                     let w = &self.walls[wi as usize];
@@ -450,7 +420,7 @@ impl World {
             {
                 break;
             }
-            let t_cell_end = t_max_x.min(t_max_y);
+            let t_cell_end = walk.exit();
             if let Some((bt, _)) = best {
                 if bt <= t_cell_end {
                     break;
@@ -460,13 +430,7 @@ impl World {
                 break;
             }
             t_cell_start = t_cell_end;
-            if t_max_x < t_max_y {
-                t_max_x += t_delta_x;
-                cx += step_x;
-            } else {
-                t_max_y += t_delta_y;
-                cy += step_y;
-            }
+            walk.advance();
         }
         best.map(|(t, wi)| {
             let w = &self.walls[wi];
