@@ -5,11 +5,26 @@ Usage: scripts/covrun.py BIN CONFIG OUT WORLD...
   BIN     the release binary (target/release/sweepline)
   CONFIG  the robot configuration (hw/robot.toml)
   OUT     folder for each world's metrics.md and pictures
-  WORLD   `paper` (hw/worlds/paper.world) or a floor-plan room MAP:N
+  WORLD   `paper` (hw/worlds/paper.world), a floor-plan room MAP:N, or a
+          named set: @test12 (the worlds of the coverage tests and the first
+          held-out rooms) or @rooms24 (those and twelve more; per-room overlap
+          swings by up to ten points on small map changes, so compare means
+          over many rooms)
 Prints per world the online / offline overlap (%), coverage (%), the
 online/offline path ratio, and the means; two runs at a time."""
 import sys, subprocess, re, os, concurrent.futures as cf
 PAPER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "hw", "worlds", "paper.world")
+TEST12 = ["paper", "Freiburg52_scan:0", "lab_a_scan:1", "office_f:0", "lab_c_scan:2", "NLB:0",
+          "office_f:5", "lab_a_scan:8", "Freiburg52_scan:2", "NLB:9", "Freiburg52_scan:7", "lab_c_scan:0"]
+SETS = {"test12": TEST12,
+        "rooms24": TEST12 + ["Freiburg52_scan:1", "Freiburg52_scan:3", "Freiburg52_scan:5", "lab_a_scan:10",
+                             "lab_a_scan:11", "office_f:2", "office_f:13", "lab_c_scan:5", "lab_c_scan:11",
+                             "NLB:10", "NLB:13", "NLB:25"]}
+def expand(worlds):
+    out = []
+    for w in worlds:
+        out.extend(SETS[w[1:]] if w.startswith("@") else [w])
+    return out
 def run(binp, cfg, out, w, par_jobs=None):
     arg = ["--world", PAPER] if w == "paper" else ["--room", w]
     d = os.path.join(out, w.replace(":", "_"))
@@ -31,7 +46,7 @@ def run_all(binp, cfg, out, worlds, jobs=2):
         return list(ex.map(lambda w: run(binp, cfg, out, w), worlds))
 if __name__ == "__main__":
     binp, cfg, out, *worlds = sys.argv[1:]
-    rs = run_all(binp, cfg, out, worlds)
+    rs = run_all(binp, cfg, out, expand(worlds))
     for r in rs:
         if "error" in r: print(r); continue
         print(f"{r['world']:20s} ov {r['ov_on']:5.1f} / {r['ov_off']:5.1f}  cov {r['cov_on']:6.2f} / {r['cov_off']:6.2f}  ratio {r['ratio']:.3f} fin {r['fin']}")

@@ -25,14 +25,14 @@
 //!   1.305; since travel is priced by the overlap it adds (session 5) they
 //!   measure 0.905 and 1.033, and both are held to the 1.25 target.
 //!
-//! `lab_a_scan:8` is the one room of these where the 99 % target is not met
-//! online: 1.5 m² (9 %) of its reachable floor lies behind a gap between
-//! chair legs 0.35 m wide, 5 mm a side for the 0.34 m body. Offline (the
-//! map exact) the way out takes it; online the gap is seen through 5 cm
-//! map cells and shows narrower than the body, and the robot leaves it.
-//! The test holds the floor reachable with the safety margin to 99 % and
-//! the strictly reachable floor to what this build measures (97.9 %) less
-//! a margin.
+//! `lab_a_scan:8`: 1.5 m² (9 %) of its reachable floor lies behind a gap
+//! between chair legs 0.35 m wide, 5 mm a side for the 0.34 m body. Until
+//! session 7 the online map put the hits on the legs' faces into the free
+//! cells in front of them half the time (every wall of these rasters lies on
+//! a cell boundary), the gap showed narrower than the body, the robot left
+//! the floor behind it and measured 97.9 %. With the hit in the surface's
+//! cell the way out finds the gap online too (99.89 %); the room is held to
+//! the 99 % target like the others.
 
 mod coverage_support;
 
@@ -84,5 +84,5 @@ fn lab_c_scan_11_covers_the_inside_of_a_ring_of_chairs() {
 
 #[test]
 fn lab_a_scan_8_floor_behind_a_gap_with_5_mm_a_side() {
-    covered_min("lab_a_scan:8", 1.25, 0.975);
+    covered("lab_a_scan:8", 1.25);
 }

@@ -41,9 +41,10 @@ fn five_floor_plan_rooms() {
             0.99,
         );
         let (m, o) = (&on.metrics, &off.metrics);
-        // Target <= 15 %, not reached: measured 0.21-0.43 online and
-        // 0.18-0.39 offline with travel priced by the overlap it adds
-        // (0.28-0.55 / 0.20-0.50 before; 0.28-0.55 / 0.26-0.51 before the lane order was
+        // Target <= 15 %, not reached: measured 0.17-0.44 online and
+        // 0.18-0.39 offline with the session-7 grid (exact beam walk, faces
+        // seen at a grazing angle no frontier); 0.21-0.43 / 0.18-0.39 with
+        // travel priced by the overlap it adds (0.28-0.55 / 0.20-0.50 before; 0.28-0.55 / 0.26-0.51 before the lane order was
         // improved inside a region; 0.53-0.62 / 0.48-0.64 before the lane
         // lattice), most of it transits between cells and lane connections
         // among furniture with the tool always on.
