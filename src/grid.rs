@@ -341,14 +341,12 @@ impl Grid {
         );
         // Every cell the beam passes through before the end cell, in order
         // (a beam along a cell boundary or through a corner skips no cell,
-        // the one in front of the surface included).
+        // the one in front of the surface included): each step moves one
+        // cell, so the end is that many steps (its grid distance) away.
         let mut walk = CellWalk::new((x0, y0), (dx, dy));
         let cells = (end.0 - walk.cell.0).abs() + (end.1 - walk.cell.1).abs();
         for _ in 0..cells {
             let (cx, cy) = walk.cell;
-            if (cx, cy) == end {
-                break;
-            }
             if cx >= 0 && cy >= 0 && (cx as usize) < self.width && (cy as usize) < self.height {
                 self.bump(cx as usize, cy as usize, false);
             }
