@@ -47,10 +47,10 @@ fn mark() -> ContactMark {
     ContactMark::estimate(
         &ContactParams::default(),
         &pose(2.0, 2.0, 0.0),
-        Sides {
+        Some(Sides {
             left: true,
             right: true,
-        },
+        }),
         WheelSpeeds::from_body(0.2, 0.0, 0.235),
         0.17,
         0.235,

@@ -188,13 +188,21 @@ pub struct ContactMark {
 }
 
 impl ContactMark {
-    /// The contact of a bumper closing on `sides` with the robot of radius
-    /// `radius` at `pose`, commanded to `wheels` (wheel base `wheel_base`),
-    /// with the bearings the body's `track` rules out removed.
+    /// The contact of a bumper closing on `sides` (`None`: a one-bit bumper
+    /// that cannot tell them) with the robot of radius `radius` at `pose`,
+    /// commanded to `wheels` (wheel base `wheel_base`), with the bearings the
+    /// body's `track` rules out removed.
+    ///
+    /// A disk turning in place sweeps no new space: a turn closes the bumper
+    /// only where the end of its arc meets something beside the body, so
+    /// the leading end is the contact when the side that closed (or, for a
+    /// one-bit bumper, either) is the one leading the turn. Both sides of a
+    /// bumper that tells them apart closed together are a contact near the
+    /// middle, whatever the motion.
     pub fn estimate(
         params: &ContactParams,
         pose: &Pose,
-        sides: Sides,
+        sides: Option<Sides>,
         wheels: WheelSpeeds,
         radius: f64,
         wheel_base: f64,
@@ -208,13 +216,13 @@ impl ContactMark {
         };
         // Turning in place: the shell's leading end sweeps new space.
         let turning = w.is_finite() && v.is_finite() && w.abs() * radius > 2.0 * v.abs();
-        let (bearing, arc) = match (sides.left, sides.right) {
-            (true, false) => (params.side_bearing, (0.0, params.bumper_half_arc)),
-            (false, true) => (-params.side_bearing, (-params.bumper_half_arc, 0.0)),
-            _ if turning => {
-                let b = params.turn_bearing * w.signum();
-                (b, (b, b))
-            }
+        let lead = |b: f64| (b, (b, b));
+        let (bearing, arc) = match sides.map(|s| (s.left, s.right)) {
+            Some((true, false)) if turning && w > 0.0 => lead(params.turn_bearing),
+            Some((false, true)) if turning && w < 0.0 => lead(-params.turn_bearing),
+            Some((true, false)) => (params.side_bearing, (0.0, params.bumper_half_arc)),
+            Some((false, true)) => (-params.side_bearing, (-params.bumper_half_arc, 0.0)),
+            None if turning => lead(params.turn_bearing * w.signum()),
             _ => (0.0, (-params.bumper_half_arc, params.bumper_half_arc)),
         };
         let centre: Point2<f64> = pose.translation.vector.into();
@@ -323,11 +331,19 @@ mod tests {
 
     fn est(
         pose: &Pose,
-        sides: Sides,
+        sides: impl Into<Option<Sides>>,
         wheels: WheelSpeeds,
         track: Option<&BodyTrack>,
     ) -> ContactMark {
-        ContactMark::estimate(&ContactParams::default(), pose, sides, wheels, R, B, track)
+        ContactMark::estimate(
+            &ContactParams::default(),
+            pose,
+            sides.into(),
+            wheels,
+            R,
+            B,
+            track,
+        )
     }
 
     fn both() -> Sides {
@@ -377,9 +393,44 @@ mod tests {
             None,
         );
         assert!(right.at.y < -0.05, "{:?}", right.at);
-        // A RoboClaw E-stop (both sides) while turning right in place.
-        let turn = est(&p, both(), WheelSpeeds::from_body(0.0, -1.0, B), None);
+        // A RoboClaw E-stop (one bit) while turning right in place.
+        let spin_right = WheelSpeeds::from_body(0.0, -1.0, B);
+        let turn = est(&p, None, spin_right, None);
         assert!(turn.at.y < -0.15, "{:?}", turn.at);
+        // The right switch of a Create 2 while turning right: the arc's
+        // leading end; the left switch cannot close by that turn.
+        let right_end = est(
+            &p,
+            Sides {
+                left: false,
+                right: true,
+            },
+            spin_right,
+            None,
+        );
+        assert!(right_end.at.y < -0.15, "{:?}", right_end.at);
+        let trailing = est(
+            &p,
+            Sides {
+                left: true,
+                right: false,
+            },
+            spin_right,
+            None,
+        );
+        assert!((trailing.at - left.at).norm() < 1e-9, "{:?}", trailing.at);
+    }
+
+    #[test]
+    fn both_switches_of_a_two_sided_bumper_are_a_contact_ahead_even_in_a_turn() {
+        // A Create 2 facing a stool 2 cm ahead turns right in place: both
+        // switches close on the stool straight ahead (the failure of a
+        // closed-loop run: marking the turn's leading end instead put the
+        // contact 0.19 m off, across a passage beside the stool).
+        let p = pose(1.29, 2.04, std::f64::consts::PI);
+        let m = est(&p, both(), WheelSpeeds::from_body(0.0, -0.8, B), None);
+        let ahead = Point2::new(1.29 - R - ContactParams::default().gap, 2.04);
+        assert!((m.at - ahead).norm() < 1e-9, "{:?}", m.at);
     }
 
     #[test]
@@ -462,7 +513,7 @@ mod tests {
         let m = ContactMark::estimate(
             &p,
             &pose(0.0, 0.0, 0.0),
-            left,
+            Some(left),
             WheelSpeeds::from_body(0.2, 0.0, B),
             R,
             B,

@@ -732,7 +732,7 @@ impl MotorStage {
                     let mark = ContactMark::estimate(
                         &self.contact,
                         &here,
-                        *sides,
+                        self.base.bumper_sides().then_some(*sides),
                         self.last_wheels,
                         self.radius,
                         self.wheel_base,

@@ -189,4 +189,11 @@ pub trait DiffDriveBase: Send {
 
     /// The link counters.
     fn health(&self) -> LinkHealth;
+
+    /// Whether the bumper tells its left side from its right: then both
+    /// sides closed means a contact near the middle of the front. A one-bit
+    /// bumper (a RoboClaw E-stop input) reports both sides on every contact.
+    fn bumper_sides(&self) -> bool {
+        false
+    }
 }

@@ -348,6 +348,10 @@ impl DiffDriveBase for Create2Driver {
     fn health(&self) -> LinkHealth {
         self.health
     }
+
+    fn bumper_sides(&self) -> bool {
+        true
+    }
 }
 
 impl Drop for Create2Driver {
