@@ -17,7 +17,7 @@ use sweepline::pipeline::checkpoint::{
     FORMAT_VERSION, MAGIC,
 };
 use sweepline::plan::cspace::Frame;
-use sweepline::plan::{LatticePhase, SweptFloor};
+use sweepline::plan::{LatticePhase, PlanTries, SweptFloor, TriedCell};
 
 /// Two small keyframes: enough to cover every field, small enough that the
 /// every-bit-flip test stays quick.
@@ -66,6 +66,22 @@ fn sample() -> Checkpoint {
         y: None,
     })
     .unwrap();
+    cp.put(&PlanTries {
+        frame: Frame {
+            origin: Point2::new(0.0, 0.0),
+            res: 0.1,
+            w: 5,
+            h: 3,
+        },
+        cells: vec![TriedCell {
+            index: 7,
+            tries: 2,
+            abandoned: true,
+            given_up: false,
+        }],
+        retried: true,
+    })
+    .unwrap();
     cp.put(&keyframes()).unwrap();
     cp.put(&ContactArcs {
         arcs: vec![ContactArc {
@@ -88,6 +104,7 @@ fn read_all(bytes: &[u8]) -> Result<(), CheckpointError> {
     cp.get::<WrittenAt>()?;
     cp.get::<SweptFloor>()?;
     cp.get::<LatticePhase>()?;
+    cp.get::<PlanTries>()?;
     cp.get::<TrackerState>()?;
     cp.get::<ContactArcs>()?;
     Ok(())
@@ -176,6 +193,7 @@ fn random_payloads_with_valid_checksums_never_panic() {
             b"written",
             b"plan.swept",
             b"plan.lattice",
+            b"plan.tries",
             b"icp.keyframes",
             b"daemon.contacts",
         ] {

@@ -106,7 +106,7 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
-        let lattice = self.shared.with_status(|s| s.lattice);
+        let (lattice, tries) = self.shared.with_status(|s| (s.lattice, s.tries.clone()));
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)
@@ -120,6 +120,9 @@ impl DaemonHooks {
         }
         if let Some(l) = lattice {
             r = r.and_then(|()| cp.put(&l));
+        }
+        if let Some(t) = tries {
+            r = r.and_then(|()| cp.put(&*t));
         }
         if let Some(k) = keyframes {
             r = r.and_then(|()| cp.put(&*k));

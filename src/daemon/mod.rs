@@ -117,6 +117,9 @@ pub struct Resume {
     /// The phase of the planner's lane lattice at the checkpoint (none: it
     /// is chosen again at the first cover task).
     pub lattice: Option<crate::plan::LatticePhase>,
+    /// The planner's tries and give-ups at the checkpoint (none: floor it
+    /// failed on gets all its tries again).
+    pub tries: Option<crate::plan::PlanTries>,
     /// The scan tracker's keyframes at the checkpoint (none: a new local
     /// map is started at the resume pose).
     pub tracker: Option<TrackerState>,
@@ -210,6 +213,7 @@ impl Daemon {
                 s.grid = Some(Arc::new(r.grid.clone()));
                 s.keyframes = r.tracker.clone().map(Arc::new);
                 s.lattice = r.lattice;
+                s.tries = r.tries.clone().map(Arc::new);
                 if !r.contacts.is_empty() {
                     s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
                 }
@@ -260,6 +264,9 @@ impl Daemon {
         }
         if let Some(l) = setup.resume.as_ref().and_then(|r| r.lattice) {
             planner.restore_lattice(l);
+        }
+        if let Some(t) = setup.resume.as_ref().and_then(|r| r.tries.clone()) {
+            planner.restore_tries(t);
         }
         planner.record_pose(&start);
         let follower = PathFollower::new(&cfg.control, &robot)
@@ -329,6 +336,7 @@ impl Daemon {
                 last: f64::NEG_INFINITY,
                 seq: 0,
                 updates: 0,
+                tries_published: 0,
                 contacts_seen: 0,
                 bump_handled: f64::NEG_INFINITY,
                 contact_settle: cfg.daemon.contact.settle,

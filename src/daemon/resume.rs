@@ -11,7 +11,7 @@ use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointError, CheckpointStore, ContactArcs, ProgressMark, ResumeEntry,
     RunProgress, WrittenAt,
 };
-use crate::plan::{LatticePhase, SweptFloor};
+use crate::plan::{LatticePhase, PlanTries, SweptFloor};
 
 /// File name of the heartbeat in the state folder: the run's progress and
 /// the wall time, rewritten every `pipeline.heartbeat_period` (unsynced).
@@ -118,6 +118,13 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             None
         }
     };
+    let tries = match cp.get::<PlanTries>() {
+        Ok(t) => t,
+        Err(e) => {
+            log::warn!("planner tries record unreadable, floor given up gets its tries again: {e}");
+            None
+        }
+    };
     let tracker = match cp.get::<TrackerState>() {
         Ok(t) => t,
         Err(e) => {
@@ -140,6 +147,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         progress,
         swept,
         lattice,
+        tries,
         tracker,
         contacts,
         entry,

@@ -128,6 +128,8 @@ pub struct LiveStatus {
     pub swept: Option<std::sync::Arc<crate::plan::SweptFloor>>,
     /// The phase of the planner's lane lattice (checkpointed).
     pub lattice: Option<crate::plan::LatticePhase>,
+    /// The planner's tries and give-ups (checkpointed).
+    pub tries: Option<std::sync::Arc<crate::plan::PlanTries>>,
     /// The scan tracker's keyframes as of its newest one (checkpointed;
     /// published only when checkpoints are written).
     pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
@@ -150,6 +152,7 @@ impl Default for LiveStatus {
             decomposition: None,
             swept: None,
             lattice: None,
+            tries: None,
             keyframes: None,
             contacts: None,
         }

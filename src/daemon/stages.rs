@@ -368,6 +368,9 @@ pub struct PlanStage {
     pub seq: u64,
     /// Updates so far.
     pub updates: u64,
+    /// The planner's tries generation last published (see
+    /// [`CoveragePlanner::tries_generation`]).
+    pub tries_published: u64,
     /// New bumper contacts the planner has been told of.
     pub contacts_seen: u64,
     /// Clock time of the last bump whose contact the planner has seen.
@@ -444,7 +447,17 @@ impl Stage for PlanStage {
         };
         let swept = self.planner.swept().map(Arc::new);
         let lattice = self.planner.lattice();
+        let generation = self.planner.tries_generation();
+        let tries = (generation != self.tries_published)
+            .then(|| self.planner.tries().map(Arc::new))
+            .flatten();
+        if tries.is_some() {
+            self.tries_published = generation;
+        }
         self.shared.with_status(|s| {
+            if tries.is_some() {
+                s.tries = tries;
+            }
             s.covered_area = covered;
             if swept.is_some() {
                 s.swept = swept;

@@ -17,7 +17,7 @@ pub(crate) mod test_support;
 pub mod unbox;
 
 pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
-pub use swept::{LatticePhase, SweptFloor};
+pub use swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
 
 /// Coverage planner settings.
 /// Loaded from the `[plan]` table of the config file; every field is documented

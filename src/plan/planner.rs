@@ -30,7 +30,7 @@ use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::{lanes, lattice_position, turn_join, variants, Axis, Lane, LaneInput, Variant};
-use super::swept::{LatticePhase, SweptFloor};
+use super::swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
@@ -237,6 +237,10 @@ pub struct CoveragePlanner {
     owner: Vec<u32>,
     tries: Vec<u8>,
     restored: Option<SweptFloor>,
+    restored_tries: Option<PlanTries>,
+    /// Bumped whenever tries, give-ups or `retried` change (see
+    /// [`CoveragePlanner::tries_generation`]).
+    tries_generation: u64,
     /// The current cover task drives only part of its region's lanes.
     split_task: bool,
     /// Reachable centres inside some cell of the decomposition.
@@ -355,6 +359,8 @@ impl CoveragePlanner {
             owner: Vec::new(),
             tries: Vec::new(),
             restored: None,
+            restored_tries: None,
+            tries_generation: 0,
             phase: [None; 2],
             boxed_in: 0,
             ways_out_in_a_row: 0,
@@ -424,6 +430,7 @@ impl CoveragePlanner {
             self.owner = vec![u32::MAX; n];
             self.in_cell = vec![false; n];
             self.tries = vec![0; n];
+            self.tries_generation += 1;
             let res = self.cspace.frame.res;
             self.stamp = disk(self.stamp_radius + res, res);
             self.reach_disk = disk(self.reach, res);
@@ -438,6 +445,75 @@ impl CoveragePlanner {
                 log::warn!("swept-floor record of a different map geometry ignored");
             }
         }
+        if let Some(t) = self.restored_tries.take() {
+            self.apply_tries(t);
+        }
+    }
+
+    /// Sets the tries and give-ups of a record of this grid's geometry.
+    fn apply_tries(&mut self, t: PlanTries) {
+        let n = self.tries.len();
+        if t.frame != self.cspace.frame || t.cells.iter().any(|c| c.index as usize >= n) {
+            log::warn!("planner tries record of a different map geometry ignored");
+            return;
+        }
+        for c in &t.cells {
+            let i = c.index as usize;
+            self.tries[i] = c.tries;
+            self.abandoned[i] = c.abandoned;
+            self.given_up[i] = c.given_up;
+        }
+        self.retried |= t.retried;
+        self.tries_generation += 1;
+    }
+
+    /// Changes whenever the record of [`Self::tries`] changes: a daemon
+    /// copies the record out only then (it scans the whole grid).
+    pub fn tries_generation(&self) -> u64 {
+        self.tries_generation
+    }
+
+    /// The cells the planner has tried and failed on, and what it gave up,
+    /// for a checkpoint (`None` before the first update).
+    pub fn tries(&self) -> Option<PlanTries> {
+        if self.tries.is_empty() {
+            return None;
+        }
+        let cells = (0..self.tries.len())
+            .filter(|&i| self.tries[i] > 0 || self.abandoned[i] || self.given_up[i])
+            .map(|i| TriedCell {
+                index: i as u32,
+                tries: self.tries[i],
+                abandoned: self.abandoned[i],
+                given_up: self.given_up[i],
+            })
+            .collect();
+        Some(PlanTries {
+            frame: self.cspace.frame,
+            cells,
+            retried: self.retried,
+        })
+    }
+
+    /// Restores a record saved by [`Self::tries`], as
+    /// [`Self::restore_swept`] does: applied on the next update when the
+    /// grid geometry is not known yet; a record of another geometry is
+    /// ignored with a warning.
+    pub fn restore_tries(&mut self, tries: PlanTries) {
+        if self.tries.is_empty() {
+            self.restored_tries = Some(tries);
+        } else {
+            self.apply_tries(tries);
+        }
+    }
+
+    /// Charges cell `i` one try; at `limit` it is abandoned as a target.
+    fn charge_try(&mut self, i: usize, limit: u8) {
+        self.tries[i] = self.tries[i].saturating_add(1);
+        if self.tries[i] >= limit {
+            self.abandoned[i] = true;
+        }
+        self.tries_generation += 1;
     }
 
     /// The record of swept floor with its grid geometry, for a checkpoint
@@ -581,15 +657,14 @@ impl CoveragePlanner {
             // of its region's lanes: only the floor near its lanes, and
             // only when it swept none of it).
             let spared = self.split_task && self.task_targets.iter().any(|&i| self.covered[i]);
-            for &i in &self.task_targets {
+            let mut targets = std::mem::take(&mut self.task_targets);
+            for &i in &targets {
                 if !self.covered[i] && !spared {
-                    self.tries[i] = self.tries[i].saturating_add(1);
-                    if self.tries[i] >= MAX_TRIES {
-                        self.abandoned[i] = true;
-                    }
+                    self.charge_try(i, MAX_TRIES);
                 }
             }
-            self.task_targets.clear();
+            targets.clear();
+            self.task_targets = targets;
         }
         if let Some(next) = progress {
             // Blocked by something seen since?
@@ -637,10 +712,7 @@ impl CoveragePlanner {
         let progressed = old_targets.iter().any(|&i| self.covered[i]);
         for i in old_targets {
             if !progressed && !self.covered[i] {
-                self.tries[i] = self.tries[i].saturating_add(1);
-                if self.tries[i] >= MAX_TRIES {
-                    self.abandoned[i] = true;
-                }
+                self.charge_try(i, MAX_TRIES);
             }
         }
         if self.task == Task::Explore {
@@ -1186,6 +1258,7 @@ impl CoveragePlanner {
             for &i in &targets {
                 self.abandoned[i] = true;
             }
+            self.tries_generation += 1;
             return None;
         }
         Some(Candidate {
@@ -1449,6 +1522,7 @@ impl CoveragePlanner {
     /// false when there is none.
     fn retry_given_up(&mut self) -> bool {
         self.retried = true;
+        self.tries_generation += 1;
         let mut any = false;
         for i in 0..self.abandoned.len() {
             if self.abandoned[i] && !self.covered[i] {
@@ -1503,6 +1577,7 @@ impl CoveragePlanner {
                 }
             }
         }
+        self.tries_generation += 1;
     }
 
     /// Frontier cells in view of `g` get one more try; at `limit` tries (0:
@@ -1515,6 +1590,7 @@ impl CoveragePlanner {
         for &i in &list {
             if (f.centre(i) - g).norm() <= view + f.res {
                 self.tries[i] = self.tries[i].saturating_add(1);
+                self.tries_generation += 1;
                 if self.tries[i] >= limit {
                     // With the cells beside it: the frontier along a wall
                     // seen at a grazing angle shifts by a cell or two as

@@ -1,9 +1,10 @@
 //! The planner's record of swept floor, as plain data a daemon checkpoints
 //! (the section's encoding lives in `pipeline::checkpoint::swept`) so that,
 //! restarted after a crash, it continues the coverage instead of starting
-//! over. Only the swept-floor record is saved: the configuration space, frontier
-//! and reachability are recomputed from the restored map on the first update,
-//! and targets given up before the crash simply get their tries again.
+//! over; beside it, the record of floor the planner tried and gave up
+//! ([`PlanTries`]), so that floor does not get all its tries again. The
+//! configuration space, frontier and reachability are recomputed from the
+//! restored map on the first update.
 
 use super::cspace::Frame;
 
@@ -26,6 +27,32 @@ pub struct LatticePhase {
     pub x: Option<f64>,
     /// Phase of lanes along y (their x positions).
     pub y: Option<f64>,
+}
+
+/// One cell the planner has tried to reach or given up on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriedCell {
+    /// Row-major cell index on the record's grid.
+    pub index: u32,
+    /// Tries charged to the cell so far (saturating).
+    pub tries: u8,
+    /// Floor given up as a cover target (the lanes could not reach it).
+    pub abandoned: bool,
+    /// Frontier given up as an exploration goal.
+    pub given_up: bool,
+}
+
+/// The planner's tries and give-ups, as plain data a daemon checkpoints
+/// (encoding in `pipeline::checkpoint::tries`): sparse, since only cells
+/// the planner failed on are listed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanTries {
+    /// The grid geometry the record belongs to.
+    pub frame: Frame,
+    /// Cells with a try or a give-up, by increasing index.
+    pub cells: Vec<TriedCell>,
+    /// Floor given up has had its second round already.
+    pub retried: bool,
 }
 
 impl SweptFloor {

@@ -35,6 +35,7 @@ mod lattice;
 pub mod resume_log;
 mod sections;
 mod swept;
+mod tries;
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Write};

@@ -14,20 +14,40 @@ use crate::plan::cspace::Frame;
 use crate::plan::SweptFloor;
 
 /// Largest record a checkpoint may restore (cells), as for the map grid.
-const MAX_CELLS: u64 = 8192 * 8192;
+pub(super) const MAX_CELLS: u64 = 8192 * 8192;
+
+/// The planner grid's geometry as it is written (shared by the planner's
+/// sections).
+impl From<Frame> for GridHeader {
+    fn from(f: Frame) -> Self {
+        GridHeader {
+            origin_x: f.origin.x,
+            origin_y: f.origin.y,
+            resolution: f.res,
+            width: f.w as u32,
+            height: f.h as u32,
+        }
+    }
+}
+
+/// The planner grid's geometry as it is read back.
+impl From<&GridHeader> for Frame {
+    fn from(g: &GridHeader) -> Self {
+        Frame {
+            origin: Point2::new(g.origin_x, g.origin_y),
+            res: g.resolution,
+            w: g.width as usize,
+            h: g.height as usize,
+        }
+    }
+}
 
 impl Section for SweptFloor {
     const NAME: &'static str = "plan.swept";
     const VERSION: u16 = 1;
 
     fn encode(&self, e: &mut Encoder) {
-        e.grid_header(&GridHeader {
-            origin_x: self.frame.origin.x,
-            origin_y: self.frame.origin.y,
-            resolution: self.frame.res,
-            width: self.frame.w as u32,
-            height: self.frame.h as u32,
-        });
+        e.grid_header(&self.frame.into());
         let mut bits = vec![0u8; self.covered.len().div_ceil(8)];
         for (i, _) in self.covered.iter().enumerate().filter(|(_, c)| **c) {
             bits[i / 8] |= 1 << (i % 8);
@@ -47,12 +67,7 @@ impl Section for SweptFloor {
         }
         let covered = (0..n).map(|i| bits[i / 8] & (1 << (i % 8)) != 0).collect();
         Ok(Self {
-            frame: Frame {
-                origin: Point2::new(g.origin_x, g.origin_y),
-                res: g.resolution,
-                w: w as usize,
-                h: h as usize,
-            },
+            frame: (&g).into(),
             covered,
         })
     }
