@@ -284,6 +284,57 @@ impl From<&ContactMark> for ContactArc {
     }
 }
 
+/// A contact waiting for the pose to be known. Until the first matched scan
+/// of a (re)started daemon, its pose is the start or checkpointed guess (a
+/// resumed robot was measured 0.11 m from its checkpointed pose): a contact
+/// marked then lands where nothing is, and rays never clear a mark. So a
+/// contact closed before that is held, with the odometry driven since (the
+/// control stage backs off), and marked where the robot was once the pose
+/// is known.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HeldContact {
+    held: Option<(Option<Sides>, WheelSpeeds, Pose)>,
+}
+
+impl HeldContact {
+    /// A contact closed on `sides` with `wheels` commanded: returned at once
+    /// when the pose is `localised`, else held (a newer one replaces it).
+    pub fn closed(
+        &mut self,
+        localised: bool,
+        sides: Option<Sides>,
+        wheels: WheelSpeeds,
+    ) -> Option<(Option<Sides>, WheelSpeeds)> {
+        if localised {
+            return Some((sides, wheels));
+        }
+        self.held = Some((sides, wheels, Pose::identity()));
+        None
+    }
+
+    /// Odometry `delta` (in the earlier base frame) driven since.
+    pub fn moved(&mut self, delta: &Pose) {
+        if let Some((_, _, since)) = &mut self.held {
+            *since *= delta;
+        }
+    }
+
+    /// The held contact once the pose is `localised`: its sides, wheels and
+    /// the robot's pose when it closed, from the pose `now`.
+    pub fn release(
+        &mut self,
+        localised: bool,
+        now: &Pose,
+    ) -> Option<(Option<Sides>, WheelSpeeds, Pose)> {
+        if !localised {
+            return None;
+        }
+        self.held
+            .take()
+            .map(|(sides, wheels, since)| (sides, wheels, now * since.inverse()))
+    }
+}
+
 /// The middle of the run of bearings in `arc` not `ruled_out` that holds
 /// `preferred` (or else the longest run); `None` when the whole arc is
 /// open (nothing learnt) or ruled out (nothing to go by).
@@ -467,6 +518,29 @@ mod tests {
         assert!(a.at.y.abs() < 1e-9, "{:?}", a.at);
         // Outside the track's extent nothing is known.
         assert!(!empty.covered(&Point2::new(50.0, 0.0)));
+    }
+
+    #[test]
+    fn a_contact_before_the_pose_is_known_is_marked_where_it_closed() {
+        let mut h = HeldContact::default();
+        let fwd = WheelSpeeds::from_body(0.2, 0.0, B);
+        // Localised: at once, nothing held.
+        assert_eq!(h.closed(true, Some(both()), fwd), Some((Some(both()), fwd)));
+        assert_eq!(h.release(true, &pose(0.0, 0.0, 0.0)), None);
+        // Not yet: held while the robot backs off 0.1 m and turns 0.2 rad.
+        assert_eq!(h.closed(false, None, fwd), None);
+        h.moved(&pose(-0.06, 0.0, 0.1));
+        h.moved(&pose(-0.04, 0.0, 0.1));
+        assert_eq!(h.release(false, &pose(0.0, 0.0, 0.0)), None);
+        // Localised at (1.9, 1.0) facing 0.2 rad: the contact closed about
+        // 0.1 m ahead of it, facing 0.
+        let now = pose(1.9, 1.0, 0.2);
+        let (sides, wheels, at) = h.release(true, &now).unwrap();
+        assert_eq!((sides, wheels), (None, fwd));
+        assert!(heading(&at).abs() < 1e-9, "{at:?}");
+        let back = (at.translation.vector - now.translation.vector).norm();
+        assert!((back - 0.1).abs() < 0.01, "{back}");
+        assert_eq!(h.release(true, &now), None, "released once");
     }
 
     #[test]

@@ -291,6 +291,7 @@ impl Daemon {
                 wheel_base: robot.wheel_base,
                 last_wheels: crate::motor::WheelSpeeds::STOP,
                 contact: cfg.daemon.contact.clone(),
+                held: contact::HeldContact::default(),
                 track: contact::BodyTrack::new(
                     setup.map.origin,
                     setup.map.width as f64 * setup.map.resolution,

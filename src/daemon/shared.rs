@@ -110,6 +110,9 @@ pub struct LiveStatus {
     pub pose: Pose,
     /// Clock time of that estimate (s).
     pub pose_time: f64,
+    /// The estimate rests on a matched scan of this process (before that it
+    /// is the start or checkpointed pose).
+    pub localised: bool,
     /// Floor the planner records as swept (m²).
     pub covered_area: f64,
     /// Scans localised so far.
@@ -143,6 +146,7 @@ impl Default for LiveStatus {
         Self {
             pose: Pose::identity(),
             pose_time: 0.0,
+            localised: false,
             covered_area: 0.0,
             scans: 0,
             fallbacks: 0,

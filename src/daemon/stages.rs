@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::contact::{BodyTrack, ContactMark, ContactParams};
+use super::contact::{BodyTrack, ContactMark, ContactParams, HeldContact};
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
@@ -19,7 +19,7 @@ use crate::decomp::Decomposer;
 use crate::geom::{heading, pose, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
-use crate::motor::{DiffDriveBase, SafetyEvent, WheelSpeeds};
+use crate::motor::{DiffDriveBase, SafetyEvent, Sides, WheelSpeeds};
 use crate::pipeline::checkpoint::{ContactArc, ContactArcs};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::supervisor::Control;
@@ -624,9 +624,11 @@ impl ControlStage {
             .map(|p| (p.translation.vector - est.translation.vector).norm())
             .unwrap_or(0.0);
         self.last_pose = Some(est);
+        let matched = self.fix.is_some_and(|f| f.matched);
         self.shared.with_status(|s| {
             s.pose = est;
             s.pose_time = now;
+            s.localised |= matched;
             s.path_length += d;
         });
         self.shared.set_progress(Progress {
@@ -722,18 +724,52 @@ pub struct MotorStage {
     pub track: BodyTrack,
     /// Where contact marks go.
     pub contact: ContactParams,
+    /// A contact closed before the pose was known.
+    pub held: HeldContact,
 }
 
 impl MotorStage {
+    /// Marks a contact closed on `sides` (`None`: the bumper cannot tell)
+    /// with the robot at `at` commanded to `wheels`: to the map first, so
+    /// the snapshot that makes the planner plan again already holds it.
+    fn mark(&mut self, what: &str, at: &Pose, sides: Option<Sides>, wheels: WheelSpeeds) {
+        let mark = ContactMark::estimate(
+            &self.contact,
+            at,
+            sides,
+            wheels,
+            self.radius,
+            self.wheel_base,
+            Some(&self.track),
+        );
+        let _ = self.to_map.send(MapMsg::Contact(mark));
+        log::warn!(
+            "safety: {what}: contact at ({:.2}, {:.2}) m, robot at ({:.2}, {:.2}) m {:.0}°, wheels ({:+.2}, {:+.2}) m/s",
+            mark.at.x,
+            mark.at.y,
+            at.translation.x,
+            at.translation.y,
+            heading(at).to_degrees(),
+            wheels.left,
+            wheels.right,
+        );
+    }
+
     fn poll(&mut self) -> Result<(), StageFault> {
-        let here = self.shared.with_status(|s| s.pose);
-        self.track
-            .stamp(&here.translation.vector.into(), self.radius);
+        let (here, localised) = self.shared.with_status(|s| (s.pose, s.localised));
+        if localised {
+            self.track
+                .stamp(&here.translation.vector.into(), self.radius);
+        }
         let fb = self.base.poll();
         self.shared.set_base_health(self.base.health());
         let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
         if let Some(o) = fb.odometry {
             self.shared.odom.push(o.t1, &o.delta);
+            self.held.moved(&o.delta);
+        }
+        if let Some((sides, wheels, at)) = self.held.release(localised, &here) {
+            self.mark("contact held until the pose was known", &at, sides, wheels);
         }
         for e in fb.events.iter() {
             match e {
@@ -741,31 +777,15 @@ impl MotorStage {
                     if matches!(e, SafetyEvent::Bumper(_)) {
                         self.shared.bumper_closed.store(true, Ordering::Relaxed);
                     }
-                    let here = self.shared.with_status(|s| s.pose);
-                    let mark = ContactMark::estimate(
-                        &self.contact,
-                        &here,
-                        self.base.bumper_sides().then_some(*sides),
-                        self.last_wheels,
-                        self.radius,
-                        self.wheel_base,
-                        Some(&self.track),
-                    );
-                    // The map first, so the snapshot that makes the planner
-                    // plan again already holds the contact.
-                    let _ = self.to_map.send(MapMsg::Contact(mark));
+                    let sides = self.base.bumper_sides().then_some(*sides);
+                    match self.held.closed(localised, sides, self.last_wheels) {
+                        Some((sides, wheels)) => self.mark(&format!("{e:?}"), &here, sides, wheels),
+                        None => log::warn!(
+                            "safety: {e:?} before the first matched scan: the contact is marked once the pose is known"
+                        ),
+                    }
                     self.shared.note_bump(self.clock.now());
                     self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
-                    log::warn!(
-                        "safety: {e:?}: contact at ({:.2}, {:.2}) m, robot at ({:.2}, {:.2}) m {:.0}°, wheels ({:+.2}, {:+.2}) m/s",
-                        mark.at.x,
-                        mark.at.y,
-                        here.translation.x,
-                        here.translation.y,
-                        heading(&here).to_degrees(),
-                        self.last_wheels.left,
-                        self.last_wheels.right,
-                    );
                 }
                 SafetyEvent::BumperReleased => {
                     self.shared.bumper_closed.store(false, Ordering::Relaxed);
