@@ -220,6 +220,12 @@ fn killed_daemon_resumes_its_coverage() {
             daemon.0.wait().unwrap();
             killed = Some((truth, t));
             timeline += &format!(" [kill -9 at {t:.0}s:{:.0}%]", truth * 100.0);
+            // The crashed daemon kept its heartbeat (what the report's
+            // "coverage at crash" comes from).
+            assert!(
+                dir.join("state").join("heartbeat.swc").exists(),
+                "the first daemon wrote no heartbeat"
+            );
             at_kill = latest(&store);
             lattice_at_kill = lattice(&store);
             std::thread::sleep(Duration::from_millis(200));
@@ -337,7 +343,18 @@ fn check_report(run: &Path, at_kill: &RunProgress, kill_t: f64) {
     assert_eq!(e.checkpoint.sequence, at_kill.sequence);
     assert_eq!(e.checkpoint.coverage, at_kill.coverage);
     assert!(e.checkpoint.unix.is_some(), "checkpoint without wall time");
-    let alive = e.last_alive.expect("no heartbeat after the checkpoint");
+    let Some(alive) = e.last_alive else {
+        // No heartbeat between the last checkpoint and the kill: both are
+        // timed, and a starved daemon (seen in 3 of 15 runs beside two
+        // busy loops and other simulations on 2 cores) can write none in
+        // that gap. Then the report must not guess.
+        eprintln!("no heartbeat after the last checkpoint: the report says unknown");
+        assert!(
+            section.contains("- coverage at crash: unknown"),
+            "report guesses without a heartbeat:\n{section}"
+        );
+        return;
+    };
     let age = e.checkpoint_age().unwrap();
     let lost = e.coverage_lost().unwrap();
     // The last heartbeat lies between the checkpoint and the kill.
