@@ -16,6 +16,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use sweepline::clock::{ScaledClock, SharedClock};
 use sweepline::config::Config;
+use sweepline::daemon::resume::HEARTBEAT_FILE;
 use sweepline::geom::Pose;
 use sweepline::motor::BaseKind;
 use sweepline::pipeline::checkpoint::{CheckpointStore, ResumeLog, RunProgress};
@@ -223,7 +224,7 @@ fn killed_daemon_resumes_its_coverage() {
             // The crashed daemon kept its heartbeat (what the report's
             // "coverage at crash" comes from).
             assert!(
-                dir.join("state").join("heartbeat.swc").exists(),
+                dir.join("state").join(HEARTBEAT_FILE).exists(),
                 "the first daemon wrote no heartbeat"
             );
             at_kill = latest(&store);
