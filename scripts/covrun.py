@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Lock-step coverage over several worlds, online and offline, in one table.
 
-Usage: scripts/covrun.py BIN CONFIG OUT WORLD...
+Usage: scripts/covrun.py BIN CONFIG OUT WORLD... [-- COVERAGE-OPTION...]
   BIN     the release binary (target/release/sweepline)
   CONFIG  the robot configuration (hw/robot.toml)
   OUT     folder for each world's metrics.md and pictures
@@ -10,7 +10,9 @@ Usage: scripts/covrun.py BIN CONFIG OUT WORLD...
           held-out rooms) or @rooms24 (those and twelve more; per-room overlap
           swings by up to ten points on small map changes, so compare means
           over many rooms)
-Prints per world the online / offline overlap (%), coverage (%), the
+Options after `--` go to every `sweepline coverage` run, e.g.
+`-- --grid-offset 0.025 --range-noise 0.005` (the map as the daemon's grid
+holds it, from noisy scans). Prints per world the online / offline overlap (%), coverage (%), the
 online/offline path ratio, and the means; two runs at a time."""
 import sys, subprocess, re, os, concurrent.futures as cf
 PAPER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "hw", "worlds", "paper.world")
@@ -25,10 +27,10 @@ def expand(worlds):
     for w in worlds:
         out.extend(SETS[w[1:]] if w.startswith("@") else [w])
     return out
-def run(binp, cfg, out, w, par_jobs=None):
+def run(binp, cfg, out, w, extra=()):
     arg = ["--world", PAPER] if w == "paper" else ["--room", w]
     d = os.path.join(out, w.replace(":", "_"))
-    p = subprocess.run([binp, "coverage", *arg, "--offline", "--config", cfg, "--out", d, "--picture-every", "100000"], capture_output=True, text=True)
+    p = subprocess.run([binp, "coverage", *arg, "--offline", "--config", cfg, "--out", d, "--picture-every", "100000", *extra], capture_output=True, text=True)
     try:
         md = open(os.path.join(d, "metrics.md")).read()
     except Exception:
@@ -41,12 +43,15 @@ def run(binp, cfg, out, w, par_jobs=None):
     return {"world": w, "ov_on": ov[0], "ov_off": ov[1], "cov_on": cov[0], "cov_off": cov[1],
             "path_on": pl[0], "path_off": pl[1], "ratio": pl[0]/pl[1] if pl[1] else None,
             "fin": fin.groups() if fin else None}
-def run_all(binp, cfg, out, worlds, jobs=2):
+def run_all(binp, cfg, out, worlds, jobs=2, extra=()):
     with cf.ThreadPoolExecutor(jobs) as ex:
-        return list(ex.map(lambda w: run(binp, cfg, out, w), worlds))
+        return list(ex.map(lambda w: run(binp, cfg, out, w, extra), worlds))
 if __name__ == "__main__":
-    binp, cfg, out, *worlds = sys.argv[1:]
-    rs = run_all(binp, cfg, out, expand(worlds))
+    args = sys.argv[1:]
+    extra = args[args.index("--") + 1:] if "--" in args else []
+    args = args[:args.index("--")] if "--" in args else args
+    binp, cfg, out, *worlds = args
+    rs = run_all(binp, cfg, out, expand(worlds), extra=extra)
     for r in rs:
         if "error" in r: print(r); continue
         print(f"{r['world']:20s} ov {r['ov_on']:5.1f} / {r['ov_off']:5.1f}  cov {r['cov_on']:6.2f} / {r['cov_off']:6.2f}  ratio {r['ratio']:.3f} fin {r['fin']}")

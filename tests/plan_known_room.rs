@@ -44,7 +44,7 @@ fn drive(world: &World, grid: &Grid, p: &mut CoveragePlanner) -> (Vec<Pose>, usi
 #[test]
 fn known_room_paths_never_touch_a_wall_and_finish() {
     let world = World::parse(ROOM).unwrap();
-    let mut grid = grid_for(&world, 0.05, 0.5);
+    let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
     fill_from_truth(&world, &mut grid);
     let robot = RobotParams::default();
     let params = PlanParams {
@@ -62,8 +62,10 @@ fn known_room_paths_never_touch_a_wall_and_finish() {
         );
     }
     let report = p.report().unwrap();
-    // Nearly all of the 12.6 m² free floor is swept by the planner's own record.
-    assert!(report.covered_area > 11.0, "{report:?}");
+    // Nearly all of the 12.6 m² free floor is swept by the planner's own
+    // record (the known map marks every cell a wall passes through, up to
+    // 5 cm of floor along the walls that are not on a cell boundary).
+    assert!(report.covered_area > 10.6, "{report:?}");
     assert!(report.unreachable_area < 0.2, "{report:?}");
     assert!(p.stats().patches >= 1);
     assert!(p
@@ -75,7 +77,7 @@ fn known_room_paths_never_touch_a_wall_and_finish() {
 #[test]
 fn lanes_of_a_patch_are_one_spacing_apart() {
     let world = World::parse("room 0 0 4 0 4 2 0 2\nstart 0.5 0.5 0\n").unwrap();
-    let mut grid = grid_for(&world, 0.05, 0.5);
+    let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
     fill_from_truth(&world, &mut grid);
     let robot = RobotParams::default();
     let params = PlanParams {
@@ -107,10 +109,12 @@ fn lanes_of_a_patch_are_one_spacing_apart() {
         assert!(w[1] - w[0] <= spacing + 1e-6, "{ys:?}");
     }
     // First and last lanes hug the walls: the tool reaches the last floor
-    // row the planner counts as reachable (clearance + two cells at most).
+    // row the planner counts as reachable (clearance + two cells at most,
+    // from the map's wall: the cell the wall at y = 2 passes through, up
+    // to a cell below it, is occupied in the known map).
     let clear = robot.radius + params.safety_margin;
     assert!(ys[0] <= clear + 0.1, "{ys:?}");
-    assert!(*ys.last().unwrap() >= 2.0 - clear - 0.1, "{ys:?}");
+    assert!(*ys.last().unwrap() >= 2.0 - 0.05 - clear - 0.1, "{ys:?}");
     // Lane count: (2 - 2·clear - reach edge) / spacing rounded up, plus one.
     assert!(ys.len() >= 6 && ys.len() <= 7, "{ys:?}");
 }
@@ -122,7 +126,7 @@ fn escapes_from_a_passing_inflation_zone_give_no_floor_up() {
     // first. The cover task it interrupted is not at fault: however often
     // this happens, none of its floor may be given up.
     let world = World::parse("room 0 0 4 0 4 2 0 2\nstart 0.5 0.5 0\n").unwrap();
-    let mut grid = grid_for(&world, 0.05, 0.5);
+    let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
     fill_from_truth(&world, &mut grid);
     let robot = RobotParams::default();
     let params = PlanParams {

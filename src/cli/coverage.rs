@@ -21,7 +21,7 @@ use crate::config::Config;
 use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, OVERLAP_CAUSES};
 use crate::sim::coverage_svg;
 use crate::sim::floorplan;
-use crate::sim::lockstep::{self, LockstepOptions, Mode, RunResult};
+use crate::sim::lockstep::{self, LockstepOptions, Mode, RunResult, SensingNoise};
 use crate::sim::world::World;
 
 /// Arguments of `sweepline coverage`.
@@ -57,6 +57,23 @@ pub struct Args {
     /// Simulated seconds between cell pictures.
     #[arg(long, default_value_t = 60.0)]
     pub picture_every: f64,
+    /// Shift of the evidence grid's cell boundaries against the world (m,
+    /// 0 to under one cell): 0 puts the floor plans' walls on cell
+    /// boundaries, 0.025 in mid-cell, as in the daemon's grid.
+    #[arg(long, default_value_t = 0.0)]
+    pub grid_offset: f64,
+    /// Range noise of the simulated scans, standard deviation (m; online run).
+    #[arg(long, default_value_t = 0.0)]
+    pub range_noise: f64,
+    /// Position error of each scan's pose, standard deviation per axis (m; online run).
+    #[arg(long, default_value_t = 0.0)]
+    pub pose_noise: f64,
+    /// Heading error of each scan's pose, standard deviation (rad; online run).
+    #[arg(long, default_value_t = 0.0)]
+    pub heading_noise: f64,
+    /// Seed of the scan noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 fn maps_dir(args: &Args) -> PathBuf {
@@ -98,6 +115,13 @@ pub fn run(args: Args) -> CliResult {
         time_cap: args.time_cap,
         scan_period: args.scan_period,
         snapshot_every: args.picture_every,
+        grid_offset: args.grid_offset,
+        sensing: SensingNoise {
+            range: args.range_noise,
+            position: args.pose_noise,
+            heading: args.heading_noise,
+            seed: args.seed,
+        },
         ..LockstepOptions::default()
     };
     std::fs::create_dir_all(&args.out)?;
@@ -111,7 +135,8 @@ pub fn run(args: Args) -> CliResult {
     if let Some(off) = &offline {
         write_pictures(&args.out, &world, &config, off, "offline")?;
     }
-    let md = markdown(&world.name, &online, offline.as_ref());
+    let mut md = markdown(&world.name, &online, offline.as_ref());
+    md += &conditions(&opts);
     std::fs::write(args.out.join("metrics.md"), &md)?;
     std::fs::write(
         args.out.join("metrics.csv"),
@@ -119,6 +144,27 @@ pub fn run(args: Args) -> CliResult {
     )?;
     print!("{md}");
     Ok(())
+}
+
+/// The line of metrics.md that says how the map was sensed.
+fn conditions(opts: &LockstepOptions) -> String {
+    let n = &opts.sensing;
+    let scans = if n.is_ideal() {
+        "ideal scans".to_string()
+    } else {
+        format!(
+            "online scans with range noise σ {:.1} mm, pose noise σ {:.1} mm / {:.3}° (seed {})",
+            n.range * 1e3,
+            n.position * 1e3,
+            n.heading.to_degrees(),
+            n.seed
+        )
+    };
+    format!(
+        "\nMap: {:.0} mm cells, boundaries shifted {:.1} mm against the world; {scans}.\n",
+        opts.grid_resolution * 1e3,
+        opts.grid_offset * 1e3
+    )
 }
 
 fn write_pictures(

@@ -337,7 +337,7 @@ impl Scene for WorldScene {
 
 /// The map frame the daemon gets for `world`: its bounding box plus a margin.
 pub fn map_frame(world: &World) -> MapFrame {
-    let g = crate::sim::lockstep::grid_for(world, 0.05, 0.5);
+    let g = crate::sim::lockstep::grid_for(world, 0.05, 0.5, 0.0);
     MapFrame {
         origin: g.origin(),
         resolution: g.resolution(),

@@ -435,6 +435,11 @@ impl CoverageTracker {
         let hit = !self.disk_free(&p);
         if hit && !self.colliding {
             self.collisions += 1;
+            log::warn!(
+                "collision: the robot disk entered an obstacle at ({:.3}, {:.3}) m, t = {time:.1} s, while on a {motion:?} motion",
+                p.x,
+                p.y
+            );
         }
         self.colliding = hit;
     }

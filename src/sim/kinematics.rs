@@ -10,7 +10,7 @@
 //! half of the body.
 
 use nalgebra::{Point2, Vector2};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::geom::{heading, Pose};
@@ -122,10 +122,7 @@ impl DiffDriveSim {
     }
 
     fn gauss(&mut self) -> f64 {
-        // Box-Muller; u1 in (0, 1] so the log is finite.
-        let u1: f64 = 1.0 - self.rng.random::<f64>();
-        let u2: f64 = self.rng.random::<f64>();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        super::noise::gauss(&mut self.rng)
     }
 
     /// Advances by `dt` seconds towards wheel set-points `target`; `world`, when

@@ -12,6 +12,8 @@
 //! known in advance, to measure the price of not knowing it.
 
 use nalgebra::{Point2, Vector2};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 use crate::config::Config;
 use crate::control::{integrate, ControlError, PathFollower, Twist};
@@ -21,6 +23,7 @@ use crate::grid::{CellState, Grid};
 use crate::plan::planner::{DoneReport, PlanStats};
 use crate::plan::{CoveragePlanner, PlanError, PlanStatus};
 use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
+use crate::sim::noise::gauss;
 use crate::sim::world::World;
 
 /// Simulated URG-04LX: number of beams (steps 44..=725).
@@ -61,6 +64,36 @@ pub struct LockstepOptions {
     /// Feed the planner the decomposer's cells; when false it gets none and
     /// falls back to exploring, then covering leftover patches (a baseline).
     pub use_cells: bool,
+    /// Shift of the evidence grid's cell boundaries against the world (m,
+    /// both axes, `0..grid_resolution`). The floor plans' walls lie on
+    /// multiples of 5 cm, so at 0 every wall is on a cell boundary and the
+    /// grid holds the obstacles exactly; the daemon's grid is centred on the
+    /// start pose, which puts a floor plan's walls in mid-cell (0.025).
+    pub grid_offset: f64,
+    /// Errors of the simulated scans (online runs only; zero: ideal).
+    pub sensing: SensingNoise,
+}
+
+/// Errors of the simulated sensing, to measure how the planner copes with
+/// an imperfect map (all zero: the ideal scans of the targets).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SensingNoise {
+    /// Standard deviation of every beam's range (m).
+    pub range: f64,
+    /// Standard deviation of the scan pose's position, per axis, drawn
+    /// once per scan (m): the localisation error the map is built with.
+    pub position: f64,
+    /// Standard deviation of the scan pose's heading, drawn once per scan (rad).
+    pub heading: f64,
+    /// Seed of the noise.
+    pub seed: u64,
+}
+
+impl SensingNoise {
+    /// No error at all: the scans are the ideal ones.
+    pub fn is_ideal(&self) -> bool {
+        self.range == 0.0 && self.position == 0.0 && self.heading == 0.0
+    }
 }
 
 impl Default for LockstepOptions {
@@ -73,6 +106,8 @@ impl Default for LockstepOptions {
             grid_margin: 0.5,
             snapshot_every: 0.0,
             use_cells: true,
+            grid_offset: 0.0,
+            sensing: SensingNoise::default(),
         }
     }
 }
@@ -142,37 +177,99 @@ pub struct RunResult {
 
 /// Casts one simulated URG-04LX scan at `pose` and integrates it into `grid`.
 pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
+    cast_scan(world, pose, &Pose::identity(), grid, || 0.0);
+}
+
+/// Casts scans at the true pose and integrates them as a robot with
+/// [`SensingNoise`] would: each range off by its noise, the whole scan
+/// placed at a pose off by the localisation error. Seeded: repeatable.
+pub struct NoisyScanner {
+    noise: SensingNoise,
+    rng: ChaCha8Rng,
+}
+
+impl NoisyScanner {
+    /// A scanner with these errors.
+    pub fn new(noise: SensingNoise) -> Self {
+        Self {
+            noise,
+            rng: ChaCha8Rng::seed_from_u64(noise.seed),
+        }
+    }
+
+    /// One scan from the true `pose` into `grid` (exactly [`scan_into`]
+    /// when the noise is all zero).
+    pub fn scan_into(&mut self, world: &World, pose: &Pose, grid: &mut Grid) {
+        if self.noise.is_ideal() {
+            return scan_into(world, pose, grid);
+        }
+        let n = self.noise;
+        let dx = n.position * gauss(&mut self.rng);
+        let dy = n.position * gauss(&mut self.rng);
+        let dth = n.heading * gauss(&mut self.rng);
+        // The error in the world frame: the scan is integrated at
+        // `error * pose`.
+        let error = Pose::new(Vector2::new(dx, dy), dth);
+        let rng = &mut self.rng;
+        cast_scan(world, pose, &error, grid, || n.range * gauss(rng));
+    }
+}
+
+/// Casts one scan at the true `pose` and integrates it at `error * pose`,
+/// each hit's range plus `range_error()`.
+fn cast_scan(
+    world: &World,
+    pose: &Pose,
+    error: &Pose,
+    grid: &mut Grid,
+    mut range_error: impl FnMut() -> f64,
+) {
     let o: Point2<f64> = pose.translation.vector.into();
     let th = heading(pose);
+    let seen = error * pose;
+    let so: Point2<f64> = seen.translation.vector.into();
+    let sth = heading(&seen);
     for k in 0..URG_BEAMS {
-        let a = th + URG_FIRST + k as f64 * URG_STEP;
+        let rel = URG_FIRST + k as f64 * URG_STEP;
+        let a = sth + rel;
         let dir = Vector2::new(a.cos(), a.sin());
-        match world.cast_ray(&o, a, URG_MAX_RANGE) {
+        match world.cast_ray(&o, th + rel, URG_MAX_RANGE) {
             Some(hit) if hit.range >= URG_MIN_RANGE => {
-                grid.integrate_ray(&o, &(o + dir * hit.range), true);
+                let r = (hit.range + range_error()).max(URG_MIN_RANGE);
+                grid.integrate_ray(&so, &(so + dir * r), true);
             }
             Some(_) => {}
-            None => grid.integrate_ray(&o, &(o + dir * URG_MAX_RANGE), false),
+            None => grid.integrate_ray(&so, &(so + dir * URG_MAX_RANGE), false),
         }
     }
 }
 
-/// A grid covering the world's walls plus `margin`.
-pub fn grid_for(world: &World, resolution: f64, margin: f64) -> Grid {
+/// A grid covering the world's walls plus `margin`, its cell boundaries
+/// shifted by `offset` (m) against the world's.
+pub fn grid_for(world: &World, resolution: f64, margin: f64, offset: f64) -> Grid {
     let f = &world.free;
-    let lo = Point2::new(f.origin.x - margin, f.origin.y - margin);
+    let lo = Point2::new(f.origin.x - margin - offset, f.origin.y - margin - offset);
     let w = ((f.width as f64 * f.resolution + 2.0 * margin) / resolution).ceil() as usize;
     let h = ((f.height as f64 * f.resolution + 2.0 * margin) / resolution).ceil() as usize;
     Grid::new(lo, resolution, w.max(1), h.max(1))
 }
 
-/// Fills `grid` from the ground truth: free where the world is free at the
-/// cell centre, occupied elsewhere.
+/// Fills `grid` from the ground truth: occupied where any part of the cell
+/// is not free (sampled at its centre and nine points spread over it, as a
+/// wall passing through a cell would leave hits in it), free elsewhere.
+/// On cells aligned with the world's raster this is the state at the
+/// centre; on cells straddling a wall it is the conservative one.
 pub fn fill_from_truth(world: &World, grid: &mut Grid) {
+    let h = 0.45 * grid.resolution();
     for y in 0..grid.height() {
         for x in 0..grid.width() {
             let c = grid.centre_of((x, y));
-            let s = if world.free.is_free(&c) {
+            let free = [-h, 0.0, h].iter().all(|&dy| {
+                [-h, 0.0, h]
+                    .iter()
+                    .all(|&dx| world.free.is_free(&(c + Vector2::new(dx, dy))))
+            });
+            let s = if free {
                 CellState::Free
             } else {
                 CellState::Occupied
@@ -202,13 +299,40 @@ pub fn run(
             )));
         }
     }
+    let n = &opts.sensing;
+    for (name, v) in [
+        ("range noise", n.range),
+        ("position noise", n.position),
+        ("heading noise", n.heading),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(LockstepError::BadOption(format!(
+                "{name} must be a finite number >= 0, got {v}"
+            )));
+        }
+    }
+    if !(opts.grid_offset.is_finite()
+        && opts.grid_offset >= 0.0
+        && opts.grid_offset < opts.grid_resolution)
+    {
+        return Err(LockstepError::BadOption(format!(
+            "grid_offset must lie in 0..{} (one cell), got {}",
+            opts.grid_resolution, opts.grid_offset
+        )));
+    }
     let robot = &config.robot;
     let mut tracker = CoverageTracker::new(world, robot.radius, robot.tool_width, &world.start)?
         .with_clearance(config.plan.safety_margin);
     let mut decomposer = Decomposer::new(&config.decomp, robot.radius)?;
     let mut planner = CoveragePlanner::new(&config.plan, robot)?;
     let mut follower = PathFollower::new(&config.control, robot)?;
-    let mut grid = grid_for(world, opts.grid_resolution, opts.grid_margin);
+    let mut grid = grid_for(
+        world,
+        opts.grid_resolution,
+        opts.grid_margin,
+        opts.grid_offset,
+    );
+    let mut scanner = NoisyScanner::new(opts.sensing);
     if mode == Mode::Offline {
         fill_from_truth(world, &mut grid);
     }
@@ -229,7 +353,7 @@ pub fn run(
         if t + 1e-9 >= next_scan {
             next_scan += opts.scan_period;
             if mode == Mode::Online {
-                scan_into(world, &pose, &mut grid);
+                scanner.scan_into(world, &pose, &mut grid);
             }
             let t0 = std::time::Instant::now();
             let decomp = if opts.use_cells {
@@ -307,7 +431,7 @@ mod tests {
     #[test]
     fn scan_marks_the_room_free_and_walls_occupied() {
         let w = World::parse("room 0 0 4 0 4 3 0 3\nstart 2 1.5 0\n").unwrap();
-        let mut g = grid_for(&w, 0.05, 0.5);
+        let mut g = grid_for(&w, 0.05, 0.5, 0.0);
         scan_into(&w, &w.start, &mut g);
         let (_, free, occ) = g.counts();
         // 240° of a 4 x 3 m room: most of its 12 m² is seen free.
@@ -333,5 +457,98 @@ mod tests {
         };
         let e = run(&w, &Config::default(), &opts, Mode::Online).unwrap_err();
         assert!(e.to_string().contains("dt"), "{e}");
+        let noisy = LockstepOptions {
+            sensing: SensingNoise {
+                range: -0.01,
+                ..SensingNoise::default()
+            },
+            ..LockstepOptions::default()
+        };
+        let e = run(&w, &Config::default(), &noisy, Mode::Online).unwrap_err();
+        assert!(e.to_string().contains("range noise"), "{e}");
+        for offset in [-0.01, 0.05, f64::NAN] {
+            let shifted = LockstepOptions {
+                grid_offset: offset,
+                ..LockstepOptions::default()
+            };
+            let e = run(&w, &Config::default(), &shifted, Mode::Online).unwrap_err();
+            assert!(e.to_string().contains("grid_offset"), "{e}");
+        }
+    }
+
+    fn cells(g: &Grid) -> Vec<CellState> {
+        (0..g.height())
+            .flat_map(|y| (0..g.width()).map(move |x| (x, y)))
+            .map(|c| g.state(c))
+            .collect()
+    }
+
+    #[test]
+    fn a_shifted_grid_moves_its_cell_boundaries_by_the_offset() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\nstart 2 1.5 0\n").unwrap();
+        let (a, b) = (grid_for(&w, 0.05, 0.5, 0.0), grid_for(&w, 0.05, 0.5, 0.025));
+        assert!((a.origin() - b.origin() - Vector2::new(0.025, 0.025)).norm() < 1e-12);
+        // Half a cell of offset puts a wall half a cell away from where it
+        // lay among the cells.
+        let phase = |g: &Grid| ((4.0 - g.origin().x) / 0.05).rem_euclid(1.0);
+        assert!(((phase(&b) - phase(&a)).rem_euclid(1.0) - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_known_room_marks_every_cell_a_wall_passes_through() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\nstart 2 1.5 0\n").unwrap();
+        for offset in [0.0, 0.025] {
+            let mut g = grid_for(&w, 0.05, 0.5, offset);
+            fill_from_truth(&w, &mut g);
+            // Every cell whose centre lies within half a cell of the wall
+            // at x = 4 holds part of it.
+            let row = g.cell_of(&Point2::new(2.0, 1.5)).unwrap().1;
+            for x in 0..g.width() {
+                let c = g.centre_of((x, row));
+                if (c.x - 4.0).abs() < 0.02 {
+                    assert_eq!(
+                        g.state((x, row)),
+                        CellState::Occupied,
+                        "offset {offset}: {c}"
+                    );
+                }
+                if c.x < 3.9 && c.x > 0.1 {
+                    assert_eq!(g.state((x, row)), CellState::Free, "offset {offset}: {c}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn noisy_scans_are_repeatable_and_ideal_noise_is_the_ideal_scan() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\nbox 2.5 1 3 1.5\nstart 1 1.5 0.3\n").unwrap();
+        let scan = |noise: SensingNoise| {
+            let mut g = grid_for(&w, 0.05, 0.5, 0.0);
+            let mut s = NoisyScanner::new(noise);
+            for _ in 0..3 {
+                s.scan_into(&w, &w.start, &mut g);
+            }
+            cells(&g)
+        };
+        let mut ideal = grid_for(&w, 0.05, 0.5, 0.0);
+        for _ in 0..3 {
+            scan_into(&w, &w.start, &mut ideal);
+        }
+        assert_eq!(scan(SensingNoise::default()), cells(&ideal));
+        let noise = SensingNoise {
+            range: 0.01,
+            position: 0.005,
+            heading: 0.002,
+            seed: 4,
+        };
+        let a = scan(noise);
+        assert_eq!(a, scan(noise));
+        let differ = a
+            .iter()
+            .zip(cells(&ideal))
+            .filter(|(x, y)| **x != *y)
+            .count();
+        assert!(differ > 0, "noise changed no cell");
+        assert_ne!(a, scan(SensingNoise { seed: 5, ..noise }));
     }
 }

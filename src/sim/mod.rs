@@ -8,6 +8,7 @@ pub mod coverage_svg;
 pub mod floorplan;
 pub mod kinematics;
 pub mod lockstep;
+pub mod noise;
 pub mod sim_report;
 pub mod urg_emu;
 pub mod world;
