@@ -31,6 +31,11 @@ const END_NUDGE: f64 = 1e-4;
 const HIT: u8 = 40;
 /// Step removed by a pass-through.
 const MISS: u8 = 8;
+/// Beams that must pass through a cell, with none ending in it, before a
+/// surface hit there is taken for gone (see [`Grid::holds_surface`]): a
+/// few scans of a cell near the robot, so a person who walked by does not
+/// stay an obstacle, while a chair leg hit by some beam in every scan stays.
+pub const HIT_CREDIT: u8 = 64;
 
 /// The cell of a raster of `size` = (columns, rows) cells of `resolution`
 /// metres, lower-left corner at `origin`, that contains world point `p`; `None`
@@ -130,6 +135,10 @@ pub struct Grid {
     /// Per cell: a beam has ended in it (a surface passes through it), even
     /// if beams passing beside that surface made it free on balance.
     hit: Vec<bool>,
+    /// Per cell: pass-throughs left before a surface last hit in it is
+    /// taken for gone ([`HIT_CREDIT`] at every hit, one less at every beam
+    /// passing through; 0: no surface held).
+    held: Vec<u8>,
     /// Bounding box of every observed cell, kept as cells are observed (the
     /// decomposer asks for it on every update; a scan of a 40 m grid cost
     /// a tenth of the update).
@@ -163,6 +172,7 @@ impl Grid {
             height,
             cells: vec![UNKNOWN; width * height],
             hit: vec![false; width * height],
+            held: vec![0; width * height],
             explored: None,
         }
     }
@@ -298,6 +308,7 @@ impl Grid {
             match s {
                 CellState::Unknown if was_known => {
                     self.hit[i] = false;
+                    self.held[i] = 0;
                     self.explored = self.scan_explored();
                 }
                 CellState::Unknown => {}
@@ -307,7 +318,13 @@ impl Grid {
     }
 
     fn bump(&mut self, cx: usize, cy: usize, hit: bool) {
-        let v = &mut self.cells[cy * self.width + cx];
+        let i = cy * self.width + cx;
+        self.held[i] = if hit {
+            HIT_CREDIT
+        } else {
+            self.held[i].saturating_sub(1)
+        };
+        let v = &mut self.cells[i];
         let first = *v == UNKNOWN;
         let base = if first { NEUTRAL } else { *v };
         *v = if hit {
@@ -405,6 +422,8 @@ impl Grid {
         self.cells.extend_from_slice(&other.cells);
         self.hit.clear();
         self.hit.extend_from_slice(&other.hit);
+        self.held.clear();
+        self.held.extend_from_slice(&other.held);
         self.explored = other.explored;
     }
 
@@ -415,6 +434,15 @@ impl Grid {
     /// Not kept in checkpoints: a restored grid starts with no cell hit.
     pub fn was_hit(&self, c: CellIndex) -> bool {
         self.hit[c.1 * self.width + c.0]
+    }
+
+    /// Whether a surface is held in cell `c`: a beam ended in it, and fewer
+    /// than [`HIT_CREDIT`] beams have passed through it since. Such a cell
+    /// may be free on balance (a chair leg or a wall filling part of the
+    /// cell, passed by the beams beside it), yet the robot's body must keep
+    /// off it. Not kept in checkpoints (like [`Grid::was_hit`]).
+    pub fn holds_surface(&self, c: CellIndex) -> bool {
+        self.held[c.1 * self.width + c.0] > 0
     }
 
     /// Raw evidence of every cell, row-major from row 0 (for checkpoints).
@@ -444,6 +472,7 @@ impl Grid {
                 width,
                 height,
                 hit: vec![false; cells.len()],
+                held: vec![0; cells.len()],
                 cells,
                 explored: None,
             };
@@ -587,6 +616,39 @@ mod tests {
         assert!(copy.was_hit((10, 0)));
         g.set_state((10, 0), CellState::Unknown);
         assert!(!g.was_hit((10, 0)), "a forgotten cell forgets its hits");
+    }
+
+    #[test]
+    fn a_surface_is_held_until_enough_beams_pass_through_with_none_ending() {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.1, 50, 50);
+        let (from, at, beyond) = (
+            Point2::new(0.05, 0.05),
+            Point2::new(1.05, 0.05),
+            Point2::new(2.05, 0.05),
+        );
+        g.integrate_ray(&from, &at, true);
+        assert!(g.holds_surface((10, 0)));
+        assert!(!g.holds_surface((9, 0)), "passed, never hit");
+        for _ in 0..HIT_CREDIT - 1 {
+            g.integrate_ray(&from, &beyond, false);
+        }
+        assert_eq!(g.state((10, 0)), CellState::Free, "free on balance");
+        assert!(g.holds_surface((10, 0)), "one pass-through left");
+        // A hit renews the credit (a leg some beam hits in every scan).
+        g.integrate_ray(&from, &at, true);
+        for _ in 0..HIT_CREDIT - 1 {
+            g.integrate_ray(&from, &beyond, false);
+        }
+        assert!(g.holds_surface((10, 0)));
+        g.integrate_ray(&from, &beyond, false);
+        assert!(!g.holds_surface((10, 0)), "gone: it walked away");
+        assert!(g.was_hit((10, 0)), "but it was a surface once");
+        g.integrate_ray(&from, &at, true);
+        let mut copy = Grid::new(Point2::new(0.0, 0.0), 0.1, 1, 1);
+        copy.copy_from(&g);
+        assert!(copy.holds_surface((10, 0)));
+        g.set_state((10, 0), CellState::Unknown);
+        assert!(!g.holds_surface((10, 0)), "a forgotten cell holds nothing");
     }
 
     #[test]

@@ -99,6 +99,9 @@ pub struct CSpace {
     pub state: Vec<u8>,
     /// Free cells a beam has ended in (see [`Grid::was_hit`]): not frontier.
     pub surface: Vec<bool>,
+    /// Free cells that hold a surface (see [`Grid::holds_surface`]): the
+    /// robot keeps its clearance from them as from obstacle cells.
+    pub held: Vec<bool>,
     /// Where the robot centre may be.
     pub traversable: Vec<bool>,
     /// Where the robot body touches no seen obstacle (clearance of the bare
@@ -181,6 +184,7 @@ impl CSpace {
             },
             state: Vec::new(),
             surface: Vec::new(),
+            held: Vec::new(),
             traversable: Vec::new(),
             collision_free: Vec::new(),
             hard: Vec::new(),
@@ -212,6 +216,7 @@ impl CSpace {
             let n = frame.len();
             self.state = vec![UNKNOWN; n];
             self.surface = vec![false; n];
+            self.held = vec![false; n];
             self.traversable = vec![false; n];
             self.collision_free = vec![true; n];
             self.dist = vec![f64::INFINITY; n];
@@ -230,6 +235,7 @@ impl CSpace {
                     CellState::Occupied => OCCUPIED,
                 };
                 self.surface[y * w + x] = grid.was_hit((x, y));
+                self.held[y * w + x] = grid.holds_surface((x, y));
             }
         }
         for (t, s) in self.traversable.iter_mut().zip(&self.state) {
@@ -239,7 +245,9 @@ impl CSpace {
         for y in 0..h as i64 {
             for x in 0..w as i64 {
                 let i = y as usize * w + x as usize;
-                if self.state[i] == FREE {
+                // A free cell holding a surface is an obstacle to the body.
+                let solid = self.state[i] == OCCUPIED || self.held[i];
+                if self.state[i] == FREE && !solid {
                     continue;
                 }
                 // Only obstacle/unknown cells that border free space matter.
@@ -265,7 +273,7 @@ impl CSpace {
                         self.traversable[ny as usize * w + nx as usize] = false;
                     }
                 }
-                if self.state[i] == OCCUPIED {
+                if solid {
                     for &(dx, dy) in &self.hard {
                         let (nx, ny) = (x + dx, y + dy);
                         if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
@@ -293,13 +301,14 @@ impl CSpace {
     /// just wide enough for the body.
     pub fn body_clear(&self, i: usize) -> bool {
         let (w, h) = (self.frame.w as i64, self.frame.h as i64);
-        if i >= self.frame.len() || self.state[i] != FREE {
+        let open = |j: usize| self.state[j] == FREE && !self.held[j];
+        if i >= self.frame.len() || !open(i) {
             return false;
         }
         let (x, y) = ((i as i64) % w, (i as i64) / w);
         self.hard.iter().all(|&(dx, dy)| {
             let (nx, ny) = (x + dx, y + dy);
-            nx >= 0 && ny >= 0 && nx < w && ny < h && self.state[(ny * w + nx) as usize] == FREE
+            nx >= 0 && ny >= 0 && nx < w && ny < h && open((ny * w + nx) as usize)
         })
     }
 
@@ -587,6 +596,40 @@ mod tests {
         assert!(!list.contains(&(10 * f.w + 19)), "the hit cell");
         assert!(list.contains(&(9 * f.w + 19)) && list.contains(&(11 * f.w + 19)));
         assert_eq!(list.len(), 17, "{list:?}");
+    }
+
+    #[test]
+    fn a_free_cell_holding_a_surface_keeps_the_body_off_it() {
+        // A chair leg filling part of cell (20, 10): beams passing beside
+        // it made the cell free on balance, yet one ended in it.
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 40, 20);
+        for y in 0..20 {
+            for x in 0..40 {
+                g.set_state((x, y), CellState::Free);
+            }
+        }
+        let y = 10.5 * 0.05;
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(1.02, y), true);
+        for _ in 0..10 {
+            g.integrate_ray(&Point2::new(1.02, 0.1), &Point2::new(1.02, 0.9), false);
+        }
+        let leg = (20, 10);
+        assert_eq!(g.state(leg), CellState::Free);
+        assert!(g.holds_surface(leg));
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&g);
+        let f = c.frame;
+        let near = f.index_of(&Point2::new(1.02 - 0.12, y)).unwrap();
+        let far = f.index_of(&Point2::new(1.02 - 0.3, y)).unwrap();
+        assert!(!c.traversable[near] && !c.collision_free[near]);
+        assert!(!c.body_clear(near));
+        assert!(c.traversable[far] && c.collision_free[far]);
+        // Once enough beams pass with none ending there, it is gone.
+        for _ in 0..crate::grid::HIT_CREDIT {
+            g.integrate_ray(&Point2::new(1.02, 0.1), &Point2::new(1.02, 0.9), false);
+        }
+        c.rebuild(&g);
+        assert!(c.traversable[near] && c.collision_free[near]);
     }
 
     #[test]
