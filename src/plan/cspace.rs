@@ -246,10 +246,10 @@ impl CSpace {
             for x in 0..w as i64 {
                 let i = y as usize * w + x as usize;
                 // A free cell holding a surface is an obstacle to the body.
-                let solid = self.state[i] == OCCUPIED || self.held[i];
-                if self.state[i] == FREE && !solid {
+                if self.state[i] == FREE && !self.held[i] {
                     continue;
                 }
+                let solid = self.state[i] == OCCUPIED || self.held[i];
                 // Only obstacle/unknown cells that border free space matter.
                 let mut borders = false;
                 for &(dx, dy, _) in &NEIGHBOURS {
@@ -571,22 +571,31 @@ mod tests {
         g
     }
 
+    /// A 40 x 20 grid of 5 cm cells, the first `free_cols` columns seen
+    /// free, the rest unknown; a beam along row 10 ended at `x`, then ten
+    /// beams across that row passed through the cell there. Returns the
+    /// grid and the row's centre y.
+    fn hit_then_passed(free_cols: usize, x: f64) -> (Grid, f64) {
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 40, 20);
+        for y in 0..20 {
+            for c in 0..free_cols {
+                g.set_state((c, y), CellState::Free);
+            }
+        }
+        let y = 10.5 * 0.05;
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(x, y), true);
+        for _ in 0..10 {
+            g.integrate_ray(&Point2::new(x, 0.1), &Point2::new(x, 0.9), false);
+        }
+        (g, y)
+    }
+
     #[test]
     fn a_cell_a_beam_ended_in_is_no_frontier() {
         // Seen free up to x = 1.0 (cells 0..20), unknown beyond; a beam
         // once ended in cell (19, 10) and later beams made it free again:
         // a surface lies there, so it is no way into unknown space.
-        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 40, 20);
-        for y in 0..20 {
-            for x in 0..20 {
-                g.set_state((x, y), CellState::Free);
-            }
-        }
-        let y = 10.5 * 0.05;
-        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(0.97, y), true);
-        for _ in 0..10 {
-            g.integrate_ray(&Point2::new(0.97, 0.1), &Point2::new(0.97, 0.9), false);
-        }
+        let (g, _) = hit_then_passed(20, 0.97);
         assert_eq!(g.state((19, 10)), CellState::Free);
         let mut c = CSpace::new(0.2, 0.17);
         c.rebuild(&g);
@@ -602,17 +611,7 @@ mod tests {
     fn a_free_cell_holding_a_surface_keeps_the_body_off_it() {
         // A chair leg filling part of cell (20, 10): beams passing beside
         // it made the cell free on balance, yet one ended in it.
-        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 40, 20);
-        for y in 0..20 {
-            for x in 0..40 {
-                g.set_state((x, y), CellState::Free);
-            }
-        }
-        let y = 10.5 * 0.05;
-        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(1.02, y), true);
-        for _ in 0..10 {
-            g.integrate_ray(&Point2::new(1.02, 0.1), &Point2::new(1.02, 0.9), false);
-        }
+        let (mut g, y) = hit_then_passed(40, 1.02);
         let leg = (20, 10);
         assert_eq!(g.state(leg), CellState::Free);
         assert!(g.holds_surface(leg));

@@ -255,8 +255,10 @@ pub fn grid_for(world: &World, resolution: f64, margin: f64, offset: f64) -> Gri
 }
 
 /// Fills `grid` from the ground truth: occupied where any part of the cell
-/// is not free (sampled at its centre and nine points spread over it, as a
-/// wall passing through a cell would leave hits in it), free elsewhere.
+/// is not free (sampled at nine points: its centre, the middles of its
+/// sides and its corners, each pulled in to 0.45 of a cell from the
+/// centre; a wall passing through a cell would leave hits in it), free
+/// elsewhere.
 /// On cells aligned with the world's raster this is the state at the
 /// centre; on cells straddling a wall it is the conservative one.
 pub fn fill_from_truth(world: &World, grid: &mut Grid) {
