@@ -177,7 +177,7 @@ pub struct RunResult {
 
 /// Casts one simulated URG-04LX scan at `pose` and integrates it into `grid`.
 pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
-    cast_scan(world, pose, &Pose::identity(), grid, || 0.0);
+    cast_scan(world, pose, pose, grid, || 0.0);
 }
 
 /// Casts scans at the true pose and integrates them as a robot with
@@ -207,28 +207,33 @@ impl NoisyScanner {
         let dx = n.position * gauss(&mut self.rng);
         let dy = n.position * gauss(&mut self.rng);
         let dth = n.heading * gauss(&mut self.rng);
-        // The error in the world frame: the scan is integrated at
-        // `error * pose`.
-        let error = Pose::new(Vector2::new(dx, dy), dth);
+        let seen = pose_off_by(pose, Vector2::new(dx, dy), dth);
         let rng = &mut self.rng;
-        cast_scan(world, pose, &error, grid, || n.range * gauss(rng));
+        cast_scan(world, pose, &seen, grid, || n.range * gauss(rng));
     }
 }
 
-/// Casts one scan at the true `pose` and integrates it at `error * pose`,
-/// each hit's range plus `range_error()`.
+/// `pose` off by a localisation error: its position moved by `shift` (world
+/// frame) and its heading turned by `turn` about the robot's own position.
+/// (Composing an error pose on the left would turn the position about the
+/// world origin as well: 1.5 mrad at 45 m from it moves the scan 7 cm.)
+pub fn pose_off_by(pose: &Pose, shift: Vector2<f64>, turn: f64) -> Pose {
+    Pose::new(pose.translation.vector + shift, heading(pose) + turn)
+}
+
+/// Casts one scan at the true `pose` and integrates it as seen from
+/// `seen`, each hit's range plus `range_error()`.
 fn cast_scan(
     world: &World,
     pose: &Pose,
-    error: &Pose,
+    seen: &Pose,
     grid: &mut Grid,
     mut range_error: impl FnMut() -> f64,
 ) {
     let o: Point2<f64> = pose.translation.vector.into();
     let th = heading(pose);
-    let seen = error * pose;
     let so: Point2<f64> = seen.translation.vector.into();
-    let sth = heading(&seen);
+    let sth = heading(seen);
     for k in 0..URG_BEAMS {
         let rel = URG_FIRST + k as f64 * URG_STEP;
         let a = sth + rel;
@@ -448,6 +453,23 @@ mod tests {
             g.state(g.cell_of(&Point2::new(0.3, 1.5)).unwrap()),
             CellState::Unknown
         );
+    }
+
+    #[test]
+    fn a_heading_error_turns_the_scan_about_the_robot_not_the_world_origin() {
+        // A floor-plan room lies tens of metres from the world origin.
+        let pose = Pose::new(Vector2::new(39.4, 22.5), 0.3);
+        let seen = pose_off_by(&pose, Vector2::new(0.002, -0.001), 0.0015);
+        let moved = seen.translation.vector - pose.translation.vector;
+        assert!(
+            (moved - Vector2::new(0.002, -0.001)).norm() < 1e-12,
+            "{moved}"
+        );
+        assert!((heading(&seen) - 0.3015).abs() < 1e-12);
+        // The same turn taken as an error pose composed on the left moves
+        // the scan by centimetres.
+        let left = Pose::new(Vector2::zeros(), 0.0015) * pose;
+        assert!((left.translation.vector - pose.translation.vector).norm() > 0.05);
     }
 
     #[test]
