@@ -5,7 +5,7 @@
 //! ```text
 //! sweepline sim                                  # hw/worlds/paper.world into out/sim
 //! sweepline sim --room office_f:3 --out out/office_f_3
-//! sweepline sim --base create2 --speed 5
+//! sweepline sim --base create2 --speed 10       # faster, see the README (session 10)
 //! ```
 
 use std::path::PathBuf;
@@ -33,8 +33,9 @@ pub struct Args {
     /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
     #[arg(long)]
     pub maps: Option<PathBuf>,
-    /// Simulated seconds per wall-clock second.
-    #[arg(long, default_value_t = 10.0)]
+    /// Simulated seconds per wall-clock second (at 10, host stalls on 2
+    /// cores let wheel commands run long: see the README, session 10).
+    #[arg(long, default_value_t = 5.0)]
     pub speed: f64,
     /// Report folder.
     #[arg(long, default_value = "out/sim")]
