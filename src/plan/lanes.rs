@@ -544,25 +544,24 @@ impl Variant {
     }
 }
 
-/// Most variants [`variants`] adds beyond its four from the outermost lanes.
-const MORE_VARIANTS: usize = 4;
-
 /// The ways to drive `lanes`: starting with the first or the last lane
 /// (across), from either end, the rest chained greedily by the nearest lane
 /// end (a zig-zag in a simple cell), then improved by moving single lanes
 /// to where they lengthen the connections least and by driving stretches
 /// backwards, keeping the joins at most `keep` long (pass
-/// [`turn_join`] of the lane spacing). Up to four variants, plus up to
-/// [`MORE_VARIANTS`] (the shortest) that start at another lane near either
-/// side across (within 0.3 `keep`, e.g. the short pieces a region's corner
-/// leaves beside its outermost lane) and enter or leave somewhere else: a
-/// region cut by furniture then has an entry and an exit that fit the tour
-/// (measured: 24-room mean overlap down 0.3-1.3 points online and 0.2-2
-/// offline).
+/// [`turn_join`] of the lane spacing). Up to four variants.
 pub fn variants(lanes: &[Lane], keep: f64) -> Vec<Variant> {
     if lanes.is_empty() {
         return Vec::new();
     }
+    let across = |l: &Lane| {
+        let d = l.b - l.a;
+        if d.x.abs() >= d.y.abs() {
+            l.a.y
+        } else {
+            l.a.x
+        }
+    };
     let (mut first, mut last) = (0, 0);
     for (i, l) in lanes.iter().enumerate() {
         if across(l) < across(&lanes[first]) {
@@ -572,87 +571,47 @@ pub fn variants(lanes: &[Lane], keep: f64) -> Vec<Variant> {
             last = i;
         }
     }
-    let mut out = Vec::new();
-    for s in if first == last {
-        vec![first]
+    let starts: &[usize] = if first == last {
+        &[first][..]
     } else {
-        vec![first, last]
-    } {
+        &[first, last][..]
+    };
+    let mut out = Vec::new();
+    for &s in starts {
         for rev in [false, true] {
-            out.push(chain_from(lanes, s, rev, keep));
-        }
-    }
-    // Other starts near either side, shortest first, each kept when its
-    // entry and exit differ from every kept variant's.
-    let near = 0.3 * keep;
-    let (lo, hi) = (across(&lanes[first]), across(&lanes[last]));
-    let mut more: Vec<Variant> = (0..lanes.len())
-        .filter(|&i| i != first && i != last)
-        .filter(|&i| {
-            let a = across(&lanes[i]);
-            a - lo <= near || hi - a <= near
-        })
-        .flat_map(|i| [false, true].map(|rev| chain_from(lanes, i, rev, keep)))
-        .collect();
-    more.sort_by(|a, b| a.length.total_cmp(&b.length));
-    let base = out.len();
-    for v in more {
-        if out.len() >= base + MORE_VARIANTS {
-            break;
-        }
-        if out
-            .iter()
-            .all(|o| (o.entry() - v.entry()).norm() + (o.exit() - v.exit()).norm() > near)
-        {
-            out.push(v);
+            let l0 = if rev { lanes[s].reversed() } else { lanes[s] };
+            let mut used = vec![false; lanes.len()];
+            used[s] = true;
+            let mut seq = vec![l0];
+            let mut at = l0.b;
+            let mut at_across = across(&l0);
+            for _ in 1..lanes.len() {
+                let mut pick: Option<(f64, usize, bool)> = None;
+                for (i, l) in lanes.iter().enumerate() {
+                    if used[i] {
+                        continue;
+                    }
+                    let jump = (across(l) - at_across).abs() * 0.01;
+                    for (r, end) in [(false, l.a), (true, l.b)] {
+                        let d = (end - at).norm() + jump;
+                        if pick.is_none_or(|(bd, _, _)| d < bd) {
+                            pick = Some((d, i, r));
+                        }
+                    }
+                }
+                let Some((_, i, r)) = pick else { break };
+                used[i] = true;
+                let l = if r { lanes[i].reversed() } else { lanes[i] };
+                at = l.b;
+                at_across = across(&l);
+                seq.push(l);
+            }
+            improve_order(&mut seq, keep);
+            let length = chain_length(&seq);
+            out.push(Variant { lanes: seq, length });
         }
     }
     out
-}
-
-/// A lane's position across the lanes (y of a lane along x, x of one along y).
-fn across(l: &Lane) -> f64 {
-    let d = l.b - l.a;
-    if d.x.abs() >= d.y.abs() {
-        l.a.y
-    } else {
-        l.a.x
-    }
-}
-
-/// The chain of [`variants`] that starts with lane `s` (driven backwards
-/// when `rev`).
-fn chain_from(lanes: &[Lane], s: usize, rev: bool, keep: f64) -> Variant {
-    let l0 = if rev { lanes[s].reversed() } else { lanes[s] };
-    let mut used = vec![false; lanes.len()];
-    used[s] = true;
-    let mut seq = vec![l0];
-    let mut at = l0.b;
-    let mut at_across = across(&l0);
-    for _ in 1..lanes.len() {
-        let mut pick: Option<(f64, usize, bool)> = None;
-        for (i, l) in lanes.iter().enumerate() {
-            if used[i] {
-                continue;
-            }
-            let jump = (across(l) - at_across).abs() * 0.01;
-            for (r, end) in [(false, l.a), (true, l.b)] {
-                let d = (end - at).norm() + jump;
-                if pick.is_none_or(|(bd, _, _)| d < bd) {
-                    pick = Some((d, i, r));
-                }
-            }
-        }
-        let Some((_, i, r)) = pick else { break };
-        used[i] = true;
-        let l = if r { lanes[i].reversed() } else { lanes[i] };
-        at = l.b;
-        at_across = across(&l);
-        seq.push(l);
-    }
-    improve_order(&mut seq, keep);
-    let length = chain_length(&seq);
-    Variant { lanes: seq, length }
 }
 
 /// Longest connection between neighbouring lanes (m) that [`lanes`] counts
@@ -1034,52 +993,6 @@ mod tests {
                 && ys.iter().any(|y| (y - 0.59).abs() < 1e-6),
             "{ys:?}"
         );
-    }
-
-    #[test]
-    fn pieces_beside_the_outermost_lane_give_more_ways_in_and_out() {
-        // The paper world's strip right of the cabinet: two lanes, and the
-        // short pieces its corners leave above the upper one.
-        let piece = |x: f64, y: f64, fixup: bool| Lane {
-            a: Point2::new(x, y),
-            b: Point2::new(x, y),
-            fixup,
-        };
-        let lane = |y: f64, x0: f64, x1: f64| Lane {
-            a: Point2::new(x0, y),
-            b: Point2::new(x1, y),
-            fixup: false,
-        };
-        let ls = vec![
-            piece(2.49, 0.69, true),
-            piece(2.64, 0.56, false),
-            lane(0.52, 2.64, 6.24),
-            piece(6.24, 0.56, false),
-            piece(6.24, 0.69, true),
-            lane(0.23, 6.24, 2.64),
-        ];
-        let vs = variants(&ls, 0.58);
-        assert!(
-            vs.len() > 4 && vs.len() <= 4 + MORE_VARIANTS,
-            "{}",
-            vs.len()
-        );
-        let right = |p: Point2<f64>| p.x > 6.0;
-        // The four from the outermost lanes all enter or leave on the left.
-        assert!(vs[..4]
-            .iter()
-            .all(|v| !(right(v.entry()) && right(v.exit()))));
-        // Another enters at the right-hand pieces and leaves at the right
-        // end of the lower lane, beside where the floor above goes on.
-        let v = vs[4..]
-            .iter()
-            .find(|v| right(v.entry()) && right(v.exit()))
-            .expect("a way in and out on the right");
-        assert!(v.entry().y > 0.5 && v.exit().y < 0.3, "{v:?}");
-        for v in &vs {
-            assert_eq!(v.lanes.len(), ls.len(), "every variant drives every lane");
-            assert!((chain_length(&v.lanes) - v.length).abs() < 1e-9);
-        }
     }
 
     #[test]
