@@ -4,6 +4,7 @@
 //! sweepline coverage --world hw/worlds/paper.world --out out/paper --offline
 //! sweepline coverage --room office_f:3 --out out/office_f_3
 //! sweepline coverage --list-rooms lab_c_scan
+//! sweepline coverage --map lab.yaml --region 2,3,9,8 --offline   # a ROS map_server map
 //! ```
 //!
 //! Writes `metrics.md` and `metrics.csv` (one row per run: online, and with
@@ -16,6 +17,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use super::world_args::WorldArgs;
 use super::CliResult;
 use crate::config::Config;
 use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, OVERLAP_CAUSES};
@@ -27,15 +29,9 @@ use crate::sim::world::World;
 /// Arguments of `sweepline coverage`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// World file (hw/worlds/*.world).
-    #[arg(long, conflicts_with = "room")]
-    pub world: Option<PathBuf>,
-    /// A room of a benchmark floor plan, MAP:N (e.g. office_f:3).
-    #[arg(long)]
-    pub room: Option<String>,
-    /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
-    #[arg(long)]
-    pub maps: Option<PathBuf>,
+    /// The world to cover.
+    #[command(flatten)]
+    pub world: WorldArgs,
     /// Lists the rooms of a floor plan (MAP) with their areas, then exits.
     #[arg(long, value_name = "MAP")]
     pub list_rooms: Option<String>,
@@ -76,16 +72,10 @@ pub struct Args {
     pub seed: u64,
 }
 
-fn maps_dir(args: &Args) -> PathBuf {
-    args.maps
-        .clone()
-        .unwrap_or_else(|| crate::testdata::shared_dir().join(floorplan::MAPS_DIR))
-}
-
 /// Runs `sweepline coverage`.
 pub fn run(args: Args) -> CliResult {
     if let Some(map) = &args.list_rooms {
-        let rooms = floorplan::rooms(&maps_dir(&args), map, floorplan::MIN_ROOM_PIXELS)?;
+        let rooms = floorplan::rooms(&args.world.maps_dir(), map, floorplan::MIN_ROOM_PIXELS)?;
         println!("room\tfree m2\tbox m");
         for r in rooms {
             println!(
@@ -99,13 +89,7 @@ pub fn run(args: Args) -> CliResult {
         }
         return Ok(());
     }
-    let world = match (&args.world, &args.room) {
-        (Some(w), _) => World::load(w)?,
-        (None, Some(spec)) => floorplan::load_room(&maps_dir(&args), spec)?.world(),
-        (None, None) => {
-            return Err("give --world FILE or --room MAP:N (or --list-rooms MAP)".into())
-        }
-    };
+    let world = args.world.load(None)?;
     let config = if args.config.exists() {
         Config::load(&args.config)?
     } else {

@@ -9,6 +9,7 @@ pub mod replay;
 pub mod report;
 pub mod run;
 pub mod sim;
+pub mod world_args;
 
 /// What a subcommand returns: `main` prints the error on one line and exits non-zero.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync + 'static>>;

@@ -5,17 +5,17 @@
 //! ```text
 //! sweepline sim                                  # hw/worlds/paper.world into out/sim
 //! sweepline sim --room office_f:3 --out out/office_f_3
+//! sweepline sim --map lab.yaml --region 2,3,9,8   # a room of a ROS map_server map
 //! sweepline sim --base create2 --speed 10       # faster, see the README (session 10)
 //! ```
 
 use std::path::PathBuf;
 
+use super::world_args::WorldArgs;
 use super::CliResult;
 use crate::config::Config;
 use crate::motor::BaseKind;
 use crate::sim::closed_loop::{self, SimOptions};
-use crate::sim::floorplan;
-use crate::sim::world::World;
 
 /// Default world of `sweepline sim`.
 pub const DEFAULT_WORLD: &str = "hw/worlds/paper.world";
@@ -23,16 +23,9 @@ pub const DEFAULT_WORLD: &str = "hw/worlds/paper.world";
 /// Arguments of `sweepline sim`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// World file to cover (default: hw/worlds/paper.world).
-    #[arg(long, conflicts_with = "room")]
-    pub world: Option<PathBuf>,
-    /// A room of a benchmark floor plan instead, MAP:N (e.g. office_f:3;
-    /// `sweepline coverage --list-rooms MAP` lists them).
-    #[arg(long)]
-    pub room: Option<String>,
-    /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
-    #[arg(long)]
-    pub maps: Option<PathBuf>,
+    /// The world to cover (default: hw/worlds/paper.world).
+    #[command(flatten)]
+    pub world: WorldArgs,
     /// Simulated seconds per wall-clock second (at 10, host stalls on 2
     /// cores let wheel commands run long: see the README, session 10).
     #[arg(long, default_value_t = 5.0)]
@@ -70,17 +63,7 @@ pub fn parse_base(s: &str) -> Result<BaseKind, String> {
 
 /// Runs `sweepline sim`.
 pub fn run(args: Args) -> CliResult {
-    let world = match (&args.world, &args.room) {
-        (_, Some(spec)) => {
-            let dir = args
-                .maps
-                .clone()
-                .unwrap_or_else(|| crate::testdata::shared_dir().join(floorplan::MAPS_DIR));
-            floorplan::load_room(&dir, spec)?.world()
-        }
-        (Some(w), None) => World::load(w)?,
-        (None, None) => World::load(std::path::Path::new(DEFAULT_WORLD))?,
-    };
+    let world = args.world.load(Some(std::path::Path::new(DEFAULT_WORLD)))?;
     let config = Config::load(&args.config)?;
     let mut opts = SimOptions::new(world, config);
     opts.speed = args.speed;

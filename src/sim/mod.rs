@@ -9,6 +9,7 @@ pub mod floorplan;
 pub mod kinematics;
 pub mod lockstep;
 pub mod noise;
+pub mod ros_map;
 pub mod sim_report;
 pub mod urg_emu;
 pub mod world;

@@ -1,0 +1,68 @@
+//! Which world a simulation covers, shared by `sweepline sim` and
+//! `sweepline coverage`: a world file, a room of the benchmark floor plans,
+//! or a ROS `map_server` map (YAML + PGM/PNG) of the user's own.
+
+use std::path::{Path, PathBuf};
+
+use crate::sim::floorplan;
+use crate::sim::ros_map::{self, Region};
+use crate::sim::world::World;
+
+/// World selection arguments.
+#[derive(Debug, clap::Args)]
+pub struct WorldArgs {
+    /// World file (hw/worlds/*.world).
+    #[arg(long, conflicts_with_all = ["room", "map"])]
+    pub world: Option<PathBuf>,
+    /// A room of a benchmark floor plan, MAP:N (e.g. office_f:3;
+    /// `sweepline coverage --list-rooms MAP` lists them).
+    #[arg(long, conflicts_with = "map")]
+    pub room: Option<String>,
+    /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
+    #[arg(long)]
+    pub maps: Option<PathBuf>,
+    /// A ROS map_server map: the YAML file naming a PGM or PNG occupancy
+    /// image (free below free_thresh; unknown and occupied are walls).
+    #[arg(long, value_name = "YAML")]
+    pub map: Option<PathBuf>,
+    /// With --map: keep only the floor inside this box of the map frame,
+    /// X0,Y0,X1,Y1 in metres (one room of a building's map).
+    #[arg(long, requires = "map", allow_hyphen_values = true)]
+    pub region: Option<Region>,
+    /// With --map: start pose X,Y[,HEADING] in the map frame (m, rad;
+    /// default: the free point farthest from obstacles).
+    #[arg(long, requires = "map", allow_hyphen_values = true, value_parser = ros_map::parse_start)]
+    pub start: Option<crate::geom::Pose>,
+}
+
+impl WorldArgs {
+    /// The folder of the benchmark floor plans.
+    pub fn maps_dir(&self) -> PathBuf {
+        self.maps
+            .clone()
+            .unwrap_or_else(|| crate::testdata::shared_dir().join(floorplan::MAPS_DIR))
+    }
+
+    /// Loads the selected world; `default` when none is selected (an error
+    /// naming the options when there is no default either).
+    pub fn load(
+        &self,
+        default: Option<&Path>,
+    ) -> Result<World, Box<dyn std::error::Error + Send + Sync>> {
+        if let Some(w) = &self.world {
+            return Ok(World::load(w)?);
+        }
+        if let Some(spec) = &self.room {
+            return Ok(floorplan::load_room(&self.maps_dir(), spec)?.world());
+        }
+        if let Some(m) = &self.map {
+            return Ok(ros_map::load_world(m, self.region.as_ref(), self.start)?);
+        }
+        match default {
+            Some(d) => Ok(World::load(d)?),
+            None => Err(
+                "give --world FILE, --room MAP:N or --map MAP.yaml (or --list-rooms MAP)".into(),
+            ),
+        }
+    }
+}

@@ -1,0 +1,116 @@
+//! A ROS `map_server` map nobody here drew: `map.pgm` of the shared maps, a
+//! gmapping scan of the lab_ipa building (free 254, unknown 205, walls 0;
+//! rooms turned about 3° off the image axes, walls one or two pixels thick
+//! and ragged). Loaded through a map YAML as a user would, one room cut out
+//! with a region box, and covered in the lock-step simulation online and
+//! offline against the targets.
+
+mod coverage_support;
+
+use std::path::{Path, PathBuf};
+
+use sweepline::config::Config;
+use sweepline::sim::lockstep::LockstepOptions;
+use sweepline::sim::ros_map::{self, Region};
+
+const MAP: &str = "maps/ipa_coverage_planning_test_maps/map.pgm";
+
+/// Writes a map_server YAML beside the test's scratch folder naming the
+/// shared image (absolute path: the YAML lives elsewhere).
+fn yaml(image: &Path, name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ros_map");
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(
+        &p,
+        format!(
+            "image: {}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+            image.display()
+        ),
+    )
+    .unwrap();
+    p
+}
+
+#[test]
+fn the_whole_map_loads_with_the_free_area_the_shared_metadata_states() {
+    let image = sweepline::require_shared!(MAP);
+    let world = ros_map::load_world(&yaml(&image, "whole.yaml"), None, None).unwrap();
+    // maps.csv: 309.4 m² of pixels above 250; map_server's free_thresh
+    // 0.196 also takes the 96 pixels of 206-250 (0.24 m²).
+    let a = world.free.free_area();
+    assert!((a - 309.6).abs() < 0.1, "free area {a} m²");
+    assert_eq!(world.name, "whole");
+    assert!(world.free.is_free(&world.start.translation.vector.into()));
+}
+
+#[test]
+fn a_room_of_a_gmapping_map_is_covered_online_and_offline() {
+    let image = sweepline::require_shared!(MAP);
+    let region: Region = "2.3,25.9,7.5,29.8".parse().unwrap();
+    let world = ros_map::load_world(&yaml(&image, "room.yaml"), Some(&region), None).unwrap();
+    let opts = LockstepOptions {
+        time_cap: 3600.0,
+        ..LockstepOptions::default()
+    };
+    let (on, _) = coverage_support::online_and_offline(
+        "map.pgm room",
+        &world,
+        &Config::default(),
+        &opts,
+        1.25,
+        0.99,
+    );
+    // The room is about 4.4 m x 3.3 m: what the robot's centre can reach is
+    // most of it (the rest is wall thickness, the corridor strip below the
+    // room's wall and the unknown band above it).
+    assert!(
+        (9.0..13.0).contains(&on.metrics.reachable_area),
+        "{}",
+        on.metrics.reachable_area
+    );
+}
+
+#[test]
+fn bad_maps_are_refused_with_the_file_and_the_reason() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ros_map_bad");
+    std::fs::create_dir_all(&dir).unwrap();
+    let missing = dir.join("missing.yaml");
+    std::fs::write(
+        &missing,
+        "image: nowhere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
+    )
+    .unwrap();
+    let e = ros_map::load_world(&missing, None, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nowhere.pgm"), "{e}");
+    let truncated = dir.join("short.pgm");
+    std::fs::write(&truncated, b"P5\n10 10\n255\n\x00\x00").unwrap();
+    let y = dir.join("short.yaml");
+    std::fs::write(
+        &y,
+        "image: short.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
+    )
+    .unwrap();
+    let e = ros_map::load_world(&y, None, None).unwrap_err().to_string();
+    assert!(e.contains("short.pgm") && e.contains("truncated"), "{e}");
+    // A region with no floor in it.
+    let image = sweepline::require_shared!(MAP);
+    let empty: Region = "0,0,1,1".parse().unwrap();
+    let e = ros_map::load_world(&yaml(&image, "empty.yaml"), Some(&empty), None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no free floor inside the region"), "{e}");
+    // The command line says it in one line and exits non-zero.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sweepline"))
+        .args(["coverage", "--map"])
+        .arg(&y)
+        .args(["--out"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("truncated"), "{err}");
+}
