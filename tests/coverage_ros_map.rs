@@ -69,6 +69,42 @@ fn a_room_of_a_gmapping_map_is_covered_online_and_offline() {
         "{}",
         on.metrics.reachable_area
     );
+    // The driven path exported for a robot of one's own: rows in time
+    // order, in the map frame, inside the region, ending where the run ended,
+    // rows no farther apart than the thinning allows at top speed.
+    let csv = sweepline::cli::coverage::trajectory_csv(&on, opts.dt);
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("t_s,x_m,y_m,heading_rad,motion,task"));
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    assert!(rows.len() > 100, "{} rows", rows.len());
+    let num = |r: &Vec<String>, k: usize| r[k].parse::<f64>().unwrap();
+    let mut lane_rows = 0;
+    for w in rows.windows(2) {
+        assert!(num(&w[1], 0) > num(&w[0], 0));
+        let step = ((num(&w[1], 1) - num(&w[0], 1)).powi(2)
+            + (num(&w[1], 2) - num(&w[0], 2)).powi(2))
+        .sqrt();
+        assert!(step < 0.05, "{step} m between rows");
+    }
+    for r in &rows {
+        assert_eq!(r.len(), 6);
+        let (x, y) = (num(r, 1), num(r, 2));
+        assert!(
+            (region.lo.x..=region.hi.x).contains(&x) && (region.lo.y..=region.hi.y).contains(&y)
+        );
+        lane_rows += usize::from(r[4] == "lane");
+    }
+    assert!(
+        lane_rows * 2 > rows.len(),
+        "{lane_rows} of {} rows on lanes",
+        rows.len()
+    );
+    let end = on.trajectory.last().unwrap().translation.vector;
+    let last = rows.last().unwrap();
+    assert!((num(last, 1) - end.x).abs() < 1e-3 && (num(last, 2) - end.y).abs() < 1e-3);
+    assert!((num(last, 0) - on.trajectory.len() as f64 * opts.dt).abs() < 1e-6);
 }
 
 #[test]

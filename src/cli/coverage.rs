@@ -12,7 +12,9 @@
 //! broken down by cause), `path_{online,offline}.svg` (the final path over
 //! the world with pass counts), `overlap_{online,offline}.svg` (floor swept
 //! again, coloured by what the robot was doing) and `cells_NN.svg` (the
-//! cells as they evolve) into `--out`.
+//! cells as they evolve) and `trajectory_{online,offline}.csv` (the driven
+//! path in the world / map frame, to replay on a robot of one's own) into
+//! `--out`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -115,9 +117,14 @@ pub fn run(args: Args) -> CliResult {
     } else {
         None
     };
-    write_pictures(&args.out, &world, &config, &online, "online")?;
-    if let Some(off) = &offline {
-        write_pictures(&args.out, &world, &config, off, "offline")?;
+    for (run, tag) in
+        std::iter::once((&online, "online")).chain(offline.iter().map(|o| (o, "offline")))
+    {
+        write_pictures(&args.out, &world, &config, run, tag)?;
+        std::fs::write(
+            args.out.join(format!("trajectory_{tag}.csv")),
+            trajectory_csv(run, opts.dt),
+        )?;
     }
     let mut md = markdown(&world.name, &online, offline.as_ref());
     md += &conditions(&opts);
@@ -383,4 +390,46 @@ pub fn csv(name: &str, online: &RunResult, offline: Option<&RunResult>) -> Strin
         );
     }
     s
+}
+
+/// The driven path as CSV (`t_s,x_m,y_m,heading_rad,motion,task`): a row
+/// where the pose moved 1 cm or turned 0.02 rad since the last row, or the
+/// motion or task changed, and the last pose; `dt` is the control period
+/// (the first pose is the one after the first step, at `dt`).
+pub fn trajectory_csv(run: &RunResult, dt: f64) -> String {
+    use crate::plan::Motion;
+    let name = |m: Motion| match m {
+        Motion::Lane => "lane",
+        Motion::FixUp => "fix-up",
+        Motion::Connection => "connection",
+        Motion::Transit => "transit",
+        Motion::Explore => "explore",
+        Motion::Other => "other",
+    };
+    let mut out = String::from("t_s,x_m,y_m,heading_rad,motion,task\n");
+    let mut last: Option<(crate::geom::Pose, crate::plan::Motion, u32)> = None;
+    let n = run.trajectory.len();
+    for (k, p) in run.trajectory.iter().enumerate() {
+        let (m, task) = run.doing.get(k).copied().unwrap_or_default();
+        let keep = last.is_none_or(|(q, lm, lt)| {
+            (p.translation.vector - q.translation.vector).norm() >= 0.01
+                || crate::geom::wrap_angle(crate::geom::heading(p) - crate::geom::heading(&q)).abs()
+                    >= 0.02
+                || lm != m
+                || lt != task
+        });
+        if keep || k + 1 == n {
+            let _ = writeln!(
+                out,
+                "{:.2},{:.4},{:.4},{:.4},{},{task}",
+                (k + 1) as f64 * dt,
+                p.translation.vector.x,
+                p.translation.vector.y,
+                crate::geom::heading(p),
+                name(m)
+            );
+            last = Some((*p, m, task));
+        }
+    }
+    out
 }
