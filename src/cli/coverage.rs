@@ -46,9 +46,10 @@ pub struct Args {
     /// Configuration file (robot, decomposition, planner, control tables).
     #[arg(long, default_value = "hw/robot.toml")]
     pub config: PathBuf,
-    /// Simulated time cap (s).
-    #[arg(long, default_value_t = 3600.0)]
-    pub time_cap: f64,
+    /// Simulated seconds after which the run stops unfinished (default:
+    /// 3600, or 60 per m² of free floor where that is longer).
+    #[arg(long)]
+    pub time_cap: Option<f64>,
     /// Scan / decomposition / planning period (s).
     #[arg(long, default_value_t = 0.2)]
     pub scan_period: f64,
@@ -98,7 +99,7 @@ pub fn run(args: Args) -> CliResult {
         return Err(format!("config {} not found", args.config.display()).into());
     };
     let opts = LockstepOptions {
-        time_cap: args.time_cap,
+        time_cap: super::world_args::time_cap(args.time_cap, &world),
         scan_period: args.scan_period,
         snapshot_every: args.picture_every,
         grid_offset: args.grid_offset,

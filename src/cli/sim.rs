@@ -42,9 +42,10 @@ pub struct Args {
     /// Seed of the simulated noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Simulated seconds after which the run stops unfinished.
-    #[arg(long, default_value_t = 3600.0)]
-    pub time_cap: f64,
+    /// Simulated seconds after which the run stops unfinished (default:
+    /// 3600, or 60 per m² of free floor where that is longer).
+    #[arg(long)]
+    pub time_cap: Option<f64>,
     /// Scanner emulator faults (as `sweepline emulate urg --faults`).
     #[arg(long, default_value = "")]
     pub urg_faults: String,
@@ -70,7 +71,7 @@ pub fn run(args: Args) -> CliResult {
     opts.base = parse_base(&args.base)?;
     opts.out = Some(args.out.clone());
     opts.seed = args.seed;
-    opts.time_cap = args.time_cap;
+    opts.time_cap = super::world_args::time_cap(args.time_cap, &opts.world);
     opts.progress = true;
     opts.urg_faults = args.urg_faults.parse()?;
     if args.out.join("state").exists() {

@@ -66,3 +66,10 @@ impl WorldArgs {
         }
     }
 }
+
+/// Simulated seconds a run may take: `given`, else an hour or 60 s per m² of
+/// the world's free floor, whichever is longer (a building's map takes hours
+/// at 0.226 m/s; the cap only stops a run that no longer makes progress).
+pub fn time_cap(given: Option<f64>, world: &World) -> f64 {
+    given.unwrap_or_else(|| (60.0 * world.free.free_area()).max(3600.0))
+}
