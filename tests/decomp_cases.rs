@@ -240,9 +240,18 @@ fn direction_follows_segments_of_a_rotated_room() {
     for p in &poses {
         scan(&world, &mut grid, p);
     }
+    // Sweeping along the walls (the paper's method; the default snaps every
+    // direction onto the grid axes, where the planner's lanes run).
+    let along_walls = || {
+        let p = DecompParams {
+            axis_snap: 0.035,
+            ..DecompParams::default()
+        };
+        Decomposer::new(&p, 0.17).unwrap()
+    };
     // With segments: exact.
     let segs = seen_segments(&world, &poses);
-    let mut dec = decomposer();
+    let mut dec = along_walls();
     let d = dec.update(&grid, &segs).clone();
     let a = dec.locked_angle().expect("direction locked");
     let err = ((a - t) * 2.0).sin().abs();
@@ -254,10 +263,18 @@ fn direction_follows_segments_of_a_rotated_room() {
     assert!((cell.length - (5.0 - 0.34)).abs() < 0.06, "{}", cell.length);
     assert!((cell.width - (3.0 - 0.34)).abs() < 0.06, "{}", cell.width);
     // Without segments: from the grid, within a degree and a half.
-    let mut dec = decomposer();
+    let mut dec = along_walls();
     dec.update(&grid, &[]);
     let a = dec.locked_angle().expect("direction locked");
     assert!(((a - t) * 2.0).sin().abs() < 0.05, "grid angle {a} vs {t}");
+    // The default: the sweep lies on a grid axis, the lanes' direction.
+    let mut dec = decomposer();
+    dec.update(&grid, &segs);
+    let a = dec.locked_angle().expect("direction locked");
+    assert!(
+        (a * 2.0).sin().abs() < 1e-9,
+        "default angle {a} not on an axis"
+    );
 }
 
 #[test]

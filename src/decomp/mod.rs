@@ -68,7 +68,12 @@ pub struct DecompParams {
     /// Wall length (m) that must be seen before the sweep direction is fixed.
     pub min_wall_evidence: f64,
     /// An estimated wall direction this close to the grid's axes (rad) is
-    /// snapped onto them (grids are axis-aligned, and so are most rooms).
+    /// snapped onto them. The default, π/4, snaps every direction: the
+    /// planner's lanes run along the grid axes, and cells swept at another
+    /// angle do not line up with them (a room 2.3° off the axes of a
+    /// gmapping map: 31.1 % overlap instead of 26.1 %, decomposition twice
+    /// as slow). Smaller values sweep the cells along the walls (the
+    /// paper's method) for consumers whose lanes follow them.
     pub axis_snap: f64,
     /// A wall step at least this long between two slices starts a new cell (m).
     pub step_split: f64,
@@ -100,7 +105,7 @@ impl Default for DecompParams {
             inflation_margin: 0.0,
             sweep_angle: None,
             min_wall_evidence: 1.0,
-            axis_snap: 0.035,
+            axis_snap: std::f64::consts::FRAC_PI_4,
             step_split: 0.25,
             size_tolerance: 0.10,
             stable_updates: 3,
