@@ -80,13 +80,17 @@ fn a_room_of_a_gmapping_map_is_covered_online_and_offline() {
         .collect();
     assert!(rows.len() > 100, "{} rows", rows.len());
     let num = |r: &Vec<String>, k: usize| r[k].parse::<f64>().unwrap();
-    let mut lane_rows = 0;
+    let (mut lane_m, mut all_m) = (0.0, 0.0);
     for w in rows.windows(2) {
         assert!(num(&w[1], 0) > num(&w[0], 0));
         let step = ((num(&w[1], 1) - num(&w[0], 1)).powi(2)
             + (num(&w[1], 2) - num(&w[0], 2)).powi(2))
         .sqrt();
         assert!(step < 0.05, "{step} m between rows");
+        all_m += step;
+        if w[1][4] == "lane" {
+            lane_m += step;
+        }
     }
     for r in &rows {
         assert_eq!(r.len(), 6);
@@ -94,13 +98,14 @@ fn a_room_of_a_gmapping_map_is_covered_online_and_offline() {
         assert!(
             (region.lo.x..=region.hi.x).contains(&x) && (region.lo.y..=region.hi.y).contains(&y)
         );
-        lane_rows += usize::from(r[4] == "lane");
     }
+    // The rows add up to the path the metrics measured, most of it on lanes.
+    let path = on.metrics.path_length;
     assert!(
-        lane_rows * 2 > rows.len(),
-        "{lane_rows} of {} rows on lanes",
-        rows.len()
+        (all_m - path).abs() < 0.01 * path,
+        "{all_m} m of rows, path {path} m"
     );
+    assert!(lane_m > 0.5 * all_m, "{lane_m} of {all_m} m on lanes");
     let end = on.trajectory.last().unwrap().translation.vector;
     let last = rows.last().unwrap();
     assert!((num(last, 1) - end.x).abs() < 1e-3 && (num(last, 2) - end.y).abs() < 1e-3);
