@@ -116,26 +116,31 @@ fn a_room_of_a_gmapping_map_is_covered_online_and_offline() {
 fn bad_maps_are_refused_with_the_file_and_the_reason() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ros_map_bad");
     std::fs::create_dir_all(&dir).unwrap();
-    let missing = dir.join("missing.yaml");
-    std::fs::write(
-        &missing,
-        "image: nowhere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
-    )
-    .unwrap();
-    let e = ros_map::load_world(&missing, None, None)
-        .unwrap_err()
-        .to_string();
+    // A minimal map YAML in `dir` naming `image` (relative to it), and the
+    // error loading it gives.
+    let refused = |name: &str, image: &str| {
+        let y = dir.join(name);
+        std::fs::write(
+            &y,
+            format!("image: {image}\nresolution: 0.05\norigin: [0, 0, 0]\n"),
+        )
+        .unwrap();
+        (
+            y.clone(),
+            ros_map::load_world(&y, None, None).unwrap_err().to_string(),
+        )
+    };
+    let (_, e) = refused("missing.yaml", "nowhere.pgm");
     assert!(e.contains("nowhere.pgm"), "{e}");
-    let truncated = dir.join("short.pgm");
-    std::fs::write(&truncated, b"P5\n10 10\n255\n\x00\x00").unwrap();
-    let y = dir.join("short.yaml");
-    std::fs::write(
-        &y,
-        "image: short.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
-    )
-    .unwrap();
-    let e = ros_map::load_world(&y, None, None).unwrap_err().to_string();
+    std::fs::write(dir.join("short.pgm"), b"P5\n10 10\n255\n\x00\x00").unwrap();
+    let (y, e) = refused("short.yaml", "short.pgm");
     assert!(e.contains("short.pgm") && e.contains("truncated"), "{e}");
+    // A map with no floor at all (every pixel black).
+    let mut bytes = b"P5\n4 4\n255\n".to_vec();
+    bytes.extend([0u8; 16]);
+    std::fs::write(dir.join("dark.pgm"), bytes).unwrap();
+    let (_, e) = refused("dark.yaml", "dark.pgm");
+    assert!(e.contains("no free floor in the map"), "{e}");
     // A region with no floor in it.
     let image = sweepline::require_shared!(MAP);
     let empty: Region = "0,0,1,1".parse().unwrap();

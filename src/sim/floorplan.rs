@@ -94,15 +94,22 @@ impl GreyImage {
 /// alpha ignored).
 pub fn load_grey(path: &Path) -> Result<GreyImage, FloorPlanError> {
     let name = path.display().to_string();
-    let file = std::fs::File::open(path).map_err(|source| FloorPlanError::Io {
+    let bytes = std::fs::read(path).map_err(|source| FloorPlanError::Io {
         path: name.clone(),
         source,
     })?;
+    decode_grey(&bytes, &name)
+}
+
+/// Decodes PNG bytes as 8-bit grey (see [`load_grey`]); `name` names the
+/// file in errors.
+pub fn decode_grey(bytes: &[u8], name: &str) -> Result<GreyImage, FloorPlanError> {
+    let name = name.to_string();
     let decode = |e: png::DecodingError| FloorPlanError::Decode {
         path: name.clone(),
         message: e.to_string(),
     };
-    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::normalize_to_color8());
     let mut reader = decoder.read_info().map_err(decode)?;
     let size = reader

@@ -113,19 +113,13 @@ pub enum RosMapError {
     /// A PNG image failed to decode.
     #[error(transparent)]
     Png(#[from] floorplan::FloorPlanError),
-    /// The region of interest holds no free floor.
-    #[error("{path}: no free floor inside the region ({x0}, {y0})-({x1}, {y1}) m")]
-    EmptyRegion {
+    /// The map, or the region of interest cut from it, holds no free floor.
+    #[error("{path}: no free floor {place}")]
+    NoFloor {
         /// The map file.
         path: String,
-        /// Region corners (m).
-        x0: f64,
-        /// Region corners (m).
-        y0: f64,
-        /// Region corners (m).
-        x1: f64,
-        /// Region corners (m).
-        y1: f64,
+        /// Where: "in the map" or "inside the region (x0, y0)-(x1, y1) m".
+        place: String,
     },
 }
 
@@ -350,7 +344,7 @@ pub fn load_image(path: &Path) -> Result<GreyImage, RosMapError> {
         source,
     })?;
     if bytes.starts_with(b"\x89PNG") {
-        return Ok(floorplan::load_grey(path)?);
+        return Ok(floorplan::decode_grey(&bytes, &name)?);
     }
     decode_pgm(&bytes).map_err(|message| RosMapError::Image {
         path: name,
@@ -474,17 +468,16 @@ pub fn load_world(
     let img = load_image(&meta.image)?;
     let raster = raster(&meta, &img, region);
     if !raster.free.iter().any(|&f| f) {
-        let r = region.copied().unwrap_or(Region {
-            lo: meta.origin,
-            hi: meta.origin,
-        });
-        return Err(RosMapError::EmptyRegion {
-            path: name,
-            x0: r.lo.x,
-            y0: r.lo.y,
-            x1: r.hi.x,
-            y1: r.hi.y,
-        });
+        let place = region.map_or_else(
+            || "in the map (check negate and free_thresh)".to_string(),
+            |r| {
+                format!(
+                    "inside the region ({}, {})-({}, {}) m",
+                    r.lo.x, r.lo.y, r.hi.x, r.hi.y
+                )
+            },
+        );
+        return Err(RosMapError::NoFloor { path: name, place });
     }
     let start = start.unwrap_or_else(|| {
         let p = floorplan::farthest_from_obstacles(&raster);
