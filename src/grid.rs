@@ -466,6 +466,18 @@ impl Grid {
         self.held[c.1 * self.width + c.0] > 0
     }
 
+    /// [`Grid::was_hit`] of every cell, row-major from row 0: for readers
+    /// that compare the whole grid with a copy of their own.
+    pub fn hit_flags(&self) -> &[bool] {
+        &self.hit
+    }
+
+    /// The pass-throughs left of every cell's held surface (0: none; see
+    /// [`Grid::holds_surface`]), row-major from row 0.
+    pub fn surface_credits(&self) -> &[u8] {
+        &self.held
+    }
+
     /// Raw evidence of every cell, row-major from row 0 (for checkpoints).
     pub fn raw_evidence(&self) -> &[u8] {
         &self.cells

@@ -115,9 +115,44 @@ pub struct CSpace {
     extra: Vec<f32>,
     inflate: Vec<(i64, i64)>,
     hard: Vec<(i64, i64)>,
+    /// Chebyshev extent (cells) of the widest of `inflate` and `hard`.
+    reach: usize,
+    /// The grid's explored box at the last rebuild.
+    known: Option<Rect>,
     radius: f64,
     inflation: f64,
     heap: BinaryHeap<Entry>,
+}
+
+/// An inclusive box of cells.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Rect {
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
+}
+
+impl Rect {
+    /// The smallest box holding both.
+    fn union(&self, o: &Rect) -> Rect {
+        Rect {
+            x0: self.x0.min(o.x0),
+            y0: self.y0.min(o.y0),
+            x1: self.x1.max(o.x1),
+            y1: self.y1.max(o.y1),
+        }
+    }
+
+    /// Grown by `k` cells on every side, clipped to a `w` × `h` grid.
+    fn grow(&self, k: usize, w: usize, h: usize) -> Rect {
+        Rect {
+            x0: self.x0.saturating_sub(k),
+            y0: self.y0.saturating_sub(k),
+            x1: (self.x1 + k).min(w - 1),
+            y1: (self.y1 + k).min(h - 1),
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -193,6 +228,8 @@ impl CSpace {
             prev: Vec::new(),
             extra: Vec::new(),
             inflate: Vec::new(),
+            reach: 0,
+            known: None,
             inflation,
             heap: BinaryHeap::new(),
         }
@@ -203,7 +240,12 @@ impl CSpace {
         self.inflation
     }
 
-    /// Rebuilds states and the traversable mask from `grid`.
+    /// Brings states and the traversable mask up to date with `grid`.
+    ///
+    /// Incremental: only cells whose state or held surface changed since the
+    /// last call are re-inflated, with the band around them their inflation
+    /// reaches (a building-size grid was rebuilt whole on every update, half
+    /// of a run's CPU). A change of the grid's geometry rebuilds everything.
     pub fn rebuild(&mut self, grid: &Grid) {
         let frame = Frame {
             origin: grid.origin(),
@@ -211,7 +253,8 @@ impl CSpace {
             w: grid.width(),
             h: grid.height(),
         };
-        if frame != self.frame {
+        let resized = frame != self.frame;
+        if resized {
             self.frame = frame;
             let n = frame.len();
             self.state = vec![UNKNOWN; n];
@@ -222,28 +265,101 @@ impl CSpace {
             self.dist = vec![f64::INFINITY; n];
             self.prev = vec![u32::MAX; n];
             self.extra = vec![0.0; n];
+            self.known = None;
             // Offsets whose obstacle square lies closer than the inflation.
             self.inflate = square_offsets(self.inflation, frame.res);
             self.hard = square_offsets(self.radius, frame.res);
+            self.reach = self
+                .inflate
+                .iter()
+                .chain(&self.hard)
+                .map(|&(dx, dy)| dx.abs().max(dy.abs()))
+                .max()
+                .unwrap_or(0) as usize;
         }
-        let (w, h) = (frame.w, frame.h);
-        for y in 0..h {
-            for x in 0..w {
-                self.state[y * w + x] = match grid.state((x, y)) {
+        let changed = self.copy_states(grid);
+        let whole = (frame.w > 0 && frame.h > 0).then(|| Rect {
+            x0: 0,
+            y0: 0,
+            x1: frame.w - 1,
+            y1: frame.h - 1,
+        });
+        if let Some(r) = if resized { whole } else { changed } {
+            self.reinflate(r);
+        }
+    }
+
+    /// Copies the grid's cell states, hit and held flags; returns the
+    /// bounding box of the cells whose state or held flag changed. Only the
+    /// grid's explored box and the box known at the last call are read: every
+    /// cell outside both is unknown in the grid and here.
+    fn copy_states(&mut self, grid: &Grid) -> Option<Rect> {
+        let w = self.frame.w;
+        let explored = grid
+            .explored_cells()
+            .map(|((x0, y0), (x1, y1))| Rect { x0, y0, x1, y1 });
+        let read = match (explored, self.known) {
+            (Some(a), Some(b)) => a.union(&b),
+            (a, b) => a.or(b)?,
+        };
+        self.known = explored;
+        let (evidence, hit, credit) = (
+            grid.raw_evidence(),
+            grid.hit_flags(),
+            grid.surface_credits(),
+        );
+        let mut changed: Option<Rect> = None;
+        for y in read.y0..=read.y1 {
+            for x in read.x0..=read.x1 {
+                let i = y * w + x;
+                let state = match Grid::state_of(evidence[i]) {
                     CellState::Unknown => UNKNOWN,
                     CellState::Free => FREE,
                     CellState::Occupied => OCCUPIED,
                 };
-                self.surface[y * w + x] = grid.was_hit((x, y));
-                self.held[y * w + x] = grid.holds_surface((x, y));
+                let held = credit[i] > 0;
+                self.surface[i] = hit[i];
+                if state != self.state[i] || held != self.held[i] {
+                    self.state[i] = state;
+                    self.held[i] = held;
+                    let cell = Rect {
+                        x0: x,
+                        y0: y,
+                        x1: x,
+                        y1: y,
+                    };
+                    changed = Some(changed.map_or(cell, |c| c.union(&cell)));
+                }
             }
         }
-        for (t, s) in self.traversable.iter_mut().zip(&self.state) {
-            *t = *s == FREE;
+        changed
+    }
+
+    /// Recomputes the traversable and collision-free masks of every cell an
+    /// obstacle in or beside `changed` can reach, from the obstacle and
+    /// unknown cells within that reach of them.
+    fn reinflate(&mut self, changed: Rect) {
+        let (w, h) = (self.frame.w, self.frame.h);
+        // A source's status depends on its 8 neighbours; its inflation
+        // reaches `reach` cells: targets lie within reach + 1 of a change,
+        // their sources within reach of a target.
+        let target = changed.grow(self.reach + 1, w, h);
+        let sources = target.grow(self.reach, w, h);
+        for y in target.y0..=target.y1 {
+            for x in target.x0..=target.x1 {
+                let i = y * w + x;
+                self.traversable[i] = self.state[i] == FREE;
+                self.collision_free[i] = true;
+            }
         }
-        self.collision_free.iter_mut().for_each(|c| *c = true);
-        for y in 0..h as i64 {
-            for x in 0..w as i64 {
+        let inside = |x: i64, y: i64| {
+            x >= target.x0 as i64
+                && y >= target.y0 as i64
+                && x <= target.x1 as i64
+                && y <= target.y1 as i64
+        };
+        for y in sources.y0 as i64..=sources.y1 as i64 {
+            for x in sources.x0 as i64..=sources.x1 as i64 {
                 let i = y as usize * w + x as usize;
                 // A free cell holding a surface is an obstacle to the body.
                 if self.state[i] == FREE && !self.held[i] {
@@ -251,32 +367,27 @@ impl CSpace {
                 }
                 let solid = self.state[i] == OCCUPIED || self.held[i];
                 // Only obstacle/unknown cells that border free space matter.
-                let mut borders = false;
-                for &(dx, dy, _) in &NEIGHBOURS {
+                let borders = NEIGHBOURS.iter().any(|&(dx, dy, _)| {
                     let (nx, ny) = (x + dx, y + dy);
-                    if nx >= 0
+                    nx >= 0
                         && ny >= 0
                         && (nx as usize) < w
                         && (ny as usize) < h
                         && self.state[ny as usize * w + nx as usize] == FREE
-                    {
-                        borders = true;
-                        break;
-                    }
-                }
+                });
                 if !borders {
                     continue;
                 }
                 for &(dx, dy) in &self.inflate {
                     let (nx, ny) = (x + dx, y + dy);
-                    if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                    if inside(nx, ny) {
                         self.traversable[ny as usize * w + nx as usize] = false;
                     }
                 }
                 if solid {
                     for &(dx, dy) in &self.hard {
                         let (nx, ny) = (x + dx, y + dy);
-                        if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                        if inside(nx, ny) {
                             self.collision_free[ny as usize * w + nx as usize] = false;
                         }
                     }
@@ -284,9 +395,9 @@ impl CSpace {
             }
         }
         // The grid's border counts as unexplored.
-        for y in 0..h {
-            for x in 0..w {
-                let near_edge = x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * frame.res;
+        for y in target.y0..=target.y1 {
+            for x in target.x0..=target.x1 {
+                let near_edge = x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * self.frame.res;
                 if near_edge < self.inflation {
                     self.traversable[y * w + x] = false;
                 }
@@ -710,5 +821,72 @@ mod tests {
         c.distances_from(0);
         assert!(c.path_to(5).is_none());
         assert!(c.astar(0, 5).is_none());
+    }
+
+    #[test]
+    fn incremental_rebuild_matches_a_fresh_one() {
+        // Random edits to a 60 x 50 grid of mostly free floor: small boxes
+        // of occupied or unknown cells, larger free ones, beams that leave
+        // or wear off held surfaces. After each, the configuration space
+        // kept up to date incrementally must equal one built from scratch.
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = |n: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % n as u64) as usize
+        };
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 50);
+        for y in 0..50 {
+            for x in 0..60 {
+                g.set_state((x, y), CellState::Free);
+            }
+        }
+        let mut kept = CSpace::new(0.2, 0.17);
+        for step in 0..400 {
+            let (x, y) = (next(60), next(50));
+            let s = match next(10) {
+                0..=3 => Some((CellState::Free, 1 + next(6))),
+                4..=6 => Some((CellState::Occupied, 1 + next(5))),
+                7 => Some((CellState::Unknown, 1 + next(5))),
+                _ => None,
+            };
+            match s {
+                Some((s, size)) => {
+                    for cy in y..(y + size).min(50) {
+                        for cx in x..(x + size).min(60) {
+                            g.set_state((cx, cy), s);
+                        }
+                    }
+                }
+                None => {
+                    let a = g.centre_of((x, y));
+                    let b = g.centre_of((next(60), next(50)));
+                    g.integrate_ray(&a, &b, next(2) == 0);
+                }
+            }
+            kept.rebuild(&g);
+            let mut fresh = CSpace::new(0.2, 0.17);
+            fresh.rebuild(&g);
+            assert_eq!(kept.state, fresh.state, "step {step}");
+            assert_eq!(kept.held, fresh.held, "step {step}");
+            assert_eq!(kept.surface, fresh.surface, "step {step}");
+            assert_eq!(kept.traversable, fresh.traversable, "step {step}");
+            assert_eq!(kept.collision_free, fresh.collision_free, "step {step}");
+        }
+        assert!(kept.traversable.iter().any(|t| *t) && kept.traversable.iter().any(|t| !t));
+        // Forgetting the outer columns shrinks the grid's explored box: the
+        // cells left outside it must be read once more.
+        for y in 0..50 {
+            for x in (0..4).chain(52..60) {
+                g.set_state((x, y), CellState::Unknown);
+            }
+        }
+        assert_eq!(g.explored_cells().map(|b| (b.0 .0, b.1 .0)), Some((4, 51)));
+        kept.rebuild(&g);
+        let mut fresh = CSpace::new(0.2, 0.17);
+        fresh.rebuild(&g);
+        assert_eq!(kept.state, fresh.state);
+        assert_eq!(kept.traversable, fresh.traversable);
     }
 }
