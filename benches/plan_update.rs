@@ -6,6 +6,12 @@
 //! `plan_decision_plain_distance` is `plan_decision` with travel priced by
 //! distance alone (`plan.new_overlap_cost = 0`), the price of the overlap
 //! term as a ratio within one run.
+//!
+//! `cspace_after_scan/building`: the configuration space brought up to date
+//! after one more scan on the 309 m² lab_ipa building map (shared
+//! `map.pgm`, explored in full), against `cspace_whole/building`, the same
+//! update when every cell changed: what each update cost before the
+//! rebuild became incremental.
 
 use std::hint::black_box;
 
@@ -13,8 +19,10 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use sweepline::config::Config;
 use sweepline::decomp::{Decomposer, Decomposition};
 use sweepline::grid::Grid;
+use sweepline::plan::cspace::CSpace;
 use sweepline::plan::{CoveragePlanner, PlanParams};
-use sweepline::sim::lockstep::{fill_from_truth, grid_for};
+use sweepline::sim::lockstep::{fill_from_truth, grid_for, scan_into};
+use sweepline::sim::ros_map;
 use sweepline::sim::world::World;
 
 fn setup() -> (World, Grid, Decomposition) {
@@ -67,5 +75,82 @@ fn bench(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench);
+/// The lab_ipa building (shared `map.pgm`, through a map_server YAML written
+/// to the bench's scratch folder) with its grid filled from ground truth;
+/// `None` (said in one line) when the shared data is missing.
+fn building() -> Option<(World, Grid)> {
+    let Some(image) =
+        sweepline::testdata::shared_file("maps/ipa_coverage_planning_test_maps/map.pgm")
+    else {
+        eprintln!("shared map.pgm missing: no building case");
+        return None;
+    };
+    let yaml = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench_building.yaml");
+    std::fs::write(
+        &yaml,
+        format!(
+            "image: {}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+            image.display()
+        ),
+    )
+    .expect("bench YAML");
+    let world = ros_map::load_world(&yaml, None, None).expect("building map");
+    let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
+    fill_from_truth(&world, &mut grid);
+    Some((world, grid))
+}
+
+fn bench_building(c: &mut Criterion) {
+    let Some((world, grid)) = building() else {
+        return;
+    };
+    let cfg = Config::default();
+    let inflation = cfg.robot.radius + cfg.plan.safety_margin;
+    let mut synced = CSpace::new(inflation, cfg.robot.radius);
+    synced.rebuild(&grid);
+    let mut scanned = grid.clone();
+    scan_into(&world, &world.start, &mut scanned);
+    let blank = Grid::new(
+        grid.origin(),
+        grid.resolution(),
+        grid.width(),
+        grid.height(),
+    );
+    let mut g = c.benchmark_group("cspace");
+    g.sample_size(20);
+    g.bench_function("after_scan/building", |b| {
+        b.iter_batched(
+            || synced.clone(),
+            |mut cs| {
+                cs.rebuild(&scanned);
+                black_box(cs.traversable.len())
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    g.bench_function("unchanged/building", |b| {
+        let mut cs = synced.clone();
+        b.iter(|| {
+            cs.rebuild(&grid);
+            black_box(cs.traversable.len())
+        })
+    });
+    g.bench_function("whole/building", |b| {
+        b.iter_batched(
+            || {
+                let mut cs = synced.clone();
+                cs.rebuild(&blank);
+                cs
+            },
+            |mut cs| {
+                cs.rebuild(&scanned);
+                black_box(cs.traversable.len())
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_building);
 criterion_main!(benches);

@@ -308,29 +308,53 @@ impl CSpace {
             grid.hit_flags(),
             grid.surface_credits(),
         );
+        let code = |s: CellState| match s {
+            CellState::Unknown => UNKNOWN,
+            CellState::Free => FREE,
+            CellState::Occupied => OCCUPIED,
+        };
+        let mut lut = [UNKNOWN; 256];
+        for (v, c) in lut.iter_mut().enumerate() {
+            *c = code(Grid::state_of(v as u8));
+        }
         let mut changed: Option<Rect> = None;
         for y in read.y0..=read.y1 {
-            for x in read.x0..=read.x1 {
-                let i = y * w + x;
-                let state = match Grid::state_of(evidence[i]) {
-                    CellState::Unknown => UNKNOWN,
-                    CellState::Free => FREE,
-                    CellState::Occupied => OCCUPIED,
-                };
-                let held = credit[i] > 0;
-                self.surface[i] = hit[i];
-                if state != self.state[i] || held != self.held[i] {
-                    self.state[i] = state;
-                    self.held[i] = held;
-                    let cell = Rect {
-                        x0: x,
-                        y0: y,
-                        x1: x,
-                        y1: y,
-                    };
-                    changed = Some(changed.map_or(cell, |c| c.union(&cell)));
+            let (a, b) = (y * w + read.x0, y * w + read.x1 + 1);
+            self.surface[a..b].copy_from_slice(&hit[a..b]);
+            let (ev, cr) = (&evidence[a..b], &credit[a..b]);
+            let (st, hd) = (&mut self.state[a..b], &mut self.held[a..b]);
+            // Most rows hold no change: one branch-free pass to tell.
+            let differs = ev
+                .iter()
+                .zip(cr)
+                .zip(st.iter().zip(hd.iter()))
+                .fold(false, |d, ((&e, &c), (&s, &h))| {
+                    d | (lut[e as usize] != s) | ((c > 0) != h)
+                });
+            if !differs {
+                continue;
+            }
+            let (mut lo, mut hi) = (usize::MAX, 0);
+            for (j, ((&e, &c), (s, h))) in ev
+                .iter()
+                .zip(cr)
+                .zip(st.iter_mut().zip(hd.iter_mut()))
+                .enumerate()
+            {
+                let (state, held) = (lut[e as usize], c > 0);
+                if state != *s || held != *h {
+                    (*s, *h) = (state, held);
+                    lo = lo.min(j);
+                    hi = j;
                 }
             }
+            let row = Rect {
+                x0: read.x0 + lo,
+                y0: y,
+                x1: read.x0 + hi,
+                y1: y,
+            };
+            changed = Some(changed.map_or(row, |c| c.union(&row)));
         }
         changed
     }
