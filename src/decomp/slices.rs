@@ -119,6 +119,9 @@ pub struct Slices {
     counts: Vec<u32>,
     col_last_free: Vec<usize>,
     seg_mask: Vec<bool>,
+    /// Indices set in `seg_mask` (cleared one by one, not by a pass over
+    /// the whole grid).
+    seg_marked: Vec<usize>,
     excl: Vec<(f64, f64, End)>,
     grid_box: (usize, usize, usize, usize),
 }
@@ -255,6 +258,27 @@ impl Slices {
                 *c = class(Grid::state_of(v as u8));
             }
             let raw = g.raw_evidence();
+            if (m.xi, m.xk, m.yi, m.yk) == (1, 0, 0, 1) {
+                // Pixel rows are grid rows (a sweep along x): row by row,
+                // the part over the grid through the table, the rest unknown.
+                let x_lo = (-m.x0).clamp(i0 as i64, i1 as i64) as usize;
+                let x_hi = (gw - m.x0).clamp(x_lo as i64, i1 as i64) as usize;
+                for k in k0..k1 {
+                    let y = m.y0 + k as i64;
+                    let row = &mut self.px[k * f.nu..(k + 1) * f.nu];
+                    if y < 0 || y >= gh {
+                        row[i0..i1].fill(UNK);
+                        continue;
+                    }
+                    row[i0..x_lo].fill(UNK);
+                    row[x_hi..i1].fill(UNK);
+                    let src = (y * gw + m.x0) as usize;
+                    for (d, &e) in row[x_lo..x_hi].iter_mut().zip(&raw[src + x_lo..src + x_hi]) {
+                        *d = lut[e as usize];
+                    }
+                }
+                return;
+            }
             const TILE: usize = 32;
             for kt in (k0..k1).step_by(TILE) {
                 for it in (i0..i1).step_by(TILE) {
@@ -305,8 +329,16 @@ impl Slices {
     fn collect_points(&mut self, f: &SweepFrame, input: &SliceInput<'_>) {
         let g = input.grid;
         let (gw, gh) = (g.width(), g.height());
-        self.seg_mask.clear();
-        self.seg_mask.resize(gw * gh, false);
+        for &i in &self.seg_marked {
+            if let Some(m) = self.seg_mask.get_mut(i) {
+                *m = false;
+            }
+        }
+        self.seg_marked.clear();
+        if self.seg_mask.len() != gw * gh {
+            self.seg_mask.clear();
+            self.seg_mask.resize(gw * gh, false);
+        }
         self.raw_points.clear();
         let step = (f.h * 0.5).min(g.resolution() * 0.5);
         for s in input.segments {
@@ -327,13 +359,21 @@ impl Slices {
                 if let Some((cx, cy)) = g.cell_of(&p) {
                     for yy in cy.saturating_sub(1)..(cy + 2).min(gh) {
                         for xx in cx.saturating_sub(1)..(cx + 2).min(gw) {
-                            self.seg_mask[yy * gw + xx] = true;
+                            if !self.seg_mask[yy * gw + xx] {
+                                self.seg_mask[yy * gw + xx] = true;
+                                self.seg_marked.push(yy * gw + xx);
+                            }
                         }
                     }
                 }
             }
         }
-        let occ = |x: usize, y: usize| g.state((x, y)) == CellState::Occupied;
+        let mut occupied = [false; 256];
+        for (v, o) in occupied.iter_mut().enumerate() {
+            *o = Grid::state_of(v as u8) == CellState::Occupied;
+        }
+        let raw = g.raw_evidence();
+        let occ = |i: usize| occupied[raw[i] as usize];
         let (bx0, by0, bx1, by1) = self.grid_box;
         // An occupied cell blocks its whole square: exactly (a rounded square)
         // when the frame is aligned with the grid, else by the disk around
@@ -347,18 +387,20 @@ impl Slices {
             )
         };
         for y in by0..by1 {
+            let row = y * gw;
             for x in bx0..bx1 {
-                if g.evidence((x, y)) == 0 || !occ(x, y) || self.seg_mask[y * gw + x] {
+                let i = row + x;
+                if !occ(i) || self.seg_mask[i] {
                     continue;
                 }
                 let interior = x > 0
                     && y > 0
                     && x + 1 < gw
                     && y + 1 < gh
-                    && occ(x - 1, y)
-                    && occ(x + 1, y)
-                    && occ(x, y - 1)
-                    && occ(x, y + 1);
+                    && occ(i - 1)
+                    && occ(i + 1)
+                    && occ(i - gw)
+                    && occ(i + gw);
                 if !interior {
                     let (u, v) = f.to_uv(&g.centre_of((x, y)));
                     self.raw_points.push(WallPoint { u, v, e, r });
@@ -650,10 +692,9 @@ fn fill_line(px: &mut [u8], start: usize, stride: usize, n: usize, max: usize) {
         if c == FREE {
             if let Some(lf) = last_free {
                 let gap = j - lf - 1;
-                if gap > 0
-                    && gap <= max
-                    && (lf + 1..j).all(|t| px[start + t * stride] & CLASS == UNK)
-                {
+                // Between two free pixels with no occupied one between,
+                // every pixel is unknown.
+                if gap > 0 && gap <= max {
                     for t in lf + 1..j {
                         px[start + t * stride] = FREE;
                     }
