@@ -250,47 +250,41 @@ impl Slices {
         // a multiple of 90° (axis-aligned rooms): integer index arithmetic.
         if let Some(m) = lattice_map(f, g) {
             let (gw, gh) = (g.width() as i64, g.height() as i64);
-            // One table lookup per pixel into the raw evidence, in tiles so
-            // that a frame turned by 90° (pixel rows along grid columns)
-            // still reads the grid from cache.
+            // One table lookup per pixel into the raw evidence.
             let mut lut = [UNK; 256];
             for (v, c) in lut.iter_mut().enumerate() {
                 *c = class(Grid::state_of(v as u8));
             }
             let raw = g.raw_evidence();
-            if (m.xi, m.xk, m.yi, m.yk) == (1, 0, 0, 1) {
-                // Pixel rows are grid rows (a sweep along x): row by row,
-                // the part over the grid through the table, the rest unknown.
-                let x_lo = (-m.x0).clamp(i0 as i64, i1 as i64) as usize;
-                let x_hi = (gw - m.x0).clamp(x_lo as i64, i1 as i64) as usize;
-                for k in k0..k1 {
-                    let y = m.y0 + k as i64;
-                    let row = &mut self.px[k * f.nu..(k + 1) * f.nu];
-                    if y < 0 || y >= gh {
-                        row[i0..i1].fill(UNK);
-                        continue;
-                    }
-                    row[i0..x_lo].fill(UNK);
-                    row[x_hi..i1].fill(UNK);
-                    let src = (y * gw + m.x0) as usize;
-                    for (d, &e) in row[x_lo..x_hi].iter_mut().zip(&raw[src + x_lo..src + x_hi]) {
+            // Along a pixel row the grid index moves by a fixed stride (one
+            // cell along a grid row or column), over one interval of the
+            // row that lies on the grid: no test per pixel.
+            let stride = m.yi * gw + m.xi;
+            for k in k0..k1 {
+                let (xa, ya) = m.apply(0, k as i64);
+                let (xl, xh) = on_grid(xa, m.xi, gw);
+                let (yl, yh) = on_grid(ya, m.yi, gh);
+                let lo = xl.max(yl).clamp(i0 as i64, i1 as i64) as usize;
+                let hi = xh.min(yh).clamp(lo as i64, i1 as i64) as usize;
+                let row = &mut self.px[k * f.nu..(k + 1) * f.nu];
+                row[i0..lo].fill(UNK);
+                row[hi..i1].fill(UNK);
+                if lo == hi {
+                    // The row lies off the grid.
+                    continue;
+                }
+                let start = ya * gw + xa + stride * lo as i64;
+                if stride == 1 {
+                    // Pixel rows are grid rows (a sweep along x).
+                    let src = &raw[start as usize..start as usize + (hi - lo)];
+                    for (d, &e) in row[lo..hi].iter_mut().zip(src) {
                         *d = lut[e as usize];
                     }
-                }
-                return;
-            }
-            const TILE: usize = 32;
-            for kt in (k0..k1).step_by(TILE) {
-                for it in (i0..i1).step_by(TILE) {
-                    for k in kt..(kt + TILE).min(k1) {
-                        for i in it..(it + TILE).min(i1) {
-                            let (x, y) = m.apply(i as i64, k as i64);
-                            self.px[k * f.nu + i] = if x >= 0 && y >= 0 && x < gw && y < gh {
-                                lut[raw[(y * gw + x) as usize] as usize]
-                            } else {
-                                UNK
-                            };
-                        }
+                } else {
+                    let mut at = start;
+                    for d in &mut row[lo..hi] {
+                        *d = lut[raw[at as usize] as usize];
+                        at += stride;
                     }
                 }
             }
@@ -654,6 +648,17 @@ impl LatticeMap {
     }
 }
 
+/// The pixels `i` (half-open range) for which `a + c·i` lies in `0..n`, for
+/// a step `c` of -1, 0 or 1 (one coordinate of a [`LatticeMap`] along a row).
+fn on_grid(a: i64, c: i64, n: i64) -> (i64, i64) {
+    match c {
+        0 if (0..n).contains(&a) => (i64::MIN, i64::MAX),
+        0 => (0, 0),
+        1 => (-a, n - a),
+        _ => (a - n + 1, a + 1),
+    }
+}
+
 /// The integer map when pixel centres fall on grid cell centres (same cell
 /// size, frame rotated by a multiple of 90°, lattices aligned), else `None`.
 fn lattice_map(f: &SweepFrame, g: &Grid) -> Option<LatticeMap> {
@@ -745,6 +750,54 @@ fn fill_columns(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_grid_turned_by_quarter_turns_resamples_cell_for_cell() {
+        // A 37 x 23 grid of mixed cells; frames at 0, 90, 180 and 270
+        // degrees map pixels onto cells (the lattice path): every pixel of
+        // a window must hold the class of the cell under its centre.
+        let mut g = Grid::new(nalgebra::Point2::new(-1.25, 0.45), 0.05, 37, 23);
+        for y in 0..23 {
+            for x in 0..37 {
+                let s = match (x * 7 + y * 3 + x * y) % 5 {
+                    0 => CellState::Unknown,
+                    1 | 2 => CellState::Free,
+                    _ => CellState::Occupied,
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        for q in 0..4 {
+            let mut f =
+                SweepFrame::over_grid(&g, q as f64 * std::f64::consts::FRAC_PI_2, 0.05).unwrap();
+            // Three pixels more on every side: rows and columns off the grid.
+            f.u0 -= 3.0 * f.h;
+            f.v0 -= 3.0 * f.h;
+            f.nu += 6;
+            f.nv += 6;
+            assert!(lattice_map(&f, &g).is_some(), "quarter turn {q}");
+            for window in [(0, f.nu, 0, f.nv), (4, f.nu - 2, 1, f.nv - 5)] {
+                let mut sl = Slices {
+                    px: vec![BLOCKED; f.nu * f.nv],
+                    window,
+                    ..Slices::default()
+                };
+                sl.resample(&f, &g);
+                let (i0, i1, k0, k1) = window;
+                for k in k0..k1 {
+                    for i in i0..i1 {
+                        let p = f.to_world(f.col_u(i), f.row_v(k));
+                        let want = match g.cell_of(&p).map(|c| g.state(c)) {
+                            Some(CellState::Free) => FREE,
+                            Some(CellState::Occupied) => OCC,
+                            _ => UNK,
+                        };
+                        assert_eq!(sl.at(&f, i, k), want, "quarter turn {q}, pixel ({i}, {k})");
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn short_unknown_gaps_between_free_are_filled_only() {
