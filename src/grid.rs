@@ -237,6 +237,13 @@ impl Grid {
         }
     }
 
+    /// [`Grid::state_of`] of every raw evidence value, indexed by the value:
+    /// for passes over [`Grid::raw_evidence`] that map each cell through a
+    /// table (`.map` it to the reader's own codes).
+    pub fn state_table() -> [CellState; 256] {
+        std::array::from_fn(|v| Self::state_of(v as u8))
+    }
+
     /// Raw evidence value of cell `c` (0 = unknown, else 1..=255, higher = more occupied).
     pub fn evidence(&self, c: CellIndex) -> u8 {
         self.cells[c.1 * self.width + c.0]

@@ -251,10 +251,7 @@ impl Slices {
         if let Some(m) = lattice_map(f, g) {
             let (gw, gh) = (g.width() as i64, g.height() as i64);
             // One table lookup per pixel into the raw evidence.
-            let mut lut = [UNK; 256];
-            for (v, c) in lut.iter_mut().enumerate() {
-                *c = class(Grid::state_of(v as u8));
-            }
+            let lut = Grid::state_table().map(class);
             let raw = g.raw_evidence();
             // Along a pixel row the grid index moves by a fixed stride (one
             // cell along a grid row or column), over one interval of the
@@ -362,10 +359,7 @@ impl Slices {
                 }
             }
         }
-        let mut occupied = [false; 256];
-        for (v, o) in occupied.iter_mut().enumerate() {
-            *o = Grid::state_of(v as u8) == CellState::Occupied;
-        }
+        let occupied = Grid::state_table().map(|s| s == CellState::Occupied);
         let raw = g.raw_evidence();
         let occ = |i: usize| occupied[raw[i] as usize];
         let (bx0, by0, bx1, by1) = self.grid_box;

@@ -308,15 +308,11 @@ impl CSpace {
             grid.hit_flags(),
             grid.surface_credits(),
         );
-        let code = |s: CellState| match s {
+        let lut = Grid::state_table().map(|s| match s {
             CellState::Unknown => UNKNOWN,
             CellState::Free => FREE,
             CellState::Occupied => OCCUPIED,
-        };
-        let mut lut = [UNKNOWN; 256];
-        for (v, c) in lut.iter_mut().enumerate() {
-            *c = code(Grid::state_of(v as u8));
-        }
+        });
         let mut changed: Option<Rect> = None;
         for y in read.y0..=read.y1 {
             let (a, b) = (y * w + read.x0, y * w + read.x1 + 1);
