@@ -7,11 +7,15 @@
 //! distance alone (`plan.new_overlap_cost = 0`), the price of the overlap
 //! term as a ratio within one run.
 //!
-//! `cspace_after_scan/building`: the configuration space brought up to date
-//! after one more scan on the 309 m² lab_ipa building map (shared
-//! `map.pgm`, explored in full), against `cspace_whole/building`, the same
-//! update when every cell changed: what each update cost before the
-//! rebuild became incremental.
+//! The group `cspace`, on the 309 m² lab_ipa building map (shared
+//! `map.pgm`, explored in full): `after_scan/building` brings the
+//! configuration space up to date after one more scan,
+//! `unchanged/building` after none, and `whole/building` when every cell
+//! changed, which is what each update cost before the rebuild became
+//! incremental.
+
+#[path = "../tests/ros_map_support/mod.rs"]
+mod ros_map_support;
 
 use std::hint::black_box;
 
@@ -79,21 +83,15 @@ fn bench(c: &mut Criterion) {
 /// to the bench's scratch folder) with its grid filled from ground truth;
 /// `None` (said in one line) when the shared data is missing.
 fn building() -> Option<(World, Grid)> {
-    let Some(image) =
-        sweepline::testdata::shared_file("maps/ipa_coverage_planning_test_maps/map.pgm")
-    else {
+    let Some(image) = sweepline::testdata::shared_file(ros_map_support::MAP) else {
         eprintln!("shared map.pgm missing: no building case");
         return None;
     };
-    let yaml = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench_building.yaml");
-    std::fs::write(
-        &yaml,
-        format!(
-            "image: {}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
-            image.display()
-        ),
-    )
-    .expect("bench YAML");
+    let yaml = ros_map_support::write_yaml(
+        std::path::Path::new(env!("CARGO_TARGET_TMPDIR")),
+        "bench_building.yaml",
+        &image,
+    );
     let world = ros_map::load_world(&yaml, None, None).expect("building map");
     let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
     fill_from_truth(&world, &mut grid);

@@ -6,30 +6,20 @@
 //! offline against the targets.
 
 mod coverage_support;
+mod ros_map_support;
 
 use std::path::{Path, PathBuf};
 
+use ros_map_support::MAP;
 use sweepline::config::Config;
 use sweepline::sim::lockstep::LockstepOptions;
 use sweepline::sim::ros_map::{self, Region};
 
-const MAP: &str = "maps/ipa_coverage_planning_test_maps/map.pgm";
-
-/// Writes a map_server YAML beside the test's scratch folder naming the
-/// shared image (absolute path: the YAML lives elsewhere).
+/// Writes a map_server YAML into the test's scratch folder naming the
+/// shared image.
 fn yaml(image: &Path, name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ros_map");
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join(name);
-    std::fs::write(
-        &p,
-        format!(
-            "image: {}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
-            image.display()
-        ),
-    )
-    .unwrap();
-    p
+    ros_map_support::write_yaml(&dir, name, image)
 }
 
 #[test]
