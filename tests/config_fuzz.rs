@@ -206,6 +206,16 @@ fn hostile_inputs_name_the_key_or_line() {
             &["daemon.stuck_after"],
         ),
         (
+            "zero scan timeout",
+            "[daemon]\nscan_timeout = 0.0\n".into(),
+            &["daemon.scan_timeout", "got 0.0"],
+        ),
+        (
+            "scan timeout of a minute",
+            "[daemon]\nscan_timeout = 60.0\n".into(),
+            &["daemon.scan_timeout", "got 60.0"],
+        ),
+        (
             "bearing outside the bumper",
             "[daemon.contact]\nside_bearing = 1.5\n".into(),
             &["daemon.contact.side_bearing", "got 1.5"],
@@ -254,9 +264,10 @@ fn hostile_inputs_name_the_key_or_line() {
 
 #[test]
 fn the_daemon_keys_are_read_from_the_file() {
-    let text = "[daemon]\nstuck_after = 7.5\n[daemon.contact]\nside_bearing = 0.4\nsettle = 0.5\n";
+    let text = "[daemon]\nstuck_after = 7.5\nscan_timeout = 0.4\n[daemon.contact]\nside_bearing = 0.4\nsettle = 0.5\n";
     let cfg = Config::from_toml(text, "t.toml").unwrap();
     assert_eq!(cfg.daemon.stuck_after, 7.5);
+    assert_eq!(cfg.daemon.scan_timeout, 0.4);
     assert_eq!(cfg.daemon.contact.side_bearing, 0.4);
     assert_eq!(cfg.daemon.contact.settle, 0.5);
     let def = sweepline::daemon::DaemonParams::default();

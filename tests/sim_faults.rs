@@ -38,11 +38,11 @@ fn run_alone(opts: &SimOptions) -> closed_loop::SimReport {
     closed_loop::run(opts).unwrap()
 }
 
-/// A run short of `bound` coverage keeps its folder (pictures, summary,
-/// state) under a name the next run does not delete, so the outlier can be
-/// read afterwards; returns whether the bound held.
-fn kept_unless(opts: &SimOptions, coverage: f64, bound: f64) -> bool {
-    if coverage >= bound {
+/// A run that failed a bound (`held` false) keeps its folder (pictures,
+/// summary, state) under a name the next run does not delete, so the
+/// outlier can be read afterwards; returns `held`.
+fn kept_unless(opts: &SimOptions, held: bool) -> bool {
+    if held {
         return true;
     }
     if let Some(d) = &opts.out {
@@ -66,6 +66,7 @@ fn out(name: &str) -> Option<std::path::PathBuf> {
 
 #[test]
 fn coverage_survives_scanner_unplug_motor_silence_and_corruption() {
+    let _ = env_logger::builder().is_test(true).try_init();
     let mut opts = SimOptions::new(World::parse(ROOM).unwrap(), config());
     opts.speed = 8.0;
     opts.time_cap = 1200.0;
@@ -89,23 +90,34 @@ fn coverage_survives_scanner_unplug_motor_silence_and_corruption() {
     let r = run_alone(&opts);
     let m = &r.metrics;
     eprintln!(
-        "{}: coverage {:.2} %, pose RMSE {:.1} mm, urg reconnects {}, base {:?}, emu {:?}",
+        "{}: coverage {:.2} %, pose RMSE {:.1} mm (max {:.1}), urg reconnects {}, wheels held {}, base {:?}, emu {:?}",
         r.reason,
         m.coverage * 100.0,
         r.position_rmse * 1e3,
+        r.position_max * 1e3,
         r.urg.reconnects,
+        r.scan_holds,
         r.base,
         r.base_emu,
     );
     assert!(r.finished, "did not finish: {}", r.reason);
     assert!(
-        kept_unless(&opts, m.coverage, 0.97),
+        kept_unless(&opts, m.coverage >= 0.97),
         "coverage {:.3}",
         m.coverage
     );
-    assert!(r.position_rmse <= 0.03, "{}", r.position_rmse);
-    // The scanner came back after being unplugged.
+    // Across each outage the odometry carried the pose whole: before the
+    // tracker heard of gaps, a match after one locked on up to 1.4 m off.
+    assert!(
+        kept_unless(&opts, r.position_rmse <= 0.03 && r.position_max <= 0.05),
+        "pose RMSE {:.1} mm, max {:.1} mm",
+        r.position_rmse * 1e3,
+        r.position_max * 1e3
+    );
+    // The scanner came back after being unplugged, and while it was gone
+    // the wheels were held (the outage outlasts daemon.scan_timeout).
     assert!(r.urg.reconnects >= 1, "{}", r.urg);
+    assert!(r.scan_holds >= 1, "{}", r.scan_holds);
     // The silent motor link was noticed (timeouts) and the run went on.
     assert!(r.base.timeouts >= 1, "{:?}", r.base);
     // Corrupted bytes were caught by the CRC checks on both sides.
@@ -145,7 +157,7 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     // was after was not given up.
     assert!(r.finished, "did not finish: {}", r.reason);
     assert!(
-        kept_unless(&opts, m.coverage, 0.99),
+        kept_unless(&opts, m.coverage >= 0.99),
         "coverage {:.4}",
         m.coverage
     );
@@ -176,7 +188,7 @@ fn create2_bumper_sides_place_the_contact_and_the_run_goes_on() {
     assert!(r.base.safety_stops >= 1, "{:?}", r.base);
     assert!(r.finished, "did not finish: {}", r.reason);
     assert!(
-        kept_unless(&opts, m.coverage, 0.99),
+        kept_unless(&opts, m.coverage >= 0.99),
         "coverage {:.4}",
         m.coverage
     );

@@ -22,6 +22,8 @@ pub struct ScanMsg {
     pub stamp: f64,
     /// Odometry pose of the scanner at `stamp` (odometry frame).
     pub odom: Pose,
+    /// Time between two scans when none is lost (s; 0 when unknown).
+    pub interval: f64,
     /// The scan.
     pub scan: LaserScan,
 }

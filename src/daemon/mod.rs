@@ -320,6 +320,8 @@ impl Daemon {
                 last_pose: None,
                 bump_seen: f64::NEG_INFINITY,
                 watch: stuck::ProgressWatch::new(cfg.daemon.stuck_after),
+                scan_timeout: cfg.daemon.scan_timeout,
+                held_since: None,
             },
         )?;
         pipeline.spawn(
@@ -375,6 +377,7 @@ impl Daemon {
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
                 publish_keyframes: setup.state_dir.is_some(),
+                last_stamp: None,
             },
         )?;
         pipeline.spawn(

@@ -10,6 +10,13 @@ use crate::config::{invalid, ConfigError};
 /// Longest `daemon.stuck_after` accepted (clock s).
 pub const MAX_STUCK_AFTER: f64 = 3600.0;
 
+/// Default of `daemon.scan_timeout` (clock s): ten scan periods of the
+/// URG-04LX.
+pub const SCAN_TIMEOUT: f64 = 1.0;
+
+/// Longest `daemon.scan_timeout` accepted (clock s).
+pub const MAX_SCAN_TIMEOUT: f64 = 10.0;
+
 /// The `[daemon]` table.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -17,6 +24,10 @@ pub struct DaemonParams {
     /// Clock seconds without headway after which the control stage gives a
     /// path up (see [`super::stuck::ProgressWatch`]).
     pub stuck_after: f64,
+    /// Clock seconds without a new scan after which the control stage holds
+    /// the wheels until scans return: the robot drives on odometry across
+    /// a short gap but not blind for long (no obstacle sensing).
+    pub scan_timeout: f64,
     /// Bumper contact marks.
     pub contact: ContactParams,
 }
@@ -25,6 +36,7 @@ impl Default for DaemonParams {
     fn default() -> Self {
         Self {
             stuck_after: STUCK_AFTER,
+            scan_timeout: SCAN_TIMEOUT,
             contact: ContactParams::default(),
         }
     }
@@ -38,6 +50,15 @@ impl DaemonParams {
             return Err(invalid(
                 "daemon.stuck_after",
                 &format!("must be a finite number of seconds in 1..={MAX_STUCK_AFTER}, got {s:?}"),
+            ));
+        }
+        let t = self.scan_timeout;
+        if !(t.is_finite() && t > 0.0 && t <= MAX_SCAN_TIMEOUT) {
+            return Err(invalid(
+                "daemon.scan_timeout",
+                &format!(
+                    "must be a finite number of seconds in (0, {MAX_SCAN_TIMEOUT}], got {t:?}"
+                ),
             ));
         }
         self.contact.validate()

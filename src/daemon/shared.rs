@@ -183,6 +183,8 @@ pub struct Shared {
     pub bumper_closed: AtomicBool,
     /// Paths the control stage gave up for lack of headway.
     pub stuck_paths: AtomicU64,
+    /// Times the control stage held the wheels for lack of scans.
+    pub scan_holds: AtomicU64,
     /// Safety events seen (bumper, wheel drop, dead-man, link lost).
     pub safety_events: AtomicU64,
     /// The wheel-base link counters, copied by the motor stage.

@@ -77,6 +77,7 @@ impl Stage for ScannerStage {
             t0,
             stamp: work.scan.stamp,
             odom,
+            interval: work.interval,
             scan: work.scan,
         };
         self.tx
@@ -115,7 +116,16 @@ pub struct LocaliseStage {
     /// Whether to publish the tracker's keyframes for checkpoints (each
     /// time one is added).
     pub publish_keyframes: bool,
+    /// Stamp of the previous scan localised (s).
+    pub last_stamp: Option<f64>,
 }
+
+/// A scan further than this many scan intervals after the previous one
+/// follows a gap (lost or skipped scans).
+const GAP_INTERVALS: f64 = 1.5;
+
+/// A gap at least this long (s) is logged.
+const GAP_LOGGED: f64 = 1.0;
 
 impl Stage for LocaliseStage {
     type Work = ScanMsg;
@@ -160,6 +170,18 @@ impl Stage for LocaliseStage {
                 ),
             }
         }
+        if let Some(prev) = self.last_stamp {
+            let gap = msg.stamp - prev;
+            if msg.interval > 0.0 && gap > GAP_INTERVALS * msg.interval {
+                self.tracker.note_gap();
+                if gap >= GAP_LOGGED {
+                    log::info!(
+                        "localise: {gap:.1} s since the previous scan; the odometry carries the pose across"
+                    );
+                }
+            }
+        }
+        self.last_stamp = Some(msg.stamp);
         let before = self.tracker.pose();
         let restored = self.tracker.map().len();
         let step = self.tracker.step(&self.points, Some(&msg.odom));
@@ -553,6 +575,10 @@ pub struct ControlStage {
     pub bump_seen: f64,
     /// Headway on the current path.
     pub watch: ProgressWatch,
+    /// Clock seconds without a new scan after which the wheels are held.
+    pub scan_timeout: f64,
+    /// Clock time since which the wheels are held for lack of scans.
+    pub held_since: Option<f64>,
 }
 
 impl ControlStage {
@@ -591,11 +617,40 @@ impl ControlStage {
         }
     }
 
+    /// Whether the newest scan is older than `scan_timeout` (the scanner
+    /// is gone or stalled), logging when the hold starts and ends. Before
+    /// the first scan nothing moves the robot anyway.
+    fn lacks_scans(&mut self, now: f64) -> bool {
+        let Some(age) = self.fix.map(|f| now - f.stamp) else {
+            return false;
+        };
+        let blind = age > self.scan_timeout;
+        match (blind, self.held_since) {
+            (true, None) => {
+                self.held_since = Some(now);
+                self.shared.scan_holds.fetch_add(1, Ordering::Relaxed);
+                log::warn!(
+                    "control: no scan for {age:.1} s (more than daemon.scan_timeout); wheels held until scans return"
+                );
+            }
+            (false, Some(t)) => {
+                self.held_since = None;
+                log::info!(
+                    "control: scans are back; wheels were held for {:.1} s",
+                    now - t
+                );
+            }
+            _ => {}
+        }
+        blind
+    }
+
     fn command(&mut self, t0: Option<Stamp>) -> Result<(), StageFault> {
         let now = self.clock.now();
         let dt = (now - self.last_cmd).clamp(1e-3, 4.0 * self.period);
         self.last_cmd = now;
         let est = self.estimate();
+        let blind = self.lacks_scans(now);
         let wheels = if self.shared.halt.load(Ordering::Relaxed)
             || self.shared.done.load(Ordering::Relaxed)
         {
@@ -611,6 +666,9 @@ impl ControlStage {
                 self.follower.set_path(&[], None);
             }
             WheelSpeeds::from_body(-0.05, 0.0, self.wheel_base)
+        } else if blind {
+            self.watch.reset();
+            WheelSpeeds::STOP
         } else {
             self.watch_headway(now, &est);
             let (_, w) = self.follower.step(&est, dt);

@@ -169,48 +169,86 @@ pub struct SimReport {
     pub safety_events: u64,
     /// Paths the daemon gave up because the robot made no headway on them.
     pub stuck_paths: u64,
+    /// Times the daemon held the wheels because no scan came.
+    pub scan_holds: u64,
     /// The pipeline's final metrics.
     pub pipeline: MetricsSnapshot,
     /// True trajectory (one pose per sample).
     pub truth: Vec<Pose>,
     /// Estimated trajectory (same samples).
     pub estimate: Vec<Pose>,
+    /// Every scored localised pose with its true pose (see [`fix_pairs`]).
+    pub fixes: Vec<FixPair>,
 }
 
 /// True poses at the times the emulated scanner sampled the world.
 type TruthLog = Arc<std::sync::Mutex<Vec<(f64, Pose)>>>;
 
-/// Pose error of localised poses `fixes` against the truth log `truth`
-/// (both sorted by time), pairing each fix with the truth sample nearest to
-/// its time shifted by `offset`, within `tolerance`: (position RMSE, heading
-/// RMSE, max position error, pairs).
-pub fn fix_errors(
+/// Localised poses `fixes` paired with the truth log `truth` (both sorted
+/// by time): each fix with the truth sample nearest to its time shifted by
+/// `offset`, within `tolerance`, as (fix time, fix, truth).
+pub fn fix_pairs(
     fixes: &[(f64, Pose)],
     truth: &[(f64, Pose)],
     offset: f64,
     tolerance: f64,
-) -> (f64, f64, f64, usize) {
-    let (mut sp, mut sh, mut mx, mut n) = (0.0, 0.0, 0.0f64, 0usize);
+) -> Vec<FixPair> {
+    let mut out = Vec::with_capacity(fixes.len());
     for (t, p) in fixes {
-        let t = t + offset;
-        let i = truth.partition_point(|(tt, _)| *tt < t);
+        let ts = t + offset;
+        let i = truth.partition_point(|(tt, _)| *tt < ts);
         let best = [i.wrapping_sub(1), i]
             .into_iter()
             .filter_map(|k| truth.get(k))
-            .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()));
-        let Some((tt, q)) = best else { continue };
-        if (tt - t).abs() > tolerance {
-            continue;
+            .min_by(|a, b| (a.0 - ts).abs().total_cmp(&(b.0 - ts).abs()));
+        if let Some((tt, q)) = best {
+            if (tt - ts).abs() <= tolerance {
+                out.push(FixPair {
+                    t: *t,
+                    fix: *p,
+                    truth: *q,
+                });
+            }
         }
-        let e = (p.translation.vector - q.translation.vector).norm();
-        let eh = wrap_angle(heading(p) - heading(q));
+    }
+    out
+}
+
+/// A localised pose and the true pose it is scored against.
+#[derive(Clone, Copy, Debug)]
+pub struct FixPair {
+    /// Stamp of the fix (clock s).
+    pub t: f64,
+    /// The localised robot pose.
+    pub fix: Pose,
+    /// The true robot pose at the scan.
+    pub truth: Pose,
+}
+
+impl FixPair {
+    /// Position error (m).
+    pub fn position_error(&self) -> f64 {
+        (self.fix.translation.vector - self.truth.translation.vector).norm()
+    }
+
+    /// Heading error (rad, wrapped).
+    pub fn heading_error(&self) -> f64 {
+        wrap_angle(heading(&self.fix) - heading(&self.truth))
+    }
+}
+
+/// Pose error of the `pairs` of [`fix_pairs`]: (position RMSE, heading
+/// RMSE, max position error, pairs).
+pub fn fix_errors(pairs: &[FixPair]) -> (f64, f64, f64, usize) {
+    let (mut sp, mut sh, mut mx) = (0.0, 0.0, 0.0f64);
+    for pr in pairs {
+        let (e, eh) = (pr.position_error(), pr.heading_error());
         sp += e * e;
         sh += eh * eh;
         mx = mx.max(e);
-        n += 1;
     }
-    let d = n.max(1) as f64;
-    ((sp / d).sqrt(), (sh / d).sqrt(), mx, n)
+    let d = pairs.len().max(1) as f64;
+    ((sp / d).sqrt(), (sh / d).sqrt(), mx, pairs.len())
 }
 
 /// Largest shift [`best_stamp_shift`] tries (s).
@@ -567,7 +605,8 @@ fn drive(
     let n = n_err.max(1) as f64;
     let seen = seen.lock().map(|g| g.clone()).unwrap_or_default();
     let fixes = shared.fixes();
-    let (pos, head, pmax, pairs) = fix_errors(&fixes, &seen, 0.0, 0.2);
+    let fix_pairs = fix_pairs(&fixes, &seen, 0.0, 0.2);
+    let (pos, head, pmax, pairs) = fix_errors(&fix_pairs);
     let best_offset = best_stamp_shift(&fixes, &seen);
     let report = SimReport {
         metrics: tracker.metrics(),
@@ -590,12 +629,14 @@ fn drive(
         safety_events: shared
             .safety_events
             .load(std::sync::atomic::Ordering::Relaxed),
+        scan_holds: shared.scan_holds.load(std::sync::atomic::Ordering::Relaxed),
         stuck_paths: shared
             .stuck_paths
             .load(std::sync::atomic::Ordering::Relaxed),
         pipeline: outcome.snapshot,
         truth,
         estimate,
+        fixes: fix_pairs,
     };
     if let Some(dir) = &opts.out {
         super::sim_report::write(dir, opts, &report, &tracker, &shared).map_err(|source| {

@@ -10,11 +10,11 @@ use std::path::Path;
 use svg::node::element::{Polyline, Rectangle};
 use svg::Document;
 
-use super::closed_loop::{SimOptions, SimReport};
+use super::closed_loop::{FixPair, SimOptions, SimReport};
 use super::coverage_metrics::CoverageTracker;
 use super::coverage_svg;
 use crate::daemon::Shared;
-use crate::geom::Pose;
+use crate::geom::{heading, Pose};
 use crate::grid::{CellState, Grid};
 
 fn polyline(poses: &[Pose], g: &Grid, scale: f64, colour: &str) -> Polyline {
@@ -116,7 +116,30 @@ pub fn write(
         &format!("{}: closed loop through the ptys", opts.world.name),
     );
     coverage_svg::save(&dir.join("path.svg"), &doc)?;
+    std::fs::write(dir.join("fixes.csv"), fixes_csv(&r.fixes))?;
     std::fs::write(dir.join("summary.md"), summary(opts, r))
+}
+
+/// One line per scored localised pose: its stamp, the fix, the truth and
+/// the errors, for plotting where localisation went wrong.
+pub fn fixes_csv(pairs: &[FixPair]) -> String {
+    let mut s = String::from("t_s,fix_x_m,fix_y_m,fix_theta_rad,true_x_m,true_y_m,true_theta_rad,error_m,heading_error_rad\n");
+    for p in pairs {
+        let _ = writeln!(
+            s,
+            "{:.4},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5},{:.4},{:.5}",
+            p.t,
+            p.fix.translation.x,
+            p.fix.translation.y,
+            heading(&p.fix),
+            p.truth.translation.x,
+            p.truth.translation.y,
+            heading(&p.truth),
+            p.position_error(),
+            p.heading_error()
+        );
+    }
+    s
 }
 
 /// The Markdown summary of a run.
@@ -188,6 +211,7 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             "paths given up for lack of headway",
             format!("{}", r.stuck_paths),
         ),
+        ("wheels held for lack of scans", format!("{}", r.scan_holds)),
         (
             "process CPU",
             format!(

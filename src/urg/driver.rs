@@ -51,6 +51,9 @@ pub struct UrgScan {
     pub dropped_before: u64,
     /// Time between neighbouring steps (s), for deskewing during motion.
     pub time_per_step: f64,
+    /// Time between two delivered scans (s): the sensor's scan period times
+    /// (skip + 1); a longer gap between stamps means scans were lost.
+    pub interval: f64,
     /// Error-code table of the sensor.
     pub family: ModelFamily,
 }
@@ -65,6 +68,7 @@ impl Default for UrgScan {
             epoch: 0,
             dropped_before: 0,
             time_per_step: 0.0,
+            interval: 0.0,
             family: ModelFamily::Unknown,
         }
     }

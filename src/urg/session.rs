@@ -892,6 +892,7 @@ impl Core {
         scan.epoch = self.epoch;
         scan.dropped_before = dropped;
         scan.time_per_step = p.time_per_step();
+        scan.interval = interval_ms / 1000.0;
         scan.family = p.family();
         UrgHealth::bump(&self.health.scans);
         self.new_scan = true;
