@@ -17,6 +17,26 @@ pub fn heading(p: &Pose) -> f64 {
     p.rotation.angle()
 }
 
+/// The pose `f` of the way from `a` to `b` (0 = `a`, 1 = `b`): the position
+/// along the straight line, the heading along the shorter turn.
+pub fn interpolate(a: &Pose, b: &Pose, f: f64) -> Pose {
+    let th = heading(a) + f * wrap_angle(heading(b) - heading(a));
+    pose(
+        a.translation.x + f * (b.translation.x - a.translation.x),
+        a.translation.y + f * (b.translation.y - a.translation.y),
+        wrap_angle(th),
+    )
+}
+
+/// How far pose `a` is from pose `b`: the distance between their positions
+/// (m) and the heading of `a` minus that of `b`, wrapped (rad).
+pub fn pose_error(a: &Pose, b: &Pose) -> (f64, f64) {
+    (
+        (a.translation.vector - b.translation.vector).norm(),
+        wrap_angle(heading(a) - heading(b)),
+    )
+}
+
 /// Wraps an angle into (-π, π].
 pub fn wrap_angle(a: f64) -> f64 {
     let mut r = a % std::f64::consts::TAU;
@@ -99,6 +119,18 @@ impl Segment {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn interpolation_turns_the_short_way_and_errors_are_wrapped() {
+        let (a, b) = (pose(0.0, 0.0, 3.0), pose(2.0, -4.0, -3.0));
+        let m = interpolate(&a, &b, 0.5);
+        assert!((m.translation.x - 1.0).abs() < 1e-12 && (m.translation.y + 2.0).abs() < 1e-12);
+        // 3 rad to -3 rad is 0.28 rad through π, not 6 rad back through 0.
+        assert!((heading(&m).abs() - std::f64::consts::PI).abs() < 1e-9);
+        let (d, h) = pose_error(&b, &a);
+        assert!((d - 20f64.sqrt()).abs() < 1e-12);
+        assert!((h - (std::f64::consts::TAU - 6.0)).abs() < 1e-12);
+    }
 
     #[test]
     fn wrap_angle_stays_in_range() {

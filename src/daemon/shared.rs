@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use crate::geom::{heading, pose, wrap_angle, Pose};
+use crate::geom::{heading, interpolate, pose, Pose};
 
 /// How many odometry samples are kept for looking up the pose at a scan's time.
 const ODOM_HISTORY: usize = 256;
@@ -77,14 +77,7 @@ impl OdomLog {
                 if !(span.is_finite() && span > 0.0) {
                     return ps;
                 }
-                let f = (t - ts) / span;
-                let (a, b) = (ps, after.1);
-                let th = heading(&a) + f * wrap_angle(heading(&b) - heading(&a));
-                return pose(
-                    a.translation.x + f * (b.translation.x - a.translation.x),
-                    a.translation.y + f * (b.translation.y - a.translation.y),
-                    wrap_angle(th),
-                );
+                return interpolate(&ps, &after.1, (t - ts) / span);
             }
             after = (ts, ps);
         }

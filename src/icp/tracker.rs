@@ -281,10 +281,10 @@ impl Tracker {
     /// its translation replaced by the smoothed per-scan step times that span;
     /// updates the smoothed step. The rotation is kept as measured.
     fn smoothed_increment(&mut self, inc: &Pose) -> Pose {
-        let a = self.matcher.params().odometry_smoothing;
         if self.after_gap {
             return *inc;
         }
+        let a = self.matcher.params().odometry_smoothing;
         let k = f64::from(self.scans_since_anchor.max(1));
         let raw = inc.translation.vector / k;
         let step = match self.odom_step {

@@ -20,7 +20,7 @@ use crate::clock::{ScaledClock, SharedClock};
 use crate::config::Config;
 use crate::control::{integrate, Twist, WheelCmd};
 use crate::daemon::{urg_clock, Daemon, DaemonSetup, MapFrame};
-use crate::geom::{heading, wrap_angle, Pose};
+use crate::geom::{heading, interpolate, pose_error, wrap_angle, Pose};
 use crate::motor::{BaseKind, LinkHealth};
 use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::supervisor::StopReason;
@@ -228,12 +228,12 @@ pub struct FixPair {
 impl FixPair {
     /// Position error (m).
     pub fn position_error(&self) -> f64 {
-        (self.fix.translation.vector - self.truth.translation.vector).norm()
+        pose_error(&self.fix, &self.truth).0
     }
 
     /// Heading error (rad, wrapped).
     pub fn heading_error(&self) -> f64 {
-        wrap_angle(heading(&self.fix) - heading(&self.truth))
+        pose_error(&self.fix, &self.truth).1
     }
 }
 
@@ -268,13 +268,7 @@ pub fn truth_at(truth: &[(f64, Pose)], t: f64, gap: f64) -> Option<Pose> {
     if !(t1 - t0 > 0.0 && t1 - t0 <= gap) {
         return None;
     }
-    let f = (t - t0) / (t1 - t0);
-    let th = heading(a) + f * wrap_angle(heading(b) - heading(a));
-    Some(crate::geom::pose(
-        a.translation.x + f * (b.translation.x - a.translation.x),
-        a.translation.y + f * (b.translation.y - a.translation.y),
-        wrap_angle(th),
-    ))
+    Some(interpolate(a, b, (t - t0) / (t1 - t0)))
 }
 
 /// The shift of the localised poses' stamps against the truth log that
@@ -572,8 +566,7 @@ fn drive(
                 integrate(&p, &twist, (est_at - at).clamp(-0.3, 0.3))
             }
         };
-        let e = (q.translation.vector - est.translation.vector).norm();
-        let eh = wrap_angle(heading(&q) - heading(&est));
+        let (e, eh) = pose_error(&q, &est);
         se_pos += e * e;
         se_head += eh * eh;
         n_err += 1;
