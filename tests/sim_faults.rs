@@ -19,7 +19,7 @@ start 0.5 0.5 0.0\n";
 const ROOM_WITH_STOOL: &str = "name faults-body\nresolution 0.02\n\
 room 0 0 3.2 0 3.2 2.6 0 2.6 refl 0.55\n\
 box 1.8 1.0 2.3 1.5 refl 0.8\n\
-box 0.9 1.9 1.1 2.1 refl 0.5\n\
+low box 0.9 1.9 1.1 2.1\n\
 start 0.5 0.5 0.0\n";
 
 fn config() -> Config {
@@ -133,8 +133,7 @@ fn coverage_survives_scanner_unplug_motor_silence_and_corruption() {
 #[test]
 fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     let _ = env_logger::builder().is_test(true).try_init();
-    let mut opts = SimOptions::new(World::parse(ROOM).unwrap(), config());
-    opts.body_world = Some(std::sync::Arc::new(World::parse(ROOM_WITH_STOOL).unwrap()));
+    let mut opts = SimOptions::new(World::parse(ROOM_WITH_STOOL).unwrap(), config());
     opts.speed = 8.0;
     opts.time_cap = 1200.0;
     opts.out = out("sim_faults_bump");
@@ -162,6 +161,25 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
         m.coverage
     );
     assert!(r.position_rmse <= 0.03, "{}", r.position_rmse);
+    assert_marks_on_obstacles(&opts, &r);
+}
+
+/// Every contact mark lies on an obstacle (within 6 cm of floor the body
+/// cannot take): a mark in open floor walls off floor that is there. Before
+/// the marks took the measured motion and the marks already made, 13 of 37
+/// marks in ten runs of this room lay 7-31 cm out in the open.
+fn assert_marks_on_obstacles(opts: &SimOptions, r: &closed_loop::SimReport) {
+    let astray: Vec<_> = r
+        .contacts
+        .iter()
+        .filter(|p| opts.world.disk_is_free(p, 0.06))
+        .collect();
+    assert!(!r.contacts.is_empty());
+    assert!(
+        kept_unless(opts, astray.is_empty()),
+        "marks in open floor: {astray:?} of {:?}",
+        r.contacts
+    );
 }
 
 #[test]
@@ -169,8 +187,7 @@ fn create2_bumper_sides_place_the_contact_and_the_run_goes_on() {
     // The Create 2 reports which side closed: the contact is marked on that
     // side of the shell instead of straight ahead.
     let _ = env_logger::builder().is_test(true).try_init();
-    let mut opts = SimOptions::new(World::parse(ROOM).unwrap(), config());
-    opts.body_world = Some(std::sync::Arc::new(World::parse(ROOM_WITH_STOOL).unwrap()));
+    let mut opts = SimOptions::new(World::parse(ROOM_WITH_STOOL).unwrap(), config());
     opts.base = sweepline::motor::BaseKind::Create2;
     opts.speed = 8.0;
     opts.time_cap = 1200.0;
@@ -192,4 +209,5 @@ fn create2_bumper_sides_place_the_contact_and_the_run_goes_on() {
         "coverage {:.4}",
         m.coverage
     );
+    assert_marks_on_obstacles(&opts, &r);
 }

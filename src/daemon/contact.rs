@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{invalid, ConfigError};
 use crate::geom::{heading, Pose};
+use crate::grid::{CellState, Grid};
 use crate::motor::{Sides, WheelSpeeds};
 use crate::pipeline::checkpoint::ContactArc;
 
@@ -208,14 +209,7 @@ impl ContactMark {
         wheel_base: f64,
         track: Option<&BodyTrack>,
     ) -> Self {
-        let v = 0.5 * (wheels.left + wheels.right);
-        let w = if wheel_base > 0.0 {
-            (wheels.right - wheels.left) / wheel_base
-        } else {
-            0.0
-        };
-        // Turning in place: the shell's leading end sweeps new space.
-        let turning = w.is_finite() && v.is_finite() && w.abs() * radius > 2.0 * v.abs();
+        let (turning, w) = turn_in_place(wheels, radius, wheel_base);
         let lead = |b: f64| (b, (b, b));
         let (bearing, arc) = match sides.map(|s| (s.left, s.right)) {
             Some((true, false)) if turning && w > 0.0 => lead(params.turn_bearing),
@@ -237,6 +231,32 @@ impl ContactMark {
             at: point(bearing),
             half_length: params.arc_half_length,
         }
+    }
+
+    /// Whether this marked contact explains a bumper closing on `sides`
+    /// (`None`: either) with the robot of `radius` at `pose`: its point
+    /// touches the shell (within `params.same_contact` of the bumper's
+    /// reach) on the part of the bumper's arc that closed. A bumper that
+    /// closes again at an obstacle it has just marked (after backing off a
+    /// few millimetres and turning, say) has learnt nothing new; a fresh
+    /// mark would be a guess at another bearing, and a wrong guess walls
+    /// off floor.
+    pub fn explains(
+        &self,
+        params: &ContactParams,
+        pose: &Pose,
+        sides: Option<Sides>,
+        radius: f64,
+    ) -> bool {
+        let centre: Point2<f64> = pose.translation.vector.into();
+        let d = self.at - centre;
+        let reach = radius + params.gap + params.same_contact;
+        if d.norm() > reach || !d.norm().is_finite() {
+            return false;
+        }
+        let b = crate::geom::wrap_angle(d.y.atan2(d.x) - heading(pose));
+        let (lo, hi) = closed_arc(params, sides);
+        (lo..=hi).contains(&b)
     }
 
     /// Whether `other` is the same contact as this one: its contact point
@@ -280,6 +300,56 @@ impl From<&ContactMark> for ContactArc {
             centre: m.centre,
             at: m.at,
             half_length: m.half_length,
+        }
+    }
+}
+
+/// Slowest wheel travel taken as motion (m/s, both wheels together).
+const MOVING: f64 = 0.005;
+/// Longest a measured motion stands for the motion a contact interrupted
+/// (clock s): a few encoder polls.
+const MOTION_MEMORY: f64 = 0.2;
+
+/// The wheels' last measured motion (encoder travel over a poll). A
+/// contact interrupts what the wheels did, not what was last commanded:
+/// at a lane's end the command is already the turn while the base still
+/// rolls forward into the wall, and a turn's contact is marked at the
+/// shell's side, a forward one ahead.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionMemory {
+    speeds: WheelSpeeds,
+    at: f64,
+}
+
+impl Default for MotionMemory {
+    fn default() -> Self {
+        Self {
+            speeds: WheelSpeeds::STOP,
+            at: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl MotionMemory {
+    /// Takes the wheel speeds of one odometry reading, if the wheels moved.
+    pub fn note(&mut self, o: &crate::motor::Odometry) {
+        let dt = o.t1 - o.t0;
+        if dt > 0.0 && (o.left.abs() + o.right.abs()) > MOVING * dt {
+            self.speeds = WheelSpeeds {
+                left: o.left / dt,
+                right: o.right / dt,
+            };
+            self.at = o.t1;
+        }
+    }
+
+    /// The motion a contact closing at clock time `now` interrupted: the
+    /// measured one when recent, else the `commanded` one.
+    pub fn interrupted(&self, now: f64, commanded: WheelSpeeds) -> WheelSpeeds {
+        if now - self.at <= MOTION_MEMORY {
+            self.speeds
+        } else {
+            commanded
         }
     }
 }
@@ -333,6 +403,64 @@ impl HeldContact {
             .take()
             .map(|(sides, wheels, since)| (sides, wheels, now * since.inverse()))
     }
+}
+
+/// Whether `wheels` turn a robot of `radius` in place (the shell's ends
+/// move faster than its middle advances), and the turn rate (rad/s).
+pub fn turn_in_place(wheels: WheelSpeeds, radius: f64, wheel_base: f64) -> (bool, f64) {
+    let v = 0.5 * (wheels.left + wheels.right);
+    let w = if wheel_base > 0.0 {
+        (wheels.right - wheels.left) / wheel_base
+    } else {
+        0.0
+    };
+    let turning = w.is_finite() && v.is_finite() && w.abs() * radius > 2.0 * v.abs();
+    (turning, w)
+}
+
+/// The bearings (rad from straight ahead, low to high) of the bumper's arc
+/// that can have closed on `sides` (`None`: either).
+fn closed_arc(params: &ContactParams, sides: Option<Sides>) -> (f64, f64) {
+    match sides.map(|s| (s.left, s.right)) {
+        Some((true, false)) => (0.0, params.bumper_half_arc),
+        Some((false, true)) => (-params.bumper_half_arc, 0.0),
+        _ => (-params.bumper_half_arc, params.bumper_half_arc),
+    }
+}
+
+/// A mapped obstacle (an occupied cell of `grid`, the scanner's or an
+/// earlier contact's) touching the part of the shell of a robot of `radius`
+/// at `pose` that closed on `sides`: the centre of the nearest such cell.
+/// A disc turning in place comes no nearer to anything, so a bumper that
+/// closes while turning beside a mapped wall has found that wall; a guess
+/// at the turn's leading end would put a mark in open floor.
+pub fn mapped_touch(
+    grid: &Grid,
+    params: &ContactParams,
+    pose: &Pose,
+    sides: Option<Sides>,
+    radius: f64,
+) -> Option<Point2<f64>> {
+    let (lo, hi) = closed_arc(params, sides);
+    let centre: Point2<f64> = pose.translation.vector.into();
+    let th = heading(pose);
+    let step = grid.resolution() / 2.0;
+    let reach = radius + params.gap + params.same_contact;
+    let mut r = radius;
+    while r <= reach {
+        let n = ((hi - lo) / BEARING_STEP).round().max(0.0) as usize;
+        for k in 0..=n {
+            let a = th + lo + k as f64 * BEARING_STEP;
+            let p = centre + Vector2::new(a.cos(), a.sin()) * r;
+            if let Some(c) = grid.cell_of(&p) {
+                if grid.state(c) == CellState::Occupied {
+                    return Some(grid.centre_of(c));
+                }
+            }
+        }
+        r += step;
+    }
+    None
 }
 
 /// The middle of the run of bearings in `arc` not `ruled_out` that holds
@@ -665,5 +793,88 @@ mod tests {
             let e = p.validate().unwrap_err().to_string();
             assert!(e.contains(&format!("daemon.contact.{key}")), "{e}");
         }
+    }
+
+    #[test]
+    fn a_closure_at_a_marked_contact_is_explained_by_it_on_the_closed_side() {
+        let params = ContactParams::default();
+        // Driving west along the top of a stool, touching its corner with
+        // the shell's left (south) side; then backed off 14 mm and turning.
+        let first = est(
+            &pose(1.163, 2.266, std::f64::consts::PI),
+            Sides {
+                left: true,
+                right: false,
+            },
+            WheelSpeeds::from_body(0.23, 0.0, B),
+            None,
+        );
+        let now = pose(1.177, 2.266, 176f64.to_radians());
+        assert!(first.explains(&params, &now, None, R));
+        let left = Sides {
+            left: true,
+            right: false,
+        };
+        let right = Sides {
+            left: false,
+            right: true,
+        };
+        assert!(first.explains(&params, &now, Some(left), R));
+        assert!(!first.explains(&params, &now, Some(right), R));
+        // Facing away from it, or a body length off, it explains nothing.
+        assert!(!first.explains(&params, &pose(1.177, 2.266, 0.0), None, R));
+        assert!(!first.explains(&params, &pose(1.5, 2.266, 176f64.to_radians()), None, R));
+    }
+
+    #[test]
+    fn a_mapped_wall_touching_the_closed_arc_is_found() {
+        let params = ContactParams::default();
+        let mut grid = Grid::new(Point2::new(0.0, 0.0), 0.05, 80, 60);
+        // A box corner 0.187 m from the centre, 26° to the right of the
+        // heading (the turn-in-place closure at the box of a bench run).
+        let at = pose(2.383, 1.666, -89f64.to_radians());
+        let corner = Point2::new(2.29, 1.50);
+        grid.set_state(grid.cell_of(&corner).unwrap(), CellState::Occupied);
+        let hit = mapped_touch(&grid, &params, &at, None, R).expect("the corner touches");
+        assert!((hit - corner).norm() < 0.05, "{hit:?}");
+        let left = Sides {
+            left: true,
+            right: false,
+        };
+        assert_eq!(mapped_touch(&grid, &params, &at, Some(left), R), None);
+        // Half a metre away nothing is touched.
+        assert_eq!(
+            mapped_touch(&grid, &params, &pose(2.9, 1.666, -1.55), None, R),
+            None
+        );
+    }
+
+    #[test]
+    fn the_interrupted_motion_is_the_measured_one_while_recent() {
+        let mut m = MotionMemory::default();
+        let turn = WheelSpeeds::from_body(0.0, 0.8, B);
+        // Nothing measured yet: the command.
+        assert_eq!(m.interrupted(1.0, turn), turn);
+        // Rolling forward at 0.2 m/s while the turn is already commanded.
+        m.note(&crate::motor::Odometry {
+            t0: 1.00,
+            t1: 1.02,
+            delta: pose(0.004, 0.0, 0.0),
+            left: 0.004,
+            right: 0.004,
+        });
+        let fwd = m.interrupted(1.05, turn);
+        assert!((fwd.left - 0.2).abs() < 1e-9 && (fwd.right - 0.2).abs() < 1e-9);
+        assert!(!turn_in_place(fwd, R, B).0 && turn_in_place(turn, R, B).0);
+        // Standing still is not a motion; an old reading gives way.
+        m.note(&crate::motor::Odometry {
+            t0: 1.02,
+            t1: 1.04,
+            delta: pose(0.0, 0.0, 0.0),
+            left: 0.0,
+            right: 0.0,
+        });
+        assert_eq!(m.interrupted(1.1, turn), fwd);
+        assert_eq!(m.interrupted(2.0, turn), turn);
     }
 }

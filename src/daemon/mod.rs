@@ -290,6 +290,7 @@ impl Daemon {
                 radius: robot.radius,
                 wheel_base: robot.wheel_base,
                 last_wheels: crate::motor::WheelSpeeds::STOP,
+                motion: contact::MotionMemory::default(),
                 contact: cfg.daemon.contact.clone(),
                 held: contact::HeldContact::default(),
                 track: contact::BodyTrack::new(

@@ -9,7 +9,9 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::contact::{BodyTrack, ContactMark, ContactParams, HeldContact};
+use super::contact::{
+    mapped_touch, turn_in_place, BodyTrack, ContactMark, ContactParams, HeldContact, MotionMemory,
+};
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
@@ -288,6 +290,10 @@ impl MapStage {
             new_contacts: 0,
             same_contact,
         };
+        if !s.contacts.is_empty() {
+            let arcs = Arc::new(contact_arcs(&s.contacts));
+            s.shared.with_status(|st| st.contacts = Some(arcs));
+        }
         s.mark_contacts();
         s
     }
@@ -776,8 +782,10 @@ pub struct MotorStage {
     pub radius: f64,
     /// Wheel base (m).
     pub wheel_base: f64,
-    /// The last wheel speeds commanded (the motion a contact interrupted).
+    /// The last wheel speeds commanded.
     pub last_wheels: WheelSpeeds,
+    /// The wheels' measured motion: what a contact interrupted.
+    pub motion: MotionMemory,
     /// Where the body has been (rules out contact bearings).
     pub track: BodyTrack,
     /// Where contact marks go.
@@ -791,6 +799,32 @@ impl MotorStage {
     /// with the robot at `at` commanded to `wheels`: to the map first, so
     /// the snapshot that makes the planner plan again already holds it.
     fn mark(&mut self, what: &str, at: &Pose, sides: Option<Sides>, wheels: WheelSpeeds) {
+        let known = self.shared.with_status(|s| s.contacts.clone());
+        let explained = known.as_deref().and_then(|k| {
+            k.arcs
+                .iter()
+                .map(|&a| ContactMark::from(a))
+                .find(|m| m.explains(&self.contact, at, sides, self.radius))
+        });
+        let touched = explained.map(|m| ("the contact marked", m.at)).or_else(|| {
+            let (turning, _) = turn_in_place(wheels, self.radius, self.wheel_base);
+            let grid = self.shared.with_status(|s| s.grid.clone())?;
+            turning
+                .then(|| mapped_touch(&grid, &self.contact, at, sides, self.radius))
+                .flatten()
+                .map(|p| ("the mapped wall", p))
+        });
+        if let Some((what_is_there, p)) = touched {
+            log::warn!(
+                "safety: {what}: robot at ({:.2}, {:.2}) m {:.0}° touches {what_is_there} at ({:.2}, {:.2}) m: nothing new marked",
+                at.translation.x,
+                at.translation.y,
+                heading(at).to_degrees(),
+                p.x,
+                p.y,
+            );
+            return;
+        }
         let mark = ContactMark::estimate(
             &self.contact,
             at,
@@ -825,6 +859,7 @@ impl MotorStage {
         if let Some(o) = fb.odometry {
             self.shared.odom.push(o.t1, &o.delta);
             self.held.moved(&o.delta);
+            self.motion.note(&o);
         }
         if let Some((sides, wheels, at)) = self.held.release(localised, &here) {
             self.mark("contact held until the pose was known", &at, sides, wheels);
@@ -836,7 +871,8 @@ impl MotorStage {
                         self.shared.bumper_closed.store(true, Ordering::Relaxed);
                     }
                     let sides = self.base.bumper_sides().then_some(*sides);
-                    match self.held.closed(localised, sides, self.last_wheels) {
+                    let wheels = self.motion.interrupted(self.clock.now(), self.last_wheels);
+                    match self.held.closed(localised, sides, wheels) {
                         Some((sides, wheels)) => self.mark(&format!("{e:?}"), &here, sides, wheels),
                         None => log::warn!(
                             "safety: {e:?} before the first matched scan: the contact is marked once the pose is known"

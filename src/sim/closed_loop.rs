@@ -96,9 +96,6 @@ pub struct SimOptions {
     pub urg_faults: urg_emu::Faults,
     /// Faults of the base emulator, by time.
     pub base_faults: Vec<TimedFault>,
-    /// Obstacles the body hits but the scanner does not see (the base
-    /// emulator collides with this world instead, when set).
-    pub body_world: Option<Arc<World>>,
     /// Range noise of the scanner (m, standard deviation).
     pub range_noise: f64,
 }
@@ -117,7 +114,6 @@ impl SimOptions {
             progress: false,
             urg_faults: urg_emu::Faults::default(),
             base_faults: Vec::new(),
-            body_world: None,
             range_noise: 0.005,
         }
     }
@@ -171,6 +167,8 @@ pub struct SimReport {
     pub stuck_paths: u64,
     /// Times the daemon held the wheels because no scan came.
     pub scan_holds: u64,
+    /// The bumper contacts marked in the map (contact points, map frame).
+    pub contacts: Vec<Point2<f64>>,
     /// The pipeline's final metrics.
     pub pipeline: MetricsSnapshot,
     /// True trajectory (one pose per sample).
@@ -397,11 +395,7 @@ fn start_emulators(
 ) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
     let mut ecfg = base_emu::EmulatorConfig::from_config(&opts.config, opts.base);
     ecfg.start = opts.world.start;
-    ecfg.world = Some(
-        opts.body_world
-            .clone()
-            .unwrap_or_else(|| opts.world.clone()),
-    );
+    ecfg.world = Some(opts.world.clone());
     ecfg.seed = opts.seed;
     ecfg.kinematics.seed = opts.seed;
     // Stable symlinks, like the udev names on the robot: they follow the
@@ -453,11 +447,10 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
         )));
     }
     let robot = opts.config.robot.clone();
-    // Reachable floor is what the body can reach: the body's world when it
-    // has obstacles the scanner cannot see.
-    let truth_world = opts.body_world.as_deref().unwrap_or(&opts.world);
+    // Reachable floor is what the body can reach: the free raster leaves
+    // out the `low` obstacles the scanner cannot see too.
     let tracker = CoverageTracker::new(
-        truth_world,
+        &opts.world,
         robot.radius,
         robot.tool_width,
         &opts.world.start,
@@ -623,6 +616,12 @@ fn drive(
             .safety_events
             .load(std::sync::atomic::Ordering::Relaxed),
         scan_holds: shared.scan_holds.load(std::sync::atomic::Ordering::Relaxed),
+        contacts: shared.with_status(|s| {
+            s.contacts
+                .as_deref()
+                .map(|c| c.arcs.iter().map(|a| a.at).collect())
+                .unwrap_or_default()
+        }),
         stuck_paths: shared
             .stuck_paths
             .load(std::sync::atomic::Ordering::Relaxed),

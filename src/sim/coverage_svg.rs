@@ -55,15 +55,21 @@ fn walls(world: &World, v: &View) -> Group {
         .set("stroke", "#000000")
         .set("stroke-width", 2.5);
     for w in &world.walls {
-        g = g.add(
-            Line::new()
-                .set("x1", v.x(w.seg.a.x))
-                .set("y1", v.y(w.seg.a.y))
-                .set("x2", v.x(w.seg.b.x))
-                .set("y2", v.y(w.seg.b.y)),
-        );
+        g = g.add(segment(w, v));
+    }
+    // Obstacles below the scanner's plane: dashed, the scanner never saw them.
+    for w in &world.low {
+        g = g.add(segment(w, v).set("stroke-dasharray", "4 3"));
     }
     g
+}
+
+fn segment(w: &crate::sim::world::Wall, v: &View) -> Line {
+    Line::new()
+        .set("x1", v.x(w.seg.a.x))
+        .set("y1", v.y(w.seg.a.y))
+        .set("x2", v.x(w.seg.b.x))
+        .set("y2", v.y(w.seg.b.y))
 }
 
 fn track(poses: &[Pose], v: &View, colour: &str, width: f64) -> Polyline {

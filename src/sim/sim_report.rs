@@ -108,7 +108,7 @@ pub fn write(
         coverage_svg::save(&dir.join("cells.svg"), &doc)?;
     }
     let doc = coverage_svg::path_svg(
-        opts.body_world.as_deref().unwrap_or(&opts.world),
+        &opts.world,
         tracker.passes(),
         tracker.reachable(),
         &r.truth,
@@ -212,6 +212,7 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             format!("{}", r.stuck_paths),
         ),
         ("wheels held for lack of scans", format!("{}", r.scan_holds)),
+        ("bumper contacts marked", format!("{}", r.contacts.len())),
         (
             "process CPU",
             format!(

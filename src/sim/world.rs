@@ -11,8 +11,13 @@
 //! box 1.0 1.0 1.6 1.4 refl 0.9          # rectangular obstacle: x0 y0 x1 y1
 //! polygon 3 3 3.5 3 3.2 3.6 refl 0.3    # obstacle polygon (closed)
 //! wall 2 0 2 1.5 refl 0.8               # a thin wall segment (no area)
+//! low box 0.9 1.9 1.1 2.1               # below the scanner's plane (a stool)
 //! start 0.5 0.5 0.0                     # robot start pose: x y theta
 //! ```
+//!
+//! `low` before `box` or `polygon` makes an obstacle the scanner's plane
+//! passes over: rays miss it, the body still runs into it (only the bumper
+//! can find it).
 //!
 //! Worlds can also be built from an occupancy raster (the floor-plan PNGs of
 //! `../shared/maps/`), see [`World::from_raster`].
@@ -178,8 +183,12 @@ impl WallIndex {
 pub struct World {
     /// Human-readable name.
     pub name: String,
-    /// All wall segments (room boundary, obstacle outlines, thin walls).
+    /// All wall segments the scanner sees (room boundary, obstacle
+    /// outlines, thin walls).
     pub walls: Vec<Wall>,
+    /// Outlines of the `low` obstacles: rays pass over them, the body does
+    /// not (they are not free floor); kept for the pictures.
+    pub low: Vec<Wall>,
     /// Ground-truth free floor.
     pub free: FreeRaster,
     /// Where the robot starts.
@@ -199,6 +208,7 @@ impl World {
         let mut resolution = DEFAULT_RESOLUTION;
         let mut room: Option<(Vec<Point2<f64>>, f64)> = None;
         let mut obstacles: Vec<(Vec<Point2<f64>>, f64)> = Vec::new();
+        let mut low: Vec<Vec<Point2<f64>>> = Vec::new();
         let mut thin: Vec<Wall> = Vec::new();
         let mut start: Option<Pose> = None;
         for (i, raw) in text.lines().enumerate() {
@@ -208,9 +218,17 @@ impl World {
                 continue;
             }
             let mut words = line.split_whitespace();
-            let key = words.next().unwrap_or("");
+            let mut key = words.next().unwrap_or("");
+            let below = key == "low";
+            if below {
+                key = words.next().unwrap_or("");
+                if !matches!(key, "box" | "polygon") {
+                    return Err(err(ln, "`low` takes `box` or `polygon` after it"));
+                }
+            }
             let rest: Vec<&str> = words.collect();
             let (nums, refl) = split_refl(&rest, ln)?;
+            let before = obstacles.len();
             match key {
                 "name" => name = rest.join(" "),
                 "resolution" => {
@@ -261,6 +279,9 @@ impl World {
                 }
                 other => return Err(err(ln, format!("unknown directive `{other}`"))),
             }
+            if below && obstacles.len() > before {
+                low.extend(obstacles.pop().map(|(o, _)| o));
+            }
         }
         let (outline, room_refl) = room.ok_or_else(|| err(0, "no `room` line"))?;
         let mut walls = Vec::new();
@@ -284,8 +305,9 @@ impl World {
                     origin.x + (cx as f64 + 0.5) * resolution,
                     origin.y + (cy as f64 + 0.5) * resolution,
                 );
-                free[cy * width + cx] =
-                    inside(&outline, &p) && !obstacles.iter().any(|(o, _)| inside(o, &p));
+                free[cy * width + cx] = inside(&outline, &p)
+                    && !obstacles.iter().any(|(o, _)| inside(o, &p))
+                    && !low.iter().any(|o| inside(o, &p));
             }
         }
         // Thin walls take no area but block the cells they cross.
@@ -304,7 +326,13 @@ impl World {
             let c = Point2::new((lo.x + hi.x) / 2.0, (lo.y + hi.y) / 2.0);
             pose(c.x, c.y, 0.0)
         });
-        Ok(World::assemble(name, walls, raster, start))
+        let mut low_walls = Vec::new();
+        for poly in &low {
+            push_ring(&mut low_walls, poly, DEFAULT_REFLECTIVITY);
+        }
+        let mut world = World::assemble(name, walls, raster, start);
+        world.low = low_walls;
+        Ok(world)
     }
 
     /// Reads and parses a world file.
@@ -381,6 +409,7 @@ impl World {
         World {
             name,
             walls,
+            low: Vec::new(),
             free,
             start,
             index,
@@ -629,6 +658,19 @@ mod tests {
         );
         assert!(w.disk_is_free(&Point2::new(0.5, 0.5), 0.2));
         assert!(!w.disk_is_free(&Point2::new(0.9, 1.5), 0.2));
+    }
+
+    #[test]
+    fn a_low_box_stops_the_body_but_not_the_rays() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\nlow box 2 1 2.4 1.4\nstart 1 1.2 0\n").unwrap();
+        // The ray along y = 1.2 passes over the stool to the far wall.
+        let h = w.cast_ray(&Point2::new(1.0, 1.2), 0.0, 10.0).unwrap();
+        assert!((h.range - 3.0).abs() < 1e-9, "{}", h.range);
+        assert!(!w.free.is_free(&Point2::new(2.2, 1.2)));
+        assert!(!w.disk_is_free(&Point2::new(1.9, 1.2), 0.17));
+        assert_eq!((w.walls.len(), w.low.len()), (4, 4));
+        let e = World::parse("room 0 0 4 0 4 3 0 3\nlow wall 1 1 2 2\n").unwrap_err();
+        assert!(e.to_string().contains("line 2"), "{e}");
     }
 
     #[test]

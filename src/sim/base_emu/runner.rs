@@ -474,6 +474,16 @@ fn run(
         }
         if body.bumper.any() && !was_bumped {
             s.stats.bumps += 1;
+            let (p, w) = (sim.pose(), sim.wheel_speeds());
+            log::debug!(
+                "emulated bumper closed ({:?}) at t={now:.2} s, true pose ({:.3}, {:.3}) m {:.0}°, wheels ({:+.2}, {:+.2}) m/s",
+                body.bumper,
+                p.translation.x,
+                p.translation.y,
+                crate::geom::heading(&p).to_degrees(),
+                w.left,
+                w.right,
+            );
         }
         was_bumped = body.bumper.any();
         s.truth = sim.pose();
