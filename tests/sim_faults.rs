@@ -22,6 +22,9 @@ box 1.8 1.0 2.3 1.5 refl 0.8\n\
 low box 0.9 1.9 1.1 2.1\n\
 start 0.5 0.5 0.0\n";
 
+/// Farthest a contact mark may lie from an obstacle (m).
+const MARK_BOUND: f64 = 0.2;
+
 fn config() -> Config {
     Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
 }
@@ -164,15 +167,20 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     assert_marks_on_obstacles(&opts, &r);
 }
 
-/// Every contact mark lies on an obstacle (within 6 cm of floor the body
-/// cannot take): a mark in open floor walls off floor that is there. Before
-/// the marks took the measured motion and the marks already made, 13 of 37
-/// marks in ten runs of this room lay 7-31 cm out in the open.
+/// Every contact mark lies near an obstacle: a mark out in open floor walls
+/// off floor that is there. Before the marks took the measured motion, the
+/// pose carried on to the contact's time and the marks already made, 8 of
+/// 37 marks in ten runs of this room lay 0.16-0.31 m from any obstacle (the
+/// shell's wrong side), one walling off the strip above the stool. The
+/// bound is what a bumper that cannot tell its sides allows: a contact at
+/// the end of the ±80° arc marked straight ahead is 2 (r + gap) sin 40° =
+/// 0.23 m from where it is; seen since: up to 0.13 m (a stool's corner
+/// 35° to the side).
 fn assert_marks_on_obstacles(opts: &SimOptions, r: &closed_loop::SimReport) {
     let astray: Vec<_> = r
         .contacts
         .iter()
-        .filter(|p| opts.world.disk_is_free(p, 0.06))
+        .filter(|c| opts.world.disk_is_free(&c.at, MARK_BOUND))
         .collect();
     assert!(!r.contacts.is_empty());
     assert!(

@@ -102,6 +102,10 @@ impl ContactParams {
     }
 }
 
+/// How far beyond the closed arc a marked contact still explains a closure
+/// (rad): the mark's bearing is an estimate, and backing off a contact at
+/// the arc's end turns it a few degrees further out.
+const EXPLAIN_SLACK: f64 = 0.2;
 /// Step of the bearings tried along the bumper's arc (rad).
 const BEARING_STEP: f64 = 0.05;
 /// Longest half arc a mark is drawn with (m), whatever it holds.
@@ -256,7 +260,7 @@ impl ContactMark {
         }
         let b = crate::geom::wrap_angle(d.y.atan2(d.x) - heading(pose));
         let (lo, hi) = closed_arc(params, sides);
-        (lo..=hi).contains(&b)
+        (lo - EXPLAIN_SLACK..=hi + EXPLAIN_SLACK).contains(&b)
     }
 
     /// Whether `other` is the same contact as this one: its contact point

@@ -227,6 +227,19 @@ impl Shared {
         lock(&self.fixes).clone()
     }
 
+    /// The control stage's last pose carried on by the odometry read since
+    /// (the control stage may not have run for a while on a loaded host),
+    /// and whether it rests on a matched scan.
+    pub fn pose_now(&self) -> (Pose, bool) {
+        let (p, t, localised) = self.with_status(|s| (s.pose, s.pose_time, s.localised));
+        let since = self.odom.at(t).inverse() * self.odom.latest();
+        let q = p * since;
+        (
+            pose(q.translation.x, q.translation.y, heading(&q)),
+            localised,
+        )
+    }
+
     /// Records a bumper or wheel-drop event at clock time `t`.
     pub fn note_bump(&self, t: f64) {
         self.bumped_at.store(t.to_bits(), Ordering::Relaxed);

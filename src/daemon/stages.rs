@@ -848,11 +848,6 @@ impl MotorStage {
     }
 
     fn poll(&mut self) -> Result<(), StageFault> {
-        let (here, localised) = self.shared.with_status(|s| (s.pose, s.localised));
-        if localised {
-            self.track
-                .stamp(&here.translation.vector.into(), self.radius);
-        }
         let fb = self.base.poll();
         self.shared.set_base_health(self.base.health());
         let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
@@ -860,6 +855,12 @@ impl MotorStage {
             self.shared.odom.push(o.t1, &o.delta);
             self.held.moved(&o.delta);
             self.motion.note(&o);
+        }
+        // After this poll's odometry: the pose a contact closed at.
+        let (here, localised) = self.shared.pose_now();
+        if localised {
+            self.track
+                .stamp(&here.translation.vector.into(), self.radius);
         }
         if let Some((sides, wheels, at)) = self.held.release(localised, &here) {
             self.mark("contact held until the pose was known", &at, sides, wheels);

@@ -167,8 +167,9 @@ pub struct SimReport {
     pub stuck_paths: u64,
     /// Times the daemon held the wheels because no scan came.
     pub scan_holds: u64,
-    /// The bumper contacts marked in the map (contact points, map frame).
-    pub contacts: Vec<Point2<f64>>,
+    /// The bumper contacts marked in the map (robot centre and contact
+    /// point, map frame).
+    pub contacts: Vec<crate::pipeline::checkpoint::ContactArc>,
     /// The pipeline's final metrics.
     pub pipeline: MetricsSnapshot,
     /// True trajectory (one pose per sample).
@@ -619,7 +620,7 @@ fn drive(
         contacts: shared.with_status(|s| {
             s.contacts
                 .as_deref()
-                .map(|c| c.arcs.iter().map(|a| a.at).collect())
+                .map(|c| c.arcs.clone())
                 .unwrap_or_default()
         }),
         stuck_paths: shared

@@ -193,8 +193,11 @@ impl DiffDriveSim {
         let th = heading(&self.pose);
         let c = Point2::from(self.pose.translation.vector);
         let mut s = Sides::default();
-        for k in -8i32..=8 {
-            let a = th + (k as f64) * 10f64.to_radians();
+        // Every 2° of the ±80° arc: a real shell is continuous, and points
+        // 10° apart let a turn in place or a few millimetres of backing off
+        // close the bumper on a corner that sat between two of them.
+        for k in -40i32..=40 {
+            let a = th + (k as f64) * 2f64.to_radians();
             let q = c + Vector2::new(a.cos(), a.sin()) * r;
             if !w.free.is_free(&q) {
                 if k >= 0 {
