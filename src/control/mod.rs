@@ -151,6 +151,7 @@ pub struct PathFollower {
     next: usize,
     state: FollowState,
     last: Twist,
+    horizon: f64,
 }
 
 /// Integrates unicycle kinematics exactly over `dt` (arc motion).
@@ -196,7 +197,22 @@ impl PathFollower {
             next: 0,
             state: FollowState::Idle,
             last: Twist::default(),
+            horizon: 0.0,
         })
+    }
+
+    /// Bounds the speed near a stop so that a command left in force for
+    /// `horizon` seconds (the base's dead-man time: a host that stalls
+    /// sends no newer one) still does not carry the robot past the stop.
+    /// Without it a stall at a lane's end ran the robot 5 cm on into the
+    /// wall in a loaded CI run. Costs about 0.2 s per stop.
+    pub fn with_command_horizon(mut self, horizon: f64) -> Self {
+        self.horizon = if horizon.is_finite() {
+            horizon.max(0.0)
+        } else {
+            0.0
+        };
+        self
     }
 
     /// Replaces the path: drive through `points` in order, then, if given,
@@ -340,8 +356,8 @@ impl PathFollower {
         if stop_here {
             let dist_along = to_goal.dot(&(seg / seg.norm().max(1e-9))).max(0.0);
             v = v.min((2.0 * self.params.max_accel * dist_along).sqrt());
-            // Never overshoot within one step.
-            v = v.min(dist_along / dt.max(1e-6));
+            // Never overshoot within one step, nor within the horizon.
+            v = v.min(dist_along / dt.max(self.horizon).max(1e-6));
         }
         let v = v.min(self.last.v.abs() + self.params.max_accel * dt);
         Twist { v, w }
@@ -416,6 +432,49 @@ mod tests {
         assert!(heading(&end).abs() < 0.02);
         assert!(max_v <= robot().max_speed + 1e-9, "{max_v}");
         assert!(max_w <= robot().max_turn_rate + 1e-9, "{max_w}");
+    }
+
+    #[test]
+    fn a_command_left_in_force_for_the_horizon_stops_short_of_the_end() {
+        let mut f = PathFollower::new(&ControlParams::default(), &robot())
+            .unwrap()
+            .with_command_horizon(0.25);
+        let end = Point2::new(1.0, 0.0);
+        f.set_path(&[Point2::new(0.0, 0.0), end], None);
+        let mut p = pose(0.0, 0.0, 0.0);
+        let mut checked = 0;
+        for _ in 0..2000 {
+            let (t, _) = f.step(&p, 0.05);
+            // Were this the last command for 0.25 s, where would it end?
+            let stalled = integrate(&p, &t, 0.25);
+            assert!(
+                stalled.translation.x <= end.x + 1e-9,
+                "at {:.3} m a stall ends at {:.3} m",
+                p.translation.x,
+                stalled.translation.x
+            );
+            checked += usize::from(t.v > 0.0);
+            p = integrate(&p, &t, 0.05);
+            if f.is_done() {
+                break;
+            }
+        }
+        assert!(f.is_done() && checked > 50);
+        assert!((p.translation.x - end.x).abs() < 0.015, "{p:?}");
+        // Without the horizon the same approach would overshoot a stall.
+        let mut f = PathFollower::new(&ControlParams::default(), &robot()).unwrap();
+        f.set_path(&[Point2::new(0.0, 0.0), end], None);
+        let mut p = pose(0.0, 0.0, 0.0);
+        let mut worst = f64::NEG_INFINITY;
+        for _ in 0..2000 {
+            let (t, _) = f.step(&p, 0.05);
+            worst = worst.max(integrate(&p, &t, 0.25).translation.x - end.x);
+            p = integrate(&p, &t, 0.05);
+            if f.is_done() {
+                break;
+            }
+        }
+        assert!(worst > 0.01, "{worst}");
     }
 
     #[test]

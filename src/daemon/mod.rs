@@ -270,7 +270,8 @@ impl Daemon {
         }
         planner.record_pose(&start);
         let follower = PathFollower::new(&cfg.control, &robot)
-            .map_err(|e| DaemonError::Config(e.to_string()))?;
+            .map_err(|e| DaemonError::Config(e.to_string()))?
+            .with_command_horizon(cfg.motor.deadman);
 
         let driver =
             UrgDriver::start(setup.scanner, cfg.scanner.clone(), urg_clock(clock.clone()))?;
