@@ -28,6 +28,15 @@ pub fn interpolate(a: &Pose, b: &Pose, f: f64) -> Pose {
     )
 }
 
+/// Pose `p` moved by the motion that took `from` to `to` (both in another
+/// frame, e.g. two odometry readings): `p · from⁻¹ · to`, its rotation
+/// re-normalised (nalgebra does not after products, and chained
+/// predictions would drift).
+pub fn carried(p: &Pose, from: &Pose, to: &Pose) -> Pose {
+    let q = p * (from.inverse() * to);
+    pose(q.translation.x, q.translation.y, heading(&q))
+}
+
 /// How far pose `a` is from pose `b`: the distance between their positions
 /// (m) and the heading of `a` minus that of `b`, wrapped (rad).
 pub fn pose_error(a: &Pose, b: &Pose) -> (f64, f64) {

@@ -64,6 +64,13 @@ impl Default for ContactParams {
 }
 
 impl ContactParams {
+    /// Farthest from the centre of a robot of `radius` that something
+    /// touching its shell can be (m): the contact's gap outside the body
+    /// and the same-contact tolerance.
+    pub fn reach(&self, radius: f64) -> f64 {
+        radius + self.gap + self.same_contact
+    }
+
     /// Checks every value's range; the error names the dotted key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let within = |key: &str, v: f64, lo: f64, hi: f64, open_lo: bool| {
@@ -254,7 +261,7 @@ impl ContactMark {
     ) -> bool {
         let centre: Point2<f64> = pose.translation.vector.into();
         let d = self.at - centre;
-        let reach = radius + params.gap + params.same_contact;
+        let reach = params.reach(radius);
         if d.norm() > reach || !d.norm().is_finite() {
             return false;
         }
@@ -449,10 +456,10 @@ pub fn mapped_touch(
     let centre: Point2<f64> = pose.translation.vector.into();
     let th = heading(pose);
     let step = grid.resolution() / 2.0;
-    let reach = radius + params.gap + params.same_contact;
+    let reach = params.reach(radius);
+    let n = ((hi - lo) / BEARING_STEP).round().max(0.0) as usize;
     let mut r = radius;
     while r <= reach {
-        let n = ((hi - lo) / BEARING_STEP).round().max(0.0) as usize;
         for k in 0..=n {
             let a = th + lo + k as f64 * BEARING_STEP;
             let p = centre + Vector2::new(a.cos(), a.sin()) * r;

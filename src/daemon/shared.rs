@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
-use crate::geom::{heading, interpolate, pose, Pose};
+use crate::geom::{carried, heading, interpolate, pose, Pose};
 
 /// How many odometry samples are kept for looking up the pose at a scan's time.
 const ODOM_HISTORY: usize = 256;
@@ -232,10 +232,8 @@ impl Shared {
     /// and whether it rests on a matched scan.
     pub fn pose_now(&self) -> (Pose, bool) {
         let (p, t, localised) = self.with_status(|s| (s.pose, s.pose_time, s.localised));
-        let since = self.odom.at(t).inverse() * self.odom.latest();
-        let q = p * since;
         (
-            pose(q.translation.x, q.translation.y, heading(&q)),
+            carried(&p, &self.odom.at(t), &self.odom.latest()),
             localised,
         )
     }

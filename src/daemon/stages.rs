@@ -18,7 +18,7 @@ use super::stuck::ProgressWatch;
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
-use crate::geom::{heading, pose, IPoint, Pose};
+use crate::geom::{carried, heading, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
 use crate::motor::{DiffDriveBase, SafetyEvent, Sides, WheelSpeeds};
@@ -591,11 +591,10 @@ impl ControlStage {
     /// The current pose estimate.
     fn estimate(&self) -> Pose {
         let odom = self.shared.odom.latest();
-        let p = match &self.fix {
-            Some(f) => f.pose * (f.odom.inverse() * odom),
-            None => self.start * odom,
-        };
-        pose(p.translation.x, p.translation.y, heading(&p))
+        match &self.fix {
+            Some(f) => carried(&f.pose, &f.odom, &odom),
+            None => carried(&self.start, &Pose::identity(), &odom),
+        }
     }
 
     /// Gives the path up when the follower has made no headway for
@@ -799,7 +798,9 @@ impl MotorStage {
     /// with the robot at `at` commanded to `wheels`: to the map first, so
     /// the snapshot that makes the planner plan again already holds it.
     fn mark(&mut self, what: &str, at: &Pose, sides: Option<Sides>, wheels: WheelSpeeds) {
-        let known = self.shared.with_status(|s| s.contacts.clone());
+        let (known, grid) = self
+            .shared
+            .with_status(|s| (s.contacts.clone(), s.grid.clone()));
         let explained = known.as_deref().and_then(|k| {
             k.arcs
                 .iter()
@@ -808,9 +809,9 @@ impl MotorStage {
         });
         let touched = explained.map(|m| ("the contact marked", m.at)).or_else(|| {
             let (turning, _) = turn_in_place(wheels, self.radius, self.wheel_base);
-            let grid = self.shared.with_status(|s| s.grid.clone())?;
+            let grid = grid.as_deref()?;
             turning
-                .then(|| mapped_touch(&grid, &self.contact, at, sides, self.radius))
+                .then(|| mapped_touch(grid, &self.contact, at, sides, self.radius))
                 .flatten()
                 .map(|p| ("the mapped wall", p))
         });

@@ -390,7 +390,7 @@ impl Tracker {
             self.reported = self.map_pose;
             return self.map_pose;
         }
-        let follow = unit(self.reported * (before.inverse() * self.map_pose));
+        let follow = crate::geom::carried(&self.reported, before, &self.map_pose);
         let local = if matched && !self.previous.is_empty() {
             match self
                 .matcher
