@@ -46,7 +46,11 @@ fn worlds() -> Vec<(String, World)> {
 
 /// Explores `world` along the tour, one update per scan; returns the
 /// decomposer and grid at the end and the per-update (wall, cpu) seconds.
-fn tour_run(world: &World, daemon_grid: bool) -> (Decomposer, Grid, Vec<(f64, f64)>) {
+fn tour_run(
+    world: &World,
+    daemon_grid: bool,
+    phases: &mut [f64; 8],
+) -> (Decomposer, Grid, Vec<(f64, f64)>) {
     let mut grid = if daemon_grid {
         // The daemon's map grid: 40 m square centred on the first pose.
         let s = world.start.translation;
@@ -60,6 +64,19 @@ fn tour_run(world: &World, daemon_grid: bool) -> (Decomposer, Grid, Vec<(f64, f6
         scan(world, &mut grid, &p);
         let (w0, c0) = (Instant::now(), thread_cpu_time().as_secs_f64());
         black_box(dec.update(&grid, &[]));
+        let t = dec.phase_times();
+        for (sum, d) in phases.iter_mut().zip([
+            t.direction,
+            t.resample,
+            t.gaps,
+            t.wall_points,
+            t.inflate,
+            t.pieces,
+            t.sweep,
+            t.inherit,
+        ]) {
+            *sum += d.as_secs_f64();
+        }
         times.push((
             w0.elapsed().as_secs_f64(),
             thread_cpu_time().as_secs_f64() - c0,
@@ -68,7 +85,7 @@ fn tour_run(world: &World, daemon_grid: bool) -> (Decomposer, Grid, Vec<(f64, f6
     (dec, grid, times)
 }
 
-fn report(name: &str, times: &[(f64, f64)], cells: usize) {
+fn report(name: &str, times: &[(f64, f64)], cells: usize, phases: &[f64; 8]) {
     let wall: Vec<f64> = times.iter().map(|t| t.0).collect();
     let cpu: Vec<f64> = times.iter().map(|t| t.1).collect();
     let ms = |v: f64| v * 1e3;
@@ -82,6 +99,25 @@ fn report(name: &str, times: &[(f64, f64)], cells: usize) {
         ms(percentile(&wall, 0.99)),
         ms(percentile(&wall, 1.0)),
     );
+    let names = [
+        "direction",
+        "resample",
+        "gaps",
+        "wall points",
+        "inflate",
+        "pieces",
+        "sweep",
+        "inherit",
+    ];
+    let steps: Vec<String> = names
+        .iter()
+        .zip(phases)
+        .map(|(n, s)| format!("{n} {:.3}", ms(s / times.len().max(1) as f64)))
+        .collect();
+    eprintln!(
+        "decomp_update {name}: mean wall ms by step: {}",
+        steps.join(", ")
+    );
 }
 
 fn bench(c: &mut Criterion) {
@@ -92,13 +128,14 @@ fn bench(c: &mut Criterion) {
         // Three tours: the latency distribution over all their updates.
         let mut all = Vec::new();
         let mut last = None;
+        let mut phases = [0.0; 8];
         for _ in 0..3 {
-            let (dec, grid, times) = tour_run(&world, daemon_grid);
+            let (dec, grid, times) = tour_run(&world, daemon_grid, &mut phases);
             all.extend(times);
             last = Some((dec, grid));
         }
         let (dec, grid) = last.unwrap();
-        report(&name, &all, dec.decomposition().cells.len());
+        report(&name, &all, dec.decomposition().cells.len(), &phases);
         let mut g = c.benchmark_group(format!("decomp_update/{name}"));
         g.bench_function("steady", |b| {
             let mut d = dec.clone();

@@ -228,6 +228,11 @@ impl Grid {
         Self::state_of(self.cells[c.1 * self.width + c.0])
     }
 
+    /// The lowest raw evidence value of an occupied cell: every value from
+    /// it up is [`CellState::Occupied`] (for scans that pass over blocks of
+    /// cells below it at once).
+    pub const OCCUPIED_EVIDENCE: u8 = OCCUPIED_AT;
+
     /// The state a cell of raw evidence `v` is in (see [`Grid::raw_evidence`]).
     pub fn state_of(v: u8) -> CellState {
         match v {

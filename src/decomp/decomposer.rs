@@ -12,10 +12,11 @@ use crate::grid::{CellState, Grid};
 use super::cell::{Adjacency, Cell, CellId, CellStatus, Decomposition, Frontier};
 use super::direction;
 use super::frame::SweepFrame;
+use super::labels::LabelSpans;
 use super::polygon::simplify_chain;
 use super::slices::{FrozenSpan, SliceInput, Slices};
 use super::sweep::{CellRef, RawCell, Sweep, SweepInput};
-use super::{check, DecompError, DecompParams};
+use super::{check, DecompError, DecompParams, Lap, PhaseTimes};
 
 const NO_LABEL: u32 = u32::MAX;
 
@@ -69,6 +70,7 @@ pub struct Decomposer {
     sweep: Sweep,
     labels: Vec<u32>,
     prev_labels: Vec<u32>,
+    spans: LabelSpans,
     prev_frame: Option<SweepFrame>,
     tracks: Vec<Track>,
     frozen: Vec<Frozen>,
@@ -76,6 +78,7 @@ pub struct Decomposer {
     frozen_adjacency: Vec<Adjacency>,
     next_id: u32,
     updates: u64,
+    times: PhaseTimes,
 }
 
 impl Decomposer {
@@ -103,6 +106,7 @@ impl Decomposer {
             sweep: Sweep::default(),
             labels: Vec::new(),
             prev_labels: Vec::new(),
+            spans: LabelSpans::default(),
             prev_frame: None,
             tracks: Vec::new(),
             frozen: Vec::new(),
@@ -110,6 +114,7 @@ impl Decomposer {
             frozen_adjacency: Vec::new(),
             next_id: 0,
             updates: 0,
+            times: PhaseTimes::default(),
         })
     }
 
@@ -129,6 +134,11 @@ impl Decomposer {
         self.locked_angle
     }
 
+    /// Where the last update's time went.
+    pub fn phase_times(&self) -> PhaseTimes {
+        self.times
+    }
+
     /// Number of updates so far.
     pub fn updates(&self) -> u64 {
         self.updates
@@ -144,6 +154,7 @@ impl Decomposer {
         self.prev_frame = None;
         self.labels.clear();
         self.prev_labels.clear();
+        self.spans.clear();
         self.tracks.clear();
         self.frozen.clear();
         self.frozen_spans.clear();
@@ -167,7 +178,9 @@ impl Decomposer {
             self.reset();
             self.shape = Some(shape);
         }
+        let mut clock = Lap::start();
         let angle = self.sweep_angle(grid, segments);
+        let direction = clock.lap();
         let Some(frame) = SweepFrame::over_grid(grid, angle, self.params.resolution) else {
             // A grid with non-finite or absurd geometry: nothing usable.
             self.reset();
@@ -193,6 +206,7 @@ impl Decomposer {
                 min_beside_frozen: self.params.min_cell_width * 0.5,
             },
         );
+        let _ = clock.lap();
         self.sweep.run(
             &frame,
             &self.slices,
@@ -204,7 +218,14 @@ impl Decomposer {
                 min_area: self.params.min_cell_area,
             },
         );
+        let sweep = clock.lap();
         self.inherit_and_publish(&frame);
+        self.times = PhaseTimes {
+            direction,
+            sweep,
+            inherit: clock.lap(),
+            ..self.slices.times
+        };
         &self.current
     }
 
@@ -262,52 +283,61 @@ impl Decomposer {
 
     fn inherit_and_publish(&mut self, f: &SweepFrame) {
         let n = f.nu * f.nv;
+        // Pixel labels serve only a next update in another frame, which
+        // cannot follow once the direction is locked.
+        let pixels = self.locked_angle.is_none();
         std::mem::swap(&mut self.labels, &mut self.prev_labels);
         self.labels.clear();
-        self.labels.resize(n, NO_LABEL);
+        if pixels {
+            self.labels.resize(n, NO_LABEL);
+        }
+        self.spans.begin();
         for fz in &self.frozen {
             for &(k, l, r) in &fz.spans {
-                paint(&mut self.labels, f, k as usize, l, r, fz.cell.id.0);
+                self.spans
+                    .paint(k as usize, pixel_span(f, l, r), fz.cell.id.0);
+                if pixels {
+                    paint(&mut self.labels, f, k as usize, l, r, fz.cell.id.0);
+                }
             }
         }
         let cells = &self.sweep.cells;
         let nc = cells.len();
-        // Overlap of every new cell with the previous labels.
-        let mut overlaps: HashMap<(u32, u32), u32> = HashMap::new();
-        let same_frame = self.prev_frame == Some(*f) && self.prev_labels.len() == n;
+        // Overlap of every new cell with the previous update's cells, in
+        // pixels: span against span in the same frame, else pixel by pixel
+        // through the world.
+        let same_frame = self.prev_frame == Some(*f);
+        let mut overlaps: Vec<((u32, u32), u32)> = Vec::new();
+        let mut of_cell: Vec<(u32, u32)> = Vec::new();
         for (ci, cell) in cells.iter().enumerate() {
+            of_cell.clear();
+            let mut add = |old: u32, count: u32| match of_cell.iter_mut().find(|o| o.0 == old) {
+                Some(o) => o.1 += count,
+                None => of_cell.push((old, count)),
+            };
             for p in &cell.pieces {
                 let k = p.row as usize;
                 let (a, b) = pixel_span(f, p.l, p.r);
-                // Runs of equal old labels, one map entry per run.
-                let mut run: (u32, u32) = (NO_LABEL, 0);
-                for i in a..b {
-                    let old = if same_frame {
-                        self.prev_labels[k * f.nu + i]
-                    } else {
-                        self.prev_frame
-                            .map(|pf| {
-                                old_label(
-                                    &self.prev_labels,
-                                    &pf,
-                                    &f.to_world(f.col_u(i), f.row_v(k)),
-                                )
-                            })
-                            .unwrap_or(NO_LABEL)
-                    };
-                    if old == run.0 {
-                        run.1 += 1;
-                        continue;
-                    }
-                    if run.0 != NO_LABEL {
-                        *overlaps.entry((run.0, ci as u32)).or_insert(0) += run.1;
-                    }
-                    run = (old, 1);
+                if same_frame {
+                    self.spans.overlaps(k, (a, b), &mut add);
+                    continue;
                 }
-                if run.0 != NO_LABEL {
-                    *overlaps.entry((run.0, ci as u32)).or_insert(0) += run.1;
+                let Some(pf) = self.prev_frame else {
+                    continue;
+                };
+                for i in a..b {
+                    let old =
+                        old_label(&self.prev_labels, &pf, &f.to_world(f.col_u(i), f.row_v(k)));
+                    if old != NO_LABEL {
+                        add(old, 1);
+                    }
                 }
             }
+            overlaps.extend(
+                of_cell
+                    .iter()
+                    .map(|&(old, count)| ((old, ci as u32), count)),
+            );
         }
         let frozen_ids: Vec<u32> = self.frozen.iter().map(|z| z.cell.id.0).collect();
         let mut pairs: Vec<((u32, u32), u32)> = overlaps
@@ -381,7 +411,11 @@ impl Decomposer {
                 length: l,
             });
             for p in &cell.pieces {
-                paint(&mut self.labels, f, p.row as usize, p.l, p.r, track.id.0);
+                self.spans
+                    .paint(p.row as usize, pixel_span(f, p.l, p.r), track.id.0);
+                if pixels {
+                    paint(&mut self.labels, f, p.row as usize, p.l, p.r, track.id.0);
+                }
             }
         }
         self.tracks = new_tracks;

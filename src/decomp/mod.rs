@@ -45,10 +45,51 @@ pub mod cell;
 mod decomposer;
 pub mod direction;
 pub mod frame;
+mod labels;
 mod polygon;
+pub mod raster;
 pub mod slices;
 pub mod svg;
 pub mod sweep;
+
+/// Where the time of one [`Decomposer::update`] went (wall clock), step by
+/// step: what a benchmark or a run report shows to say which step to make
+/// faster. Measuring costs a clock read per step; the output never depends
+/// on it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseTimes {
+    /// Lane direction.
+    pub direction: std::time::Duration,
+    /// Grid resampled into the lane frame.
+    pub resample: std::time::Duration,
+    /// Short unknown gaps filled.
+    pub gaps: std::time::Duration,
+    /// Wall points collected.
+    pub wall_points: std::time::Duration,
+    /// Wall points inflated into blocked intervals.
+    pub inflate: std::time::Duration,
+    /// Free pieces cut from the slices.
+    pub pieces: std::time::Duration,
+    /// Sweep over the slices into cells.
+    pub sweep: std::time::Duration,
+    /// Ids inherited, polygons and adjacency published.
+    pub inherit: std::time::Duration,
+}
+
+/// A stopwatch read step by step.
+struct Lap(std::time::Instant);
+
+impl Lap {
+    fn start() -> Self {
+        Self(std::time::Instant::now())
+    }
+
+    /// Time since the start or the last lap.
+    fn lap(&mut self) -> std::time::Duration {
+        let now = std::time::Instant::now();
+        now.duration_since(std::mem::replace(&mut self.0, now))
+    }
+}
 
 pub use cell::{Adjacency, Cell, CellId, CellStatus, Decomposition, Frontier};
 pub use decomposer::Decomposer;

@@ -9,17 +9,13 @@ use crate::geom::Segment;
 use crate::grid::{CellState, Grid};
 
 use super::frame::SweepFrame;
+use super::{Lap, PhaseTimes};
 
-/// Pixel class: never observed.
-pub const UNK: u8 = 0;
-/// Pixel class: observed free.
-pub const FREE: u8 = 1;
-/// Pixel class: observed occupied.
-pub const OCC: u8 = 2;
-/// Flag: the pixel centre lies within the inflation radius of a wall point.
-pub const BLOCKED: u8 = 4;
-/// Mask of the class bits.
-pub const CLASS: u8 = 3;
+use super::raster::{
+    classify, column_distances, fill_columns, fill_row, find_at_most, find_class, push_union,
+    skip_class, transpose8,
+};
+pub use super::raster::{BLOCKED, CLASS, FREE, OCC, UNK};
 
 /// What ends a piece on one side.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -113,16 +109,30 @@ pub struct Slices {
     pub piece_rows: Vec<u32>,
     /// Processed window: columns `i0..i1`, rows `k0..k1`.
     pub window: (usize, usize, usize, usize),
+    /// Time of each step of the last pass (the slicing fields only).
+    pub times: PhaseTimes,
     raw_points: Vec<WallPoint>,
     raw_intervals: Vec<(u32, f64, f64)>,
     sorted_intervals: Vec<(f64, f64)>,
     counts: Vec<u32>,
-    col_last_free: Vec<usize>,
+    col_runs: Vec<u16>,
     seg_mask: Vec<bool>,
     /// Indices set in `seg_mask` (cleared one by one, not by a pass over
     /// the whole grid).
     seg_marked: Vec<usize>,
     excl: Vec<(f64, f64, End)>,
+    /// Half side and inflation radius of the occupied cells' wall points when
+    /// they lie on pixel centres (a frame aligned with the grid), else `None`.
+    lattice_square: Option<(f64, f64)>,
+    /// Per pixel of the window: rows to the nearest such point in its column
+    /// (saturating), see [`Slices::inflate`].
+    near: Vec<u8>,
+    /// One row's blocked intervals from the lattice points.
+    lattice_runs: Vec<(f64, f64)>,
+    /// Pixel classes of the grid's cells in grid order (turned frames).
+    classes: Vec<u8>,
+    /// Width of the raster `px` was laid out for.
+    raster_nu: usize,
     grid_box: (usize, usize, usize, usize),
 }
 
@@ -172,9 +182,8 @@ impl Slices {
     /// Runs the whole slicing pass for `input` in frame `f`. Returns false when
     /// nothing of the grid is explored (no pieces).
     pub fn compute(&mut self, f: &SweepFrame, input: &SliceInput<'_>) -> bool {
-        let n = f.nu * f.nv;
-        self.px.clear();
-        self.px.resize(n, UNK);
+        self.times = PhaseTimes::default();
+        let mut clock = Lap::start();
         self.piece_rows.clear();
         self.piece_rows.resize(f.nv + 1, 0);
         self.pieces.clear();
@@ -184,17 +193,47 @@ impl Slices {
         self.blocked_rows.resize(f.nv + 1, 0);
         self.points.clear();
         self.blocked.clear();
-        let Some(window) = self.explored_window(f, input) else {
-            self.window = (0, 0, 0, 0);
+        let window = self.explored_window(f, input);
+        self.reset_raster(f, window.unwrap_or((0, 0, 0, 0)));
+        if window.is_none() {
             return false;
-        };
-        self.window = window;
+        }
         self.resample(f, input.grid);
+        self.times.resample = clock.lap();
         self.fill_gaps(f, input.gap_pixels);
+        self.times.gaps = clock.lap();
         self.collect_points(f, input);
+        self.times.wall_points = clock.lap();
         self.inflate(f);
+        self.times.inflate = clock.lap();
         self.cut_pieces(f, input.frozen, input.min_beside_frozen);
+        self.times.pieces = clock.lap();
         !self.pieces.is_empty()
+    }
+
+    /// Makes every pixel outside `window` unknown and sets the window: only
+    /// the last window can hold anything else, and the resampling overwrites
+    /// all of the new one, so only the part of the last window outside the
+    /// new one is cleared (a new raster size clears everything).
+    fn reset_raster(&mut self, f: &SweepFrame, window: (usize, usize, usize, usize)) {
+        let n = f.nu * f.nv;
+        let (o_i0, o_i1, o_k0, o_k1) = std::mem::replace(&mut self.window, window);
+        if self.px.len() != n || self.raster_nu != f.nu {
+            self.px.clear();
+            self.px.resize(n, UNK);
+            self.raster_nu = f.nu;
+            return;
+        }
+        let (i0, i1, k0, k1) = window;
+        for k in o_k0..o_k1 {
+            let row = &mut self.px[k * f.nu..(k + 1) * f.nu];
+            if (k0..k1).contains(&k) {
+                row[o_i0..o_i1.min(i0).max(o_i0)].fill(UNK);
+                row[o_i0.max(i1).min(o_i1)..o_i1].fill(UNK);
+            } else {
+                row[o_i0..o_i1].fill(UNK);
+            }
+        }
     }
 
     fn explored_window(
@@ -253,10 +292,14 @@ impl Slices {
             // One table lookup per pixel into the raw evidence.
             let lut = Grid::state_table().map(class);
             let raw = g.raw_evidence();
-            // Along a pixel row the grid index moves by a fixed stride (one
-            // cell along a grid row or column), over one interval of the
-            // row that lies on the grid: no test per pixel.
-            let stride = m.yi * gw + m.xi;
+            if m.xi == 0 {
+                self.resample_turned(f, g, &m);
+                return;
+            }
+            // Pixel rows are grid rows, maybe reversed: along a row the grid
+            // index moves by ±1, over one interval of the row that lies on
+            // the grid: no test per pixel.
+            let stride = m.xi;
             for k in k0..k1 {
                 let (xa, ya) = m.apply(0, k as i64);
                 let (xl, xh) = on_grid(xa, m.xi, gw);
@@ -266,23 +309,10 @@ impl Slices {
                 let row = &mut self.px[k * f.nu..(k + 1) * f.nu];
                 row[i0..lo].fill(UNK);
                 row[hi..i1].fill(UNK);
-                if lo == hi {
-                    // The row lies off the grid.
-                    continue;
-                }
-                let start = ya * gw + xa + stride * lo as i64;
-                if stride == 1 {
-                    // Pixel rows are grid rows (a sweep along x).
-                    let src = &raw[start as usize..start as usize + (hi - lo)];
-                    for (d, &e) in row[lo..hi].iter_mut().zip(src) {
-                        *d = lut[e as usize];
-                    }
-                } else {
-                    let mut at = start;
-                    for d in &mut row[lo..hi] {
-                        *d = lut[raw[at as usize] as usize];
-                        at += stride;
-                    }
+                let mut at = ya * gw + xa + stride * lo as i64;
+                for d in &mut row[lo..hi] {
+                    *d = lut[raw[at as usize] as usize];
+                    at += stride;
                 }
             }
             return;
@@ -296,6 +326,97 @@ impl Slices {
         }
     }
 
+    /// [`Slices::resample`] for a frame turned a quarter turn from the grid
+    /// (pixel rows are grid columns): the grid's cells in the window are
+    /// classified row by row, then transposed into the raster eight by eight
+    /// pixels at a time, so that neither side is read or written across
+    /// its rows pixel by pixel.
+    fn resample_turned(&mut self, f: &SweepFrame, g: &Grid, m: &LatticeMap) {
+        let (i0, i1, k0, k1) = self.window;
+        let (nu, gw, gh) = (f.nu, g.width(), g.height());
+        // Pixel (i, k) is cell (x0 + xk·k, y0 + yi·i): the pixels on the grid
+        // are the columns `ia..ib` of the rows `ka..kb`.
+        let (ka, kb) = on_grid(m.x0, m.xk, gw as i64);
+        let (ia, ib) = on_grid(m.y0, m.yi, gh as i64);
+        let clip = |a: i64, b: i64, lo: usize, hi: usize| {
+            let a = a.clamp(lo as i64, hi as i64) as usize;
+            (a, (b.clamp(lo as i64, hi as i64) as usize).max(a))
+        };
+        let (ka, kb) = clip(ka, kb, k0, k1);
+        let (ia, ib) = clip(ia, ib, i0, i1);
+        for k in k0..k1 {
+            let row = &mut self.px[k * nu..(k + 1) * nu];
+            if (ka..kb).contains(&k) {
+                row[i0..ia].fill(UNK);
+                row[ib..i1].fill(UNK);
+            } else {
+                row[i0..i1].fill(UNK);
+            }
+        }
+        if ka == kb || ia == ib {
+            return;
+        }
+        let cell = |i: usize, k: usize| {
+            let (x, y) = m.apply(i as i64, k as i64);
+            (x as usize, y as usize)
+        };
+        // The cells under the on-grid pixels, classified in grid order.
+        let ((xa, ya), (xb, yb)) = (cell(ia, ka), cell(ib - 1, kb - 1));
+        let (xs, ys) = (xa.min(xb)..xa.max(xb) + 1, ya.min(yb)..ya.max(yb) + 1);
+        self.classes.resize(gw * gh, UNK);
+        let raw = g.raw_evidence();
+        for y in ys {
+            let span = y * gw + xs.start..y * gw + xs.end;
+            classify(
+                &raw[span.clone()],
+                &mut self.classes[span],
+                Grid::OCCUPIED_EVIDENCE,
+            );
+        }
+        let classes = &self.classes;
+        let px = &mut self.px;
+        let at = |i: usize, k: usize| {
+            let (x, y) = cell(i, k);
+            classes[y * gw + x]
+        };
+        let mut k = ka;
+        while k < kb {
+            if k + 8 > kb {
+                for i in ia..ib {
+                    px[k * nu + i] = at(i, k);
+                }
+                k += 1;
+                continue;
+            }
+            // Eight pixel rows are eight neighbouring cells of a grid row.
+            let x_first = cell(0, if m.xk > 0 { k } else { k + 7 }).0;
+            let mut i = ia;
+            while i + 8 <= ib {
+                let mut words = [0u64; 8];
+                for (r, w) in words.iter_mut().enumerate() {
+                    let y = cell(i + r, k).1;
+                    let at = y * gw + x_first;
+                    let mut b = [0u8; 8];
+                    b.copy_from_slice(&classes[at..at + 8]);
+                    if m.xk < 0 {
+                        b.reverse();
+                    }
+                    *w = u64::from_ne_bytes(b);
+                }
+                for (r, w) in transpose8(words).iter().enumerate() {
+                    px[(k + r) * nu + i..(k + r) * nu + i + 8].copy_from_slice(&w.to_ne_bytes());
+                }
+                i += 8;
+            }
+            for kk in k..k + 8 {
+                for ii in i..ib {
+                    px[kk * nu + ii] = at(ii, kk);
+                }
+            }
+            k += 8;
+        }
+    }
+
     /// Unknown runs of at most `max` pixels with free pixels on both ends
     /// become free, along rows and then along columns.
     fn fill_gaps(&mut self, f: &SweepFrame, max: usize) {
@@ -305,16 +426,9 @@ impl Slices {
         let (i0, i1, k0, k1) = self.window;
         let nu = f.nu;
         for k in k0..k1 {
-            fill_line(&mut self.px, k * nu + i0, 1, i1 - i0, max);
+            fill_row(&mut self.px[k * nu + i0..k * nu + i1], max);
         }
-        fill_columns(
-            &mut self.px,
-            nu,
-            i0..i1,
-            k0..k1,
-            max,
-            &mut self.col_last_free,
-        );
+        fill_columns(&mut self.px, nu, i0..i1, k0..k1, max, &mut self.col_runs);
     }
 
     fn collect_points(&mut self, f: &SweepFrame, input: &SliceInput<'_>) {
@@ -366,7 +480,9 @@ impl Slices {
         // An occupied cell blocks its whole square: exactly (a rounded square)
         // when the frame is aligned with the grid, else by the disk around
         // the square.
+        self.lattice_square = None;
         let (e, r) = if lattice_map(f, g).is_some() {
+            self.lattice_square = Some((g.resolution() * 0.5, input.radius));
             (g.resolution() * 0.5, input.radius)
         } else {
             (
@@ -374,9 +490,25 @@ impl Slices {
                 input.radius + g.resolution() * std::f64::consts::FRAC_1_SQRT_2,
             )
         };
+        // Occupied cells are few: blocks of cells with no evidence as high as
+        // occupied are passed over whole (a branch-free maximum per block).
+        const CHUNK: usize = 32;
+        let occupied_from = Grid::OCCUPIED_EVIDENCE;
         for y in by0..by1 {
             let row = y * gw;
-            for x in bx0..bx1 {
+            let mut next = bx0;
+            while next < bx1 {
+                let x = next;
+                if x + CHUNK <= bx1
+                    && raw[row + x..row + x + CHUNK]
+                        .iter()
+                        .fold(0u8, |m, &e| m.max(e))
+                        < occupied_from
+                {
+                    next += CHUNK;
+                    continue;
+                }
+                next += 1;
                 let i = row + x;
                 if !occ(i) || self.seg_mask[i] {
                     continue;
@@ -432,13 +564,66 @@ impl Slices {
         self.max_extent = self.points.iter().map(|p| p.e + p.r).fold(0.0, f64::max);
     }
 
+    /// The blocked intervals of every row: the union over the wall points
+    /// within reach of the interval each blocks on the row. Wall points on
+    /// pixel centres (occupied cells of a grid the frame is aligned with) all
+    /// block the same interval at a given row distance, so for them only
+    /// the nearest point in each column counts: one distance pass down and
+    /// up the columns, then each row's intervals come in column order. Other
+    /// points (segments, a turned frame) go row by row and are sorted.
     fn inflate(&mut self, f: &SweepFrame) {
         let (i0, i1, k0, k1) = self.window;
+        let nu = f.nu;
+        // Half widths by row distance for the lattice points, if usable.
+        let mut widths = [0.0f64; 128];
+        let mut lattice_reach = None;
+        if let Some((e, r)) = self.lattice_square {
+            let square = WallPoint {
+                u: 0.0,
+                v: 0.0,
+                e,
+                r,
+            };
+            let mut d = 0;
+            while d < widths.len() {
+                match square.half_width_at(d as f64 * f.h) {
+                    Some(w) => widths[d] = w,
+                    None => break,
+                }
+                d += 1;
+            }
+            // A reach of 128 rows or more (a fine frame, a big robot) takes
+            // the general path.
+            if (1..widths.len()).contains(&d) {
+                lattice_reach = Some(d - 1);
+            }
+        }
+        if lattice_reach.is_some() {
+            self.near.resize(nu * f.nv, u8::MAX);
+            for k in k0..k1 {
+                self.near[k * nu + i0..k * nu + i1].fill(u8::MAX);
+            }
+            for p in self.points.iter().filter(|p| p.e > 0.0) {
+                let (i, k) = (f.col_of(p.u), f.row_of(p.v));
+                if !((i0..i1).contains(&i) && (k0..k1).contains(&k)) {
+                    // Cannot be (the window holds the explored cells with a
+                    // margin), but if it were, the general path is exact.
+                    lattice_reach = None;
+                    break;
+                }
+                self.near[k * nu + i] = 0;
+            }
+        }
+        if lattice_reach.is_some() {
+            column_distances(&mut self.near, nu, i0..i1, k0..k1);
+        }
+        let on_lattice = |p: &WallPoint| lattice_reach.is_some() && p.e > 0.0;
         self.raw_intervals.clear();
         for k in 0..f.nv {
             let row = &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize];
             let Some(reach) = row
                 .iter()
+                .filter(|p| !on_lattice(p))
                 .map(|p| ((p.r + p.e) / f.h).ceil() as usize + 1)
                 .max()
             else {
@@ -453,7 +638,7 @@ impl Slices {
                 // one interval per row instead of one per point).
                 let v = f.row_v(kk);
                 let mut run: Option<(f64, f64)> = None;
-                for p in row {
+                for p in row.iter().filter(|p| !on_lattice(p)) {
                     let Some(d) = p.half_width_at(v) else {
                         continue;
                     };
@@ -495,13 +680,34 @@ impl Slices {
             let row =
                 &mut self.sorted_intervals[self.counts[k] as usize..self.counts[k + 1] as usize];
             row.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            self.lattice_runs.clear();
+            if let (Some(reach), true) = (lattice_reach, (k0..k1).contains(&k)) {
+                let near = &self.near[k * nu..k * nu + i1];
+                let mut i = find_at_most(near, i0, reach as u8);
+                while i < i1 {
+                    let w = widths[near[i] as usize];
+                    push_union(&mut self.lattice_runs, (f.col_u(i) - w, f.col_u(i) + w));
+                    i = find_at_most(near, i + 1, reach as u8);
+                }
+            }
+            // Both lists sorted by `l`: merged, touching intervals joined.
             let start = self.blocked.len();
-            for &(l, r) in row.iter() {
-                let len = self.blocked.len();
-                if len > start && l <= self.blocked[len - 1].1 {
-                    self.blocked[len - 1].1 = self.blocked[len - 1].1.max(r);
+            let (mut a, mut b) = (0, 0);
+            while a < row.len() || b < self.lattice_runs.len() {
+                let next = if b >= self.lattice_runs.len()
+                    || (a < row.len() && row[a].0 <= self.lattice_runs[b].0)
+                {
+                    a += 1;
+                    row[a - 1]
                 } else {
-                    self.blocked.push((l, r));
+                    b += 1;
+                    self.lattice_runs[b - 1]
+                };
+                let len = self.blocked.len();
+                if len > start && next.0 <= self.blocked[len - 1].1 {
+                    self.blocked[len - 1].1 = self.blocked[len - 1].1.max(next.1);
+                } else {
+                    self.blocked.push(next);
                 }
             }
             // Flag blocked pixels.
@@ -513,9 +719,9 @@ impl Slices {
                         continue;
                     }
                     let b = (b as usize).min(i1 - 1);
-                    for i in a..=b {
-                        self.px[k * f.nu + i] |= BLOCKED;
-                    }
+                    self.px[k * nu + a..=k * nu + b]
+                        .iter_mut()
+                        .for_each(|p| *p |= BLOCKED);
                 }
             }
         }
@@ -556,17 +762,14 @@ impl Slices {
                 j += 1;
             }
             self.excl.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-            let row = k * f.nu;
+            let line = &self.px[k * f.nu..k * f.nu + i1];
             let mut i = i0;
-            while i < i1 {
-                if self.px[row + i] & CLASS != FREE {
-                    i += 1;
-                    continue;
+            loop {
+                let a = find_class(line, i, FREE);
+                if a >= i1 {
+                    break;
                 }
-                let a = i;
-                while i < i1 && self.px[row + i] & CLASS == FREE {
-                    i += 1;
-                }
+                i = skip_class(line, a, FREE);
                 let b = i - 1;
                 let left = if self.is_frontier(f, a as isize - 1, k as isize) {
                     End::Frontier
@@ -681,69 +884,70 @@ fn lattice_map(f: &SweepFrame, g: &Grid) -> Option<LatticeMap> {
     })
 }
 
-/// Fills unknown runs of at most `max` pixels bounded by free pixels along one
-/// line of `n` pixels starting at `start` with stride `stride`.
-fn fill_line(px: &mut [u8], start: usize, stride: usize, n: usize, max: usize) {
-    let mut last_free: Option<usize> = None;
-    let mut j = 0;
-    while j < n {
-        let c = px[start + j * stride] & CLASS;
-        if c == FREE {
-            if let Some(lf) = last_free {
-                let gap = j - lf - 1;
-                // Between two free pixels with no occupied one between,
-                // every pixel is unknown.
-                if gap > 0 && gap <= max {
-                    for t in lf + 1..j {
-                        px[start + t * stride] = FREE;
-                    }
-                }
-            }
-            last_free = Some(j);
-        } else if c == OCC {
-            last_free = None;
-        }
-        j += 1;
-    }
-}
-
-/// [`fill_line`] down every column `cols` over the rows `rows` of a raster
-/// `nu` pixels wide, walking the rows in memory order (one last free row per
-/// column in `last`) instead of each column across the rows.
-fn fill_columns(
-    px: &mut [u8],
-    nu: usize,
-    cols: std::ops::Range<usize>,
-    rows: std::ops::Range<usize>,
-    max: usize,
-    last: &mut Vec<usize>,
-) {
-    last.clear();
-    last.resize(cols.len(), usize::MAX);
-    for k in rows {
-        for (c, i) in cols.clone().enumerate() {
-            match px[k * nu + i] & CLASS {
-                FREE => {
-                    // Between two free pixels of a column with no occupied
-                    // one between, every pixel is unknown.
-                    let lf = last[c];
-                    if lf != usize::MAX && k - lf > 1 && k - lf - 1 <= max {
-                        for t in lf + 1..k {
-                            px[t * nu + i] = FREE;
-                        }
-                    }
-                    last[c] = k;
-                }
-                OCC => last[c] = usize::MAX,
-                _ => {}
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wall_cells_on_the_lattice_block_what_each_cell_blocks_alone() {
+        // Walls, a pillar and scattered occupied cells in a free room; the
+        // blocked intervals from the column distances must be those of the
+        // general path (every wall point inflated on its own, sorted,
+        // merged), for the frame along each quarter turn.
+        let mut g = Grid::new(nalgebra::Point2::new(-0.8, 0.35), 0.05, 61, 47);
+        let mut seed = 777u32;
+        for y in 0..47 {
+            for x in 0..61 {
+                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                let wall = x == 2
+                    || y == 3
+                    || x == 58
+                    || y == 44
+                    || (20..24).contains(&x) && (15..19).contains(&y);
+                let s = if wall || (seed >> 16).is_multiple_of(37) {
+                    CellState::Occupied
+                } else if x < 2 || y < 3 || x > 58 || y > 44 {
+                    CellState::Unknown
+                } else {
+                    CellState::Free
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        for q in 0..4 {
+            let f =
+                SweepFrame::over_grid(&g, q as f64 * std::f64::consts::FRAC_PI_2, 0.05).unwrap();
+            let input = SliceInput {
+                grid: &g,
+                segments: &[],
+                radius: 0.17,
+                gap_pixels: 3,
+                frozen: &[],
+                min_beside_frozen: 0.0,
+            };
+            let mut sl = Slices::default();
+            assert!(sl.compute(&f, &input));
+            assert!(sl.lattice_square.is_some(), "quarter turn {q}");
+            let (fast, fast_rows) = (sl.blocked.clone(), sl.blocked_rows.clone());
+            sl.lattice_square = None;
+            sl.inflate(&f);
+            assert_eq!(
+                fast_rows, sl.blocked_rows,
+                "quarter turn {q}: intervals per row"
+            );
+            assert!(
+                fast.len() > 100,
+                "quarter turn {q}: {} intervals",
+                fast.len()
+            );
+            for (a, b) in fast.iter().zip(&sl.blocked) {
+                assert!(
+                    (a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9,
+                    "quarter turn {q}: {a:?} against {b:?}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn a_grid_turned_by_quarter_turns_resamples_cell_for_cell() {
@@ -790,51 +994,6 @@ mod tests {
                     }
                 }
             }
-        }
-    }
-
-    #[test]
-    fn short_unknown_gaps_between_free_are_filled_only() {
-        // F U U F U U U U F O U F
-        let mut px = vec![
-            FREE, UNK, UNK, FREE, UNK, UNK, UNK, UNK, FREE, OCC, UNK, FREE,
-        ];
-        let n = px.len();
-        fill_line(&mut px, 0, 1, n, 3);
-        assert_eq!(
-            px,
-            vec![FREE, FREE, FREE, FREE, UNK, UNK, UNK, UNK, FREE, OCC, UNK, FREE]
-        );
-        // Along a column (stride) as well.
-        let mut col = vec![FREE, 9, UNK, 9, FREE];
-        fill_line(&mut col, 0, 2, 3, 1);
-        assert_eq!(col, vec![FREE, 9, FREE, 9, FREE]);
-    }
-
-    #[test]
-    fn columns_filled_row_by_row_as_column_by_column() {
-        // A pseudo-random 37 x 23 raster of the three classes, mostly free.
-        let (nu, nv) = (37, 23);
-        let mut seed = 12345u32;
-        let px: Vec<u8> = (0..nu * nv)
-            .map(|_| {
-                seed = seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
-                match (seed >> 16) % 10 {
-                    0..=4 => FREE,
-                    5..=8 => UNK,
-                    _ => OCC,
-                }
-            })
-            .collect();
-        for max in [1, 2, 3, 5] {
-            let mut want = px.clone();
-            for i in 2..35 {
-                fill_line(&mut want, nu + i, nu, 21, max);
-            }
-            let mut got = px.clone();
-            fill_columns(&mut got, nu, 2..35, 1..22, max, &mut Vec::new());
-            assert_eq!(got, want, "max {max}");
-            assert_ne!(got, px, "max {max}: something was filled");
         }
     }
 
