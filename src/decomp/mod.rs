@@ -38,9 +38,13 @@
 //!    around it is decomposed without it.
 //!
 //! Cost per update is linear in the explored window of the grid (resampling,
-//! gap filling, wall points) plus the blocked intervals (wall points × slices
-//! within the inflation); no step looks at the history beyond the previous
-//! labels. Deterministic: the same inputs give the same output.
+//! gap filling, wall points, and for a frame aligned with the grid the
+//! inflation too: each column's distance to its nearest wall cell) plus the
+//! pieces; wall points off the lattice (segments, a turned frame) add wall
+//! points × slices within the inflation. No step looks at the history
+//! beyond the previous update's cells. [`Decomposer::phase_times`] says
+//! where an update's time went. Deterministic: the same inputs give the
+//! same output.
 pub mod cell;
 mod decomposer;
 pub mod direction;
