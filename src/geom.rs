@@ -46,6 +46,12 @@ pub fn pose_error(a: &Pose, b: &Pose) -> (f64, f64) {
     )
 }
 
+/// The point `r` from `origin` in the direction `angle` (world frame): a
+/// point on a robot's shell, at the end of a ray.
+pub fn polar(origin: Point2<f64>, angle: f64, r: f64) -> Point2<f64> {
+    origin + Vector2::new(angle.cos(), angle.sin()) * r
+}
+
 /// Wraps an angle into (-π, π].
 pub fn wrap_angle(a: f64) -> f64 {
     let mut r = a % std::f64::consts::TAU;

@@ -15,12 +15,12 @@
 //! repeated contacts with the same obstacle add further arcs until the
 //! planner's path no longer touches it.
 
-use nalgebra::{Point2, Vector2};
+use nalgebra::Point2;
 
 use serde::{Deserialize, Serialize};
 
 use crate::config::{invalid, ConfigError};
-use crate::geom::{heading, Pose};
+use crate::geom::{heading, polar, Pose};
 use crate::grid::{CellState, Grid};
 use crate::motor::{Sides, WheelSpeeds};
 use crate::pipeline::checkpoint::ContactArc;
@@ -233,7 +233,7 @@ impl ContactMark {
         let centre: Point2<f64> = pose.translation.vector.into();
         let th = heading(pose);
         let r = radius + params.gap;
-        let point = |b: f64| centre + Vector2::new((th + b).cos(), (th + b).sin()) * r;
+        let point = |b: f64| polar(centre, th + b, r);
         let bearing = track
             .and_then(|t| open_bearing(arc, bearing, |b| t.covered(&point(b))))
             .unwrap_or(bearing);
@@ -290,7 +290,7 @@ impl ContactMark {
         let n = ((2.0 * len / step.max(1e-3)).ceil() as usize).clamp(1, MAX_ARC_STEPS);
         (0..=n).map(move |k| {
             let a = a0 - half + 2.0 * half * k as f64 / n as f64;
-            self.centre + Vector2::new(a.cos(), a.sin()) * r
+            polar(self.centre, a, r)
         })
     }
 }
@@ -462,7 +462,7 @@ pub fn mapped_touch(
     while r <= reach {
         for k in 0..=n {
             let a = th + lo + k as f64 * BEARING_STEP;
-            let p = centre + Vector2::new(a.cos(), a.sin()) * r;
+            let p = polar(centre, a, r);
             if let Some(c) = grid.cell_of(&p) {
                 if grid.state(c) == CellState::Occupied {
                     return Some(grid.centre_of(c));

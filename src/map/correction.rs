@@ -152,7 +152,7 @@ mod tests {
             .filter_map(|k| {
                 let a = (-139.0 + k as f64 * 0.36f64).to_radians();
                 let h = world.cast_ray(&origin, a, 10.0)?;
-                let p = origin + nalgebra::Vector2::new(a.cos(), a.sin()) * h.range;
+                let p = crate::geom::polar(origin, a, h.range);
                 Some(IPoint::new(p.x, p.y, 0.5))
             })
             .collect();

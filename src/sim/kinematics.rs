@@ -9,11 +9,11 @@
 //! stall), and the front bumper is closed while something touches the front
 //! half of the body.
 
-use nalgebra::{Point2, Vector2};
+use nalgebra::Point2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::geom::{heading, Pose};
+use crate::geom::{heading, polar, Pose};
 use crate::motor::odometry::arc_increment;
 use crate::motor::{Sides, WheelSpeeds};
 use crate::sim::world::World;
@@ -198,7 +198,7 @@ impl DiffDriveSim {
         // close the bumper on a corner that sat between two of them.
         for k in -40i32..=40 {
             let a = th + (k as f64) * 2f64.to_radians();
-            let q = c + Vector2::new(a.cos(), a.sin()) * r;
+            let q = polar(c, a, r);
             if !w.free.is_free(&q) {
                 if k >= 0 {
                     s.left = true;
