@@ -317,11 +317,26 @@ impl Slices {
             }
             return;
         }
+        // A frame at any other angle: along a row the pixel centre moves by
+        // a fixed step in grid-cell units, so a pixel costs two multiply-adds
+        // and a table lookup (the cell rule of `Grid::cell_of`, without its
+        // two divisions per pixel).
+        let lut = Grid::state_table().map(class);
+        let raw = g.raw_evidence();
+        let (o, res, gw, gh) = (g.origin(), g.resolution(), g.width(), g.height());
+        let step = f.to_world(f.h, 0.0) - f.to_world(0.0, 0.0);
+        let (dx, dy) = (step.x / res, step.y / res);
         for k in k0..k1 {
-            let v = f.row_v(k);
+            let p0 = f.to_world(f.col_u(0), f.row_v(k));
+            let (sx, sy) = ((p0.x - o.x) / res, (p0.y - o.y) / res);
             for i in i0..i1 {
-                let p = f.to_world(f.col_u(i), v);
-                self.px[k * f.nu + i] = g.cell_of(&p).map(|c| class(g.state(c))).unwrap_or(UNK);
+                let (fx, fy) = (sx + i as f64 * dx, sy + i as f64 * dy);
+                let on = fx >= 0.0 && fy >= 0.0 && (fx as usize) < gw && (fy as usize) < gh;
+                self.px[k * f.nu + i] = if on {
+                    lut[raw[fy as usize * gw + fx as usize] as usize]
+                } else {
+                    UNK
+                };
             }
         }
     }
@@ -888,6 +903,23 @@ fn lattice_map(f: &SweepFrame, g: &Grid) -> Option<LatticeMap> {
 mod tests {
     use super::*;
 
+    /// A 37 x 23 grid of the three states in a fixed pattern, origin off the
+    /// cell lattice of the world.
+    fn mixed_grid() -> Grid {
+        let mut g = Grid::new(nalgebra::Point2::new(-1.25, 0.45), 0.05, 37, 23);
+        for y in 0..23 {
+            for x in 0..37 {
+                let s = match (x * 7 + y * 3 + x * y) % 5 {
+                    0 => CellState::Unknown,
+                    1 | 2 => CellState::Free,
+                    _ => CellState::Occupied,
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        g
+    }
+
     #[test]
     fn wall_cells_on_the_lattice_block_what_each_cell_blocks_alone() {
         // Walls, a pillar and scattered occupied cells in a free room; the
@@ -950,21 +982,46 @@ mod tests {
     }
 
     #[test]
+    fn a_frame_off_the_lattice_resamples_the_cell_under_each_pixel() {
+        let g = mixed_grid();
+        // Turned frames, and one along the grid with smaller pixels.
+        for (angle, h) in [(0.3, 0.05), (1.0, 0.05), (-2.2, 0.05), (0.0, 0.03)] {
+            let f = SweepFrame::over_grid(&g, angle, h).unwrap();
+            assert!(lattice_map(&f, &g).is_none(), "angle {angle}, h {h}");
+            let mut sl = Slices {
+                px: vec![BLOCKED; f.nu * f.nv],
+                window: (1, f.nu - 1, 2, f.nv - 1),
+                ..Slices::default()
+            };
+            sl.resample(&f, &g);
+            let mut on_grid = 0;
+            for k in 2..f.nv - 1 {
+                for i in 1..f.nu - 1 {
+                    let p = f.to_world(f.col_u(i), f.row_v(k));
+                    let want = match g.cell_of(&p).map(|c| g.state(c)) {
+                        Some(CellState::Free) => FREE,
+                        Some(CellState::Occupied) => OCC,
+                        _ => UNK,
+                    };
+                    // Within rounding of a cell's edge either cell will do.
+                    let (fx, fy) = ((p.x + 1.25) / 0.05, (p.y - 0.45) / 0.05);
+                    let edge = (fx - fx.round()).abs() < 1e-9 || (fy - fy.round()).abs() < 1e-9;
+                    if !edge {
+                        assert_eq!(sl.at(&f, i, k), want, "angle {angle}, pixel ({i}, {k})");
+                    }
+                    on_grid += usize::from(g.cell_of(&p).is_some());
+                }
+            }
+            assert!(on_grid > 500, "angle {angle}: {on_grid} pixels on the grid");
+        }
+    }
+
+    #[test]
     fn a_grid_turned_by_quarter_turns_resamples_cell_for_cell() {
         // A 37 x 23 grid of mixed cells; frames at 0, 90, 180 and 270
         // degrees map pixels onto cells (the lattice path): every pixel of
         // a window must hold the class of the cell under its centre.
-        let mut g = Grid::new(nalgebra::Point2::new(-1.25, 0.45), 0.05, 37, 23);
-        for y in 0..23 {
-            for x in 0..37 {
-                let s = match (x * 7 + y * 3 + x * y) % 5 {
-                    0 => CellState::Unknown,
-                    1 | 2 => CellState::Free,
-                    _ => CellState::Occupied,
-                };
-                g.set_state((x, y), s);
-            }
-        }
+        let g = mixed_grid();
         for q in 0..4 {
             let mut f =
                 SweepFrame::over_grid(&g, q as f64 * std::f64::consts::FRAC_PI_2, 0.05).unwrap();
