@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use decomp_support::*;
-use sweepline::decomp::{DecompParams, Decomposer};
+use sweepline::decomp::{DecompParams, Decomposer, PhaseTimes};
 use sweepline::grid::Grid;
 use sweepline::pipeline::clock::thread_cpu_time;
 use sweepline::sim::floorplan::{load_room, MAPS_DIR};
@@ -64,17 +64,7 @@ fn tour_run(
         scan(world, &mut grid, &p);
         let (w0, c0) = (Instant::now(), thread_cpu_time().as_secs_f64());
         black_box(dec.update(&grid, &[]));
-        let t = dec.phase_times();
-        for (sum, d) in phases.iter_mut().zip([
-            t.direction,
-            t.resample,
-            t.gaps,
-            t.wall_points,
-            t.inflate,
-            t.pieces,
-            t.sweep,
-            t.inherit,
-        ]) {
+        for (sum, (_, d)) in phases.iter_mut().zip(dec.phase_times().steps()) {
             *sum += d.as_secs_f64();
         }
         times.push((
@@ -99,18 +89,10 @@ fn report(name: &str, times: &[(f64, f64)], cells: usize, phases: &[f64; 8]) {
         ms(percentile(&wall, 0.99)),
         ms(percentile(&wall, 1.0)),
     );
-    let names = [
-        "direction",
-        "resample",
-        "gaps",
-        "wall points",
-        "inflate",
-        "pieces",
-        "sweep",
-        "inherit",
-    ];
-    let steps: Vec<String> = names
+    let steps: Vec<String> = PhaseTimes::default()
+        .steps()
         .iter()
+        .map(|(n, _)| n)
         .zip(phases)
         .map(|(n, s)| format!("{n} {:.3}", ms(s / times.len().max(1) as f64)))
         .collect();

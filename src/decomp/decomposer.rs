@@ -206,7 +206,8 @@ impl Decomposer {
                 min_beside_frozen: self.params.min_cell_width * 0.5,
             },
         );
-        let _ = clock.lap();
+        // The slicing times its own steps (`Slices::times`).
+        clock.lap();
         self.sweep.run(
             &frame,
             &self.slices,
@@ -294,10 +295,10 @@ impl Decomposer {
         self.spans.begin();
         for fz in &self.frozen {
             for &(k, l, r) in &fz.spans {
-                self.spans
-                    .paint(k as usize, pixel_span(f, l, r), fz.cell.id.0);
+                let span = pixel_span(f, l, r);
+                self.spans.paint(k as usize, span, fz.cell.id.0);
                 if pixels {
-                    paint(&mut self.labels, f, k as usize, l, r, fz.cell.id.0);
+                    paint(&mut self.labels, f, k as usize, span, fz.cell.id.0);
                 }
             }
         }
@@ -411,10 +412,10 @@ impl Decomposer {
                 length: l,
             });
             for p in &cell.pieces {
-                self.spans
-                    .paint(p.row as usize, pixel_span(f, p.l, p.r), track.id.0);
+                let span = pixel_span(f, p.l, p.r);
+                self.spans.paint(p.row as usize, span, track.id.0);
                 if pixels {
-                    paint(&mut self.labels, f, p.row as usize, p.l, p.r, track.id.0);
+                    paint(&mut self.labels, f, p.row as usize, span, track.id.0);
                 }
             }
         }
@@ -503,11 +504,11 @@ fn pixel_span(f: &SweepFrame, l: f64, r: f64) -> (usize, usize) {
     (a.min(f.nu), b.min(f.nu).max(a.min(f.nu)))
 }
 
-fn paint(labels: &mut [u32], f: &SweepFrame, k: usize, l: f64, r: f64, id: u32) {
+/// Labels the pixels `a..b` (a [`pixel_span`]) of row `k` with `id`.
+fn paint(labels: &mut [u32], f: &SweepFrame, k: usize, (a, b): (usize, usize), id: u32) {
     if k >= f.nv {
         return;
     }
-    let (a, b) = pixel_span(f, l, r);
     for x in &mut labels[k * f.nu + a..k * f.nu + b] {
         *x = id;
     }

@@ -80,6 +80,22 @@ pub struct PhaseTimes {
     pub inherit: std::time::Duration,
 }
 
+impl PhaseTimes {
+    /// Every step with its name, in the order an update runs them.
+    pub fn steps(&self) -> [(&'static str, std::time::Duration); 8] {
+        [
+            ("direction", self.direction),
+            ("resample", self.resample),
+            ("gaps", self.gaps),
+            ("wall points", self.wall_points),
+            ("inflate", self.inflate),
+            ("pieces", self.pieces),
+            ("sweep", self.sweep),
+            ("inherit", self.inherit),
+        ]
+    }
+}
+
 /// A stopwatch read step by step.
 struct Lap(std::time::Instant);
 

@@ -15,10 +15,14 @@ pub const CLASS: u8 = 3;
 
 /// The class bits of every byte of a word.
 const CLASS_WORD: u64 = u64::from_ne_bytes([CLASS; 8]);
-/// The low bit of every byte of a word.
-const LOW_BITS: u64 = u64::from_ne_bytes([0x01; 8]);
 /// The high bit of every byte of a word.
 const HIGH_BITS: u64 = u64::from_ne_bytes([0x80; 8]);
+
+/// Whether some byte of `x` is below `n` (`n` at most 128; the classic
+/// word trick: the high bit survives only where a byte borrowed).
+fn has_byte_below(x: u64, n: u8) -> bool {
+    x.wrapping_sub(u64::from_ne_bytes([n; 8])) & !x & HIGH_BITS != 0
+}
 
 /// The eight pixels of `row` from `j` as one word.
 fn word(row: &[u8], j: usize) -> u64 {
@@ -47,7 +51,7 @@ pub fn find_class(row: &[u8], mut j: usize, class: u8) -> usize {
     while j + 8 <= row.len() {
         // A byte of `x` is zero exactly where the pixel is of `class`.
         let x = (word(row, j) & CLASS_WORD) ^ pattern;
-        if x.wrapping_sub(LOW_BITS) & !x & HIGH_BITS != 0 {
+        if has_byte_below(x, 1) {
             break;
         }
         j += 8;
@@ -98,17 +102,20 @@ pub fn fill_columns(
     // A gap as long as the saturated count could not be told from "no free
     // pixel before": such gaps are never filled (no map is that sparse).
     let max = max.min(usize::from(u16::MAX - 1)) as u16;
+    // A free pixel closing a gap the fill takes.
+    let closes = |p: u8, r: u16| p & CLASS == FREE && r >= 1 && r <= max;
     run.clear();
     run.resize(cols.len(), u16::MAX);
     for k in rows {
         let row = &px[k * nu + cols.start..k * nu + cols.end];
-        let closes = row.iter().zip(run.iter()).fold(false, |any, (&p, &r)| {
-            any | (p & CLASS == FREE && r >= 1 && r <= max)
-        });
-        if closes {
+        if row
+            .iter()
+            .zip(run.iter())
+            .fold(false, |any, (&p, &r)| any | closes(p, r))
+        {
             for (c, i) in cols.clone().enumerate() {
                 let r = run[c];
-                if px[k * nu + i] & CLASS == FREE && r >= 1 && r <= max {
+                if closes(px[k * nu + i], r) {
                     for t in k - usize::from(r)..k {
                         px[t * nu + i] = FREE;
                     }
@@ -130,12 +137,8 @@ pub fn fill_columns(
 /// if there is none); `max` below 128.
 pub fn find_at_most(row: &[u8], mut j: usize, max: u8) -> usize {
     debug_assert!(max < 128);
-    // A byte of the word is below `max + 1` exactly where the high bit of
-    // this expression is set (exact for thresholds up to 128).
-    let below = u64::from_ne_bytes([max + 1; 8]);
     while j + 8 <= row.len() {
-        let x = word(row, j);
-        if x.wrapping_sub(below) & !x & HIGH_BITS != 0 {
+        if has_byte_below(word(row, j), max + 1) {
             break;
         }
         j += 8;
@@ -352,14 +355,15 @@ mod tests {
 
     #[test]
     fn evidence_is_classified_as_the_grid_does() {
+        use crate::grid::{CellState, Grid};
         let raw: Vec<u8> = (0..=255).collect();
         let mut got = vec![9; 256];
-        classify(&raw, &mut got, 150);
+        classify(&raw, &mut got, Grid::OCCUPIED_EVIDENCE);
         for (e, c) in got.iter().enumerate() {
-            let want = match e {
-                0 => UNK,
-                1..=149 => FREE,
-                _ => OCC,
+            let want = match Grid::state_of(e as u8) {
+                CellState::Unknown => UNK,
+                CellState::Free => FREE,
+                CellState::Occupied => OCC,
             };
             assert_eq!(*c, want, "evidence {e}");
         }

@@ -495,16 +495,11 @@ impl Slices {
         // An occupied cell blocks its whole square: exactly (a rounded square)
         // when the frame is aligned with the grid, else by the disk around
         // the square.
-        self.lattice_square = None;
-        let (e, r) = if lattice_map(f, g).is_some() {
-            self.lattice_square = Some((g.resolution() * 0.5, input.radius));
-            (g.resolution() * 0.5, input.radius)
-        } else {
-            (
-                0.0,
-                input.radius + g.resolution() * std::f64::consts::FRAC_1_SQRT_2,
-            )
-        };
+        self.lattice_square = lattice_map(f, g).map(|_| (g.resolution() * 0.5, input.radius));
+        let (e, r) = self.lattice_square.unwrap_or((
+            0.0,
+            input.radius + g.resolution() * std::f64::consts::FRAC_1_SQRT_2,
+        ));
         // Occupied cells are few: blocks of cells with no evidence as high as
         // occupied are passed over whole (a branch-free maximum per block).
         const CHUNK: usize = 32;
