@@ -2,6 +2,8 @@
 //! update's cell inheritance: how many pixels of a new piece each old cell
 //! held, counted span against span instead of pixel by pixel.
 
+use super::rows::group_by_row;
+
 /// Pixels `a..b` of row `row` painted with cell `id`, the `order`-th paint of
 /// its update (a later paint wins where two overlap).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,31 +52,14 @@ impl LabelSpans {
             .map(|s| s.row as usize + 1)
             .max()
             .unwrap_or(0);
-        self.row_start.clear();
-        self.row_start.resize(rows + 1, 0);
-        for s in &self.painted {
-            self.row_start[s.row as usize + 1] += 1;
-        }
-        for k in 0..rows {
-            self.row_start[k + 1] += self.row_start[k];
-        }
-        self.by_row.clear();
-        self.by_row.resize(
-            self.painted.len(),
-            Span {
-                row: 0,
-                a: 0,
-                b: 0,
-                id: NONE,
-                order: 0,
-            },
+        group_by_row(
+            &self.painted,
+            rows,
+            |s| Some(s.row as usize),
+            |s| *s,
+            &mut self.by_row,
+            &mut self.row_start,
         );
-        let mut fill = self.row_start.clone();
-        for s in &self.painted {
-            let at = &mut fill[s.row as usize];
-            self.by_row[*at as usize] = *s;
-            *at += 1;
-        }
         self.mixed.clear();
         self.mixed.resize(rows, false);
         for k in 0..rows {

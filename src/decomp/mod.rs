@@ -52,6 +52,7 @@ pub mod frame;
 mod labels;
 mod polygon;
 pub mod raster;
+mod rows;
 pub mod slices;
 pub mod svg;
 pub mod sweep;

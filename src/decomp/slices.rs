@@ -9,6 +9,7 @@ use crate::geom::Segment;
 use crate::grid::{CellState, Grid};
 
 use super::frame::SweepFrame;
+use super::rows::group_by_row;
 use super::{Lap, PhaseTimes};
 
 use super::raster::{
@@ -537,33 +538,14 @@ impl Slices {
                 }
             }
         }
-        // Counting sort by row.
-        self.counts.clear();
-        self.counts.resize(f.nv + 1, 0);
-        for p in &self.raw_points {
-            if p.v.is_finite() {
-                self.counts[f.row_of(p.v) + 1] += 1;
-            }
-        }
-        for k in 0..f.nv {
-            self.counts[k + 1] += self.counts[k];
-        }
-        self.point_rows.copy_from_slice(&self.counts);
-        self.points.clear();
-        self.points
-            .resize(self.raw_points.len(), WallPoint::default());
-        let mut fill = self.counts.clone();
-        let mut used = 0;
-        for &p in &self.raw_points {
-            if !(p.u.is_finite() && p.v.is_finite()) {
-                continue;
-            }
-            let k = f.row_of(p.v);
-            self.points[fill[k] as usize] = p;
-            fill[k] += 1;
-            used += 1;
-        }
-        self.points.truncate(used);
+        group_by_row(
+            &self.raw_points,
+            f.nv,
+            |p| (p.u.is_finite() && p.v.is_finite()).then(|| f.row_of(p.v)),
+            |p| *p,
+            &mut self.points,
+            &mut self.point_rows,
+        );
         // Along `u` within each row: neighbouring points' blocked intervals
         // then come one after the other (see `inflate`).
         for k in 0..f.nv {
@@ -667,23 +649,15 @@ impl Slices {
                 }
             }
         }
-        // Counting sort by row, then sort each row by l and merge.
-        self.counts.clear();
-        self.counts.resize(f.nv + 1, 0);
-        for &(k, _, _) in &self.raw_intervals {
-            self.counts[k as usize + 1] += 1;
-        }
-        for k in 0..f.nv {
-            self.counts[k + 1] += self.counts[k];
-        }
-        self.sorted_intervals.clear();
-        self.sorted_intervals
-            .resize(self.raw_intervals.len(), (0.0, 0.0));
-        let mut fill = self.counts.clone();
-        for &(k, l, r) in &self.raw_intervals {
-            self.sorted_intervals[fill[k as usize] as usize] = (l, r);
-            fill[k as usize] += 1;
-        }
+        // Grouped by row, then each row sorted by l and merged.
+        group_by_row(
+            &self.raw_intervals,
+            f.nv,
+            |&(k, _, _)| Some(k as usize),
+            |&(_, l, r)| (l, r),
+            &mut self.sorted_intervals,
+            &mut self.counts,
+        );
         self.blocked.clear();
         for k in 0..f.nv {
             self.blocked_rows[k] = self.blocked.len() as u32;
