@@ -12,7 +12,8 @@ Usage: scripts/covrun.py BIN CONFIG OUT WORLD... [-- COVERAGE-OPTION...]
           over many rooms)
 Options after `--` go to every `sweepline coverage` run, e.g.
 `-- --grid-offset 0.025 --range-noise 0.005` (the map as the daemon's grid
-holds it, from noisy scans). Prints per world the online / offline overlap (%), coverage (%), the
+holds it, from noisy scans), or `-- --bare` (the floor-plan rooms without
+their furniture; the paper world is left out then). Prints per world the online / offline overlap (%), coverage (%), the
 online/offline path ratio, and the means; two runs at a time."""
 import sys, subprocess, re, os, concurrent.futures as cf
 PAPER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "hw", "worlds", "paper.world")
@@ -51,7 +52,10 @@ if __name__ == "__main__":
     extra = args[args.index("--") + 1:] if "--" in args else []
     args = args[:args.index("--")] if "--" in args else args
     binp, cfg, out, *worlds = args
-    rs = run_all(binp, cfg, out, expand(worlds), extra=extra)
+    worlds = expand(worlds)
+    if "--bare" in extra:
+        worlds = [w for w in worlds if w != "paper"]
+    rs = run_all(binp, cfg, out, worlds, extra=extra)
     for r in rs:
         if "error" in r: print(r); continue
         print(f"{r['world']:20s} ov {r['ov_on']:5.1f} / {r['ov_off']:5.1f}  cov {r['cov_on']:6.2f} / {r['cov_off']:6.2f}  ratio {r['ratio']:.3f} fin {r['fin']}")

@@ -9,7 +9,7 @@ mod coverage_support;
 
 use sweepline::config::Config;
 use sweepline::sim::floorplan;
-use sweepline::sim::lockstep::LockstepOptions;
+use sweepline::sim::lockstep::{LockstepOptions, RunResult};
 
 /// Rooms of 14-20 m² from five different floor plans, with furniture.
 const ROOMS: [&str; 5] = [
@@ -20,26 +20,24 @@ const ROOMS: [&str; 5] = [
     "NLB:0",
 ];
 
-#[test]
-fn five_floor_plan_rooms() {
-    let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
+/// Covers one room online and offline at a 0.5 s planning period, checked
+/// by [`coverage_support::online_and_offline`] against the targets
+/// other than overlap (online path ≤ 1.2 × offline: measured 0.91-1.09).
+fn cover(spec: &str, room: &floorplan::Room) -> (RunResult, RunResult) {
     let opts = LockstepOptions {
         scan_period: 0.5,
         time_cap: 2400.0,
         ..LockstepOptions::default()
     };
+    coverage_support::online_and_offline(spec, &room.world(), &Config::default(), &opts, 1.2, 0.99)
+}
+
+#[test]
+fn five_floor_plan_rooms() {
+    let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
     let mut sum_cov = 0.0;
     for spec in ROOMS {
-        let room = floorplan::load_room(&dir, spec).unwrap();
-        // Target <= 1.25: measured 0.91-1.09 (at 0.5 s).
-        let (on, off) = coverage_support::online_and_offline(
-            spec,
-            &room.world(),
-            &Config::default(),
-            &opts,
-            1.2,
-            0.99,
-        );
+        let (on, off) = cover(spec, &floorplan::load_room(&dir, spec).unwrap());
         let (m, o) = (&on.metrics, &off.metrics);
         // Target <= 15 %, not reached: measured 0.17-0.44 online and
         // 0.18-0.39 offline with the session-7 grid (exact beam walk, faces
@@ -56,6 +54,31 @@ fn five_floor_plan_rooms() {
     assert!(mean >= 0.99, "mean online coverage {mean}");
 }
 
+/// The same five rooms without their furniture (walls only): the issue's
+/// overlap target is met there, so what misses it in the furnished rooms is
+/// the furniture (transits and lane connections among it), not the lanes.
+#[test]
+fn five_rooms_without_furniture_are_within_the_overlap_target() {
+    let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
+    for spec in ROOMS {
+        let room = floorplan::load_room_as(&dir, spec, floorplan::Furnishing::Bare).unwrap();
+        let furnished = floorplan::load_room(&dir, spec).unwrap();
+        assert!(room.free_area() > furnished.free_area(), "{spec}");
+        let (on, off) = cover(spec, &room);
+        // Target <= 15 %: measured 6.5-10.5 % online and offline.
+        assert!(
+            on.metrics.overlap <= 0.15,
+            "{spec}: online {}",
+            on.metrics.overlap
+        );
+        assert!(
+            off.metrics.overlap <= 0.15,
+            "{spec}: offline {}",
+            off.metrics.overlap
+        );
+    }
+}
+
 #[test]
 fn rooms_are_cut_as_the_benchmark_does() {
     let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
@@ -70,4 +93,27 @@ fn rooms_are_cut_as_the_benchmark_does() {
     assert!(e.to_string().contains("room 999 does not exist"), "{e}");
     let e = floorplan::load_room(&dir, "no_such_map:0").unwrap_err();
     assert!(e.to_string().contains("no_such_map_furnitures.png"), "{e}");
+    // Without furniture: the same rooms under the same numbers, more floor.
+    let bare = floorplan::rooms_as(
+        &dir,
+        "office_f",
+        floorplan::MIN_ROOM_PIXELS,
+        floorplan::Furnishing::Bare,
+    )
+    .unwrap();
+    assert_eq!(bare.len(), rooms.len());
+    for (b, f) in bare.iter().zip(&rooms) {
+        assert!(b.free_area() >= f.free_area(), "office_f:{}", f.index);
+        assert!(b.x0 <= f.x0 && b.y0 <= f.y0, "office_f:{}", f.index);
+    }
+    assert!(
+        (bare[0].free_area() - 20.5).abs() < 0.2,
+        "{}",
+        bare[0].free_area()
+    );
+    assert!(
+        bare[0].world().name.ends_with("bare"),
+        "{}",
+        bare[0].world().name
+    );
 }

@@ -18,6 +18,10 @@ pub struct WorldArgs {
     /// `sweepline coverage --list-rooms MAP` lists them).
     #[arg(long, conflicts_with = "map")]
     pub room: Option<String>,
+    /// With --room: the room without its furniture (the plan `MAP.png`,
+    /// walls only; same room numbers), to tell what the furniture costs.
+    #[arg(long, requires = "room")]
+    pub bare: bool,
     /// Folder of the floor-plan PNGs (default: the shared data folder's maps).
     #[arg(long)]
     pub maps: Option<PathBuf>,
@@ -49,11 +53,26 @@ impl WorldArgs {
         &self,
         default: Option<&Path>,
     ) -> Result<World, Box<dyn std::error::Error + Send + Sync>> {
+        // clap's `requires` is not enforced through the flattened group:
+        // checked here, so a misplaced option is an error, not ignored.
+        if self.bare && self.room.is_none() {
+            return Err(
+                "--bare needs --room MAP:N (it removes a floor-plan room's furniture)".into(),
+            );
+        }
+        if self.map.is_none() && (self.region.is_some() || self.start.is_some()) {
+            return Err("--region and --start need --map MAP.yaml".into());
+        }
         if let Some(w) = &self.world {
             return Ok(World::load(w)?);
         }
         if let Some(spec) = &self.room {
-            return Ok(floorplan::load_room(&self.maps_dir(), spec)?.world());
+            let furnishing = if self.bare {
+                floorplan::Furnishing::Bare
+            } else {
+                floorplan::Furnishing::Furnished
+            };
+            return Ok(floorplan::load_room_as(&self.maps_dir(), spec, furnishing)?.world());
         }
         if let Some(m) = &self.map {
             return Ok(ros_map::load_world(m, self.region.as_ref(), self.start)?);

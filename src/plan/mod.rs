@@ -56,6 +56,10 @@ pub struct PlanParams {
     pub max_lane_join: f64,
     /// Uncovered patches smaller than this are left alone (m²).
     pub min_patch_area: f64,
+    /// At clean-up, patches down to this share of the reachable floor are
+    /// still covered where that is less than `min_patch_area` (a small room
+    /// would otherwise lose a whole percent to one corner); 0 = off.
+    pub min_patch_share: f64,
     /// A frontier within this distance of a reachable place counts as
     /// explorable from there (m).
     pub explore_view_distance: f64,
@@ -85,6 +89,7 @@ impl Default for PlanParams {
             new_overlap_cost: 2.0,
             max_lane_join: 0.7,
             min_patch_area: 0.08,
+            min_patch_share: 0.0075,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
             way_out_passage: 0.0,
@@ -103,6 +108,7 @@ impl PlanParams {
             ("reach_margin", self.reach_margin),
             ("lookahead_weight", self.lookahead_weight),
             ("min_patch_area", self.min_patch_area),
+            ("min_patch_share", self.min_patch_share),
             ("swept_travel_cost", self.swept_travel_cost),
             ("new_overlap_cost", self.new_overlap_cost),
             ("max_lane_join", self.max_lane_join),

@@ -243,6 +243,8 @@ pub struct CoveragePlanner {
     tries_generation: u64,
     /// The current cover task drives only part of its region's lanes.
     split_task: bool,
+    /// Smallest patch covered in the current clean-up round (grid cells).
+    cleanup_min: usize,
     /// Reachable centres inside some cell of the decomposition.
     in_cell: Vec<bool>,
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
@@ -371,6 +373,7 @@ impl CoveragePlanner {
             retried: false,
             in_cell: Vec::new(),
             split_task: false,
+            cleanup_min: 1,
         })
     }
 
@@ -1168,6 +1171,22 @@ impl CoveragePlanner {
         ((self.params.min_patch_area / a).ceil() as usize).max(1)
     }
 
+    /// The smallest leftover patch worth a drive at clean-up (grid cells):
+    /// [`Self::min_patch_cells`], or `plan.min_patch_share` of the reachable
+    /// floor where that is less, so that in a small room no single patch
+    /// left costs more than that share (one 0.06 m² corner is 1 % of a
+    /// 6 m² room).
+    fn cleanup_patch_cells(&self) -> usize {
+        let reachable = self.reachable_mask.iter().filter(|&&r| r).count() as f64;
+        let share = (self.params.min_patch_share * reachable).ceil() as usize;
+        let min = self.min_patch_cells();
+        if share == 0 {
+            min
+        } else {
+            min.min(share.max(MIN_TARGET_CLUSTER))
+        }
+    }
+
     /// Lanes and cost for a region given by its admissible mask (in
     /// `scratch_a`) over `bbox`; targets are those within reach.
     fn region_candidate(
@@ -1223,7 +1242,11 @@ impl CoveragePlanner {
         // Scattered leftovers (single cells at lane ends along a wall, where
         // no connection passes) are not worth a drive: a region needs one
         // patch of at least the smallest patch worth covering.
-        let min = self.min_patch_cells();
+        let min = if cell.is_some() {
+            self.min_patch_cells()
+        } else {
+            self.cleanup_min
+        };
         if drop_specks(&mut targets, &mut self.scratch_t, f, MIN_TARGET_CLUSTER) < min {
             return None;
         }
@@ -1308,7 +1331,8 @@ impl CoveragePlanner {
         let f = self.cspace.frame;
         let mut seen = vec![false; f.len()];
         let mut out = Vec::new();
-        let min = self.min_patch_cells();
+        let min = self.cleanup_patch_cells();
+        self.cleanup_min = min;
         let mut stack = Vec::new();
         for s in 0..f.len() {
             if !self.targets[s] || seen[s] {
@@ -2156,6 +2180,37 @@ mod tests {
             matches!(st, PlanStatus::Done(r) if r.abandoned_area > 4.0),
             "{st:?}"
         );
+    }
+
+    #[test]
+    fn a_small_rooms_patch_under_the_fixed_size_is_covered_at_clean_up() {
+        // The 3 m x 2 m room has about 3.9 m² of reachable floor. A 4 x 5
+        // cell patch (0.05 m², over 1 % of it) is under min_patch_area
+        // (0.08 m²) but over min_patch_share of the floor.
+        let empty = Decomposition::default();
+        let at = crate::geom::pose(1.5, 1.0, 0.0);
+        let defaults = PlanParams::default();
+        for (share, covers) in [(0.0, false), (defaults.min_patch_share, true)] {
+            let params = PlanParams {
+                look_around: false,
+                min_patch_share: share,
+                ..defaults.clone()
+            };
+            let mut p = CoveragePlanner::new(&params, &RobotParams::default()).unwrap();
+            let g = crate::plan::test_support::walled_room();
+            p.update(&g, &empty, &at, None).unwrap();
+            let f = p.cspace.frame;
+            for (i, c) in p.covered.iter_mut().enumerate() {
+                let (x, y) = (i % f.w, i / f.w);
+                *c = !((20..24).contains(&x) && (10..15).contains(&y));
+            }
+            p.interrupt();
+            let st = p.update(&g, &empty, &at, None).unwrap();
+            assert_eq!(covers_floor(&st), covers, "share {share}: {st:?}");
+            if !covers {
+                assert!(matches!(st, PlanStatus::Done(_)), "{st:?}");
+            }
+        }
     }
 
     #[test]

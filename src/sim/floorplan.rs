@@ -9,6 +9,10 @@
 //! Rooms are numbered in the order their first pixel appears in a top-to-bottom,
 //! left-to-right scan of the segmentation image, so `MAP:N` names one room
 //! reproducibly.
+//!
+//! [`Furnishing::Bare`] takes the room's floor from the plan without furniture
+//! `<map>.png` instead (walls only, same room numbers): what the furniture
+//! costs a planner is then measured room by room.
 
 use std::path::{Path, PathBuf};
 
@@ -175,10 +179,12 @@ pub struct Room {
     pub free: Vec<bool>,
     /// Height of the whole image (px), to flip rows into world y.
     pub image_height: usize,
+    /// Whether the floor is the furnished plan's or the bare plan's.
+    pub furnishing: Furnishing,
 }
 
 impl Room {
-    /// Free floor area of the room (m²), furniture removed.
+    /// Free floor area of the room (m²), without the furniture's footprint.
     pub fn free_area(&self) -> f64 {
         self.free.iter().filter(|&&f| f).count() as f64 * PIXEL_SIZE * PIXEL_SIZE
     }
@@ -217,7 +223,11 @@ impl Room {
     pub fn world(&self) -> World {
         let raster = self.raster();
         let start = farthest_from_obstacles(&raster);
-        let name = format!("{}:{}", self.map, self.index);
+        let bare = match self.furnishing {
+            Furnishing::Furnished => "",
+            Furnishing::Bare => " bare",
+        };
+        let name = format!("{}:{}{bare}", self.map, self.index);
         World::from_raster(
             &name,
             raster,
@@ -288,24 +298,64 @@ pub fn map_files(dir: &Path, map: &str) -> (PathBuf, PathBuf) {
     )
 }
 
+/// Which floor of a benchmark room is simulated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Furnishing {
+    /// The furnished plan `<map>_furnitures.png` (the benchmark's rooms).
+    #[default]
+    Furnished,
+    /// The plan without furniture, `<map>.png` (walls only); rooms keep the
+    /// numbers they have furnished.
+    Bare,
+}
+
 /// Cuts every room of floor plan `map` (base name, e.g. `office_f`) in `dir`.
 /// Rooms with fewer than `min_pixels` free pixels are dropped.
 pub fn rooms(dir: &Path, map: &str, min_pixels: usize) -> Result<Vec<Room>, FloorPlanError> {
+    rooms_as(dir, map, min_pixels, Furnishing::Furnished)
+}
+
+/// [`rooms`], furnished or bare.
+pub fn rooms_as(
+    dir: &Path,
+    map: &str,
+    min_pixels: usize,
+    furnishing: Furnishing,
+) -> Result<Vec<Room>, FloorPlanError> {
     let (furn_path, seg_path) = map_files(dir, map);
     let furn = load_grey(&furn_path)?;
     let seg = load_grey(&seg_path)?;
-    if (furn.width, furn.height) != (seg.width, seg.height) {
-        return Err(FloorPlanError::SizeMismatch {
-            map: map.to_string(),
-            a: (furn.width, furn.height),
-            b: (seg.width, seg.height),
-        });
+    let floor = match furnishing {
+        Furnishing::Furnished => None,
+        Furnishing::Bare => Some(load_grey(&dir.join(format!("{map}.png")))?),
+    };
+    for other in [&seg].into_iter().chain(floor.as_ref()) {
+        if (furn.width, furn.height) != (other.width, other.height) {
+            return Err(FloorPlanError::SizeMismatch {
+                map: map.to_string(),
+                a: (furn.width, furn.height),
+                b: (other.width, other.height),
+            });
+        }
     }
-    Ok(cut_rooms(map, &furn, &seg, min_pixels))
+    Ok(cut_rooms(map, &furn, &seg, min_pixels, floor.as_ref()))
 }
 
-/// Cuts rooms from already loaded images (see [`rooms`]).
-pub fn cut_rooms(map: &str, furn: &GreyImage, seg: &GreyImage, min_pixels: usize) -> Vec<Room> {
+/// Cuts rooms from already loaded images (see [`rooms`]): numbered by the
+/// furnished plan `furn`, their floor taken from `floor` where given (the
+/// plan without furniture), else from `furn`.
+pub fn cut_rooms(
+    map: &str,
+    furn: &GreyImage,
+    seg: &GreyImage,
+    min_pixels: usize,
+    floor: Option<&GreyImage>,
+) -> Vec<Room> {
+    let furnishing = match floor {
+        Some(_) => Furnishing::Bare,
+        None => Furnishing::Furnished,
+    };
+    let floor = floor.unwrap_or(furn);
     let (w, h) = (seg.width, seg.height);
     let mut label = vec![u32::MAX; w * h];
     let mut out = Vec::new();
@@ -337,13 +387,17 @@ pub fn cut_rooms(map: &str, furn: &GreyImage, seg: &GreyImage, min_pixels: usize
                 }
             }
         }
-        let kept: Vec<usize> = pixels
-            .into_iter()
-            .filter(|&i| furn.pixels[i] > FREE_ABOVE)
-            .collect();
-        if kept.len() < min_pixels.max(1) {
+        let furnished = pixels
+            .iter()
+            .filter(|&&i| furn.pixels[i] > FREE_ABOVE)
+            .count();
+        if furnished < min_pixels.max(1) {
             continue;
         }
+        let kept: Vec<usize> = pixels
+            .into_iter()
+            .filter(|&i| floor.pixels[i] > FREE_ABOVE)
+            .collect();
         let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
         for &i in &kept {
             let (x, y) = (i % w, i / w);
@@ -366,6 +420,7 @@ pub fn cut_rooms(map: &str, furn: &GreyImage, seg: &GreyImage, min_pixels: usize
             height: bh,
             free,
             image_height: h,
+            furnishing,
         });
     }
     out
@@ -387,8 +442,17 @@ pub fn parse_spec(spec: &str) -> Result<(String, usize), FloorPlanError> {
 
 /// Loads room `MAP:N` from `dir` (rooms smaller than 1 m² are not numbered).
 pub fn load_room(dir: &Path, spec: &str) -> Result<Room, FloorPlanError> {
+    load_room_as(dir, spec, Furnishing::Furnished)
+}
+
+/// [`load_room`], furnished or bare (same room numbers).
+pub fn load_room_as(
+    dir: &Path,
+    spec: &str,
+    furnishing: Furnishing,
+) -> Result<Room, FloorPlanError> {
     let (map, index) = parse_spec(spec)?;
-    let mut all = rooms(dir, &map, MIN_ROOM_PIXELS)?;
+    let mut all = rooms_as(dir, &map, MIN_ROOM_PIXELS, furnishing)?;
     let count = all.len();
     if index >= count {
         return Err(FloorPlanError::NoSuchRoom { map, count, index });
@@ -434,10 +498,25 @@ mod tests {
                 255
             }
         });
-        let rooms = cut_rooms("t", &furn, &seg, 1);
+        let rooms = cut_rooms("t", &furn, &seg, 1, None);
         assert_eq!(rooms.len(), 2);
         assert_eq!(rooms[0].free.iter().filter(|&&f| f).count(), 9 * 8);
         assert_eq!(rooms[1].free.iter().filter(|&&f| f).count(), 8 * 8 - 1);
+        // Bare: the furniture pixel is floor again, the numbers stay.
+        let bare = img(20, 10, |x, y| {
+            if x == 0 || y == 0 || x == 19 || y == 9 {
+                0
+            } else {
+                255
+            }
+        });
+        let bare_rooms = cut_rooms("t", &furn, &seg, 1, Some(&bare));
+        assert_eq!(bare_rooms.len(), 2);
+        assert_eq!(bare_rooms[1].free.iter().filter(|&&f| f).count(), 8 * 8);
+        assert_eq!(
+            (bare_rooms[1].x0, bare_rooms[1].y0),
+            (rooms[1].x0, rooms[1].y0)
+        );
         assert_eq!((rooms[0].x0, rooms[0].y0), (1, 1));
         let r = rooms[1].raster();
         // The furniture pixel (14, 4) maps to world x = 14·0.05, y = (10-1-4)·0.05.
