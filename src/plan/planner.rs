@@ -243,8 +243,6 @@ pub struct CoveragePlanner {
     tries_generation: u64,
     /// The current cover task drives only part of its region's lanes.
     split_task: bool,
-    /// Smallest patch covered in the current clean-up round (grid cells).
-    cleanup_min: usize,
     /// Reachable centres inside some cell of the decomposition.
     in_cell: Vec<bool>,
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
@@ -373,7 +371,6 @@ impl CoveragePlanner {
             retried: false,
             in_cell: Vec::new(),
             split_task: false,
-            cleanup_min: 1,
         })
     }
 
@@ -1188,12 +1185,14 @@ impl CoveragePlanner {
     }
 
     /// Lanes and cost for a region given by its admissible mask (in
-    /// `scratch_a`) over `bbox`; targets are those within reach.
+    /// `scratch_a`) over `bbox`; targets are those within reach, and the
+    /// region needs a patch of at least `min` of them (grid cells).
     fn region_candidate(
         &mut self,
         cell: Option<CellId>,
         bbox: (usize, usize, usize, usize),
         axis: Axis,
+        min: usize,
     ) -> Option<Candidate> {
         let f = self.cspace.frame;
         let phase = self.lattice_phase(axis);
@@ -1242,11 +1241,6 @@ impl CoveragePlanner {
         // Scattered leftovers (single cells at lane ends along a wall, where
         // no connection passes) are not worth a drive: a region needs one
         // patch of at least the smallest patch worth covering.
-        let min = if cell.is_some() {
-            self.min_patch_cells()
-        } else {
-            self.cleanup_min
-        };
         if drop_specks(&mut targets, &mut self.scratch_t, f, MIN_TARGET_CLUSTER) < min {
             return None;
         }
@@ -1294,6 +1288,7 @@ impl CoveragePlanner {
 
     fn cell_candidates(&mut self, decomp: &Decomposition, status: CellStatus) -> Vec<Candidate> {
         let f = self.cspace.frame;
+        let min = self.min_patch_cells();
         let mut out = Vec::new();
         for cell in decomp.cells.iter().filter(|c| c.status == status) {
             if cell.polygon.len() < 3 {
@@ -1313,7 +1308,7 @@ impl CoveragePlanner {
             }
             if any {
                 let axis = Axis::from_angle(cell.sweep_angle);
-                if let Some(c) = self.region_candidate(Some(cell.id), bbox, axis) {
+                if let Some(c) = self.region_candidate(Some(cell.id), bbox, axis, min) {
                     out.push(c);
                 }
             }
@@ -1332,7 +1327,6 @@ impl CoveragePlanner {
         let mut seen = vec![false; f.len()];
         let mut out = Vec::new();
         let min = self.cleanup_patch_cells();
-        self.cleanup_min = min;
         let mut stack = Vec::new();
         for s in 0..f.len() {
             if !self.targets[s] || seen[s] {
@@ -1392,7 +1386,7 @@ impl CoveragePlanner {
             } else {
                 Axis::from_angle(decomp.sweep_angle)
             };
-            if let Some(c) = self.region_candidate(None, (x0, y0, x1, y1), axis) {
+            if let Some(c) = self.region_candidate(None, (x0, y0, x1, y1), axis, min) {
                 out.push(c);
             }
             for y in y0..=y1 {
