@@ -92,3 +92,60 @@ impl WorldArgs {
 pub fn time_cap(given: Option<f64>, world: &World) -> f64 {
     given.unwrap_or_else(|| (60.0 * world.free.free_area()).max(3600.0))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args() -> WorldArgs {
+        WorldArgs {
+            world: None,
+            room: None,
+            bare: false,
+            maps: None,
+            map: None,
+            region: None,
+            start: None,
+        }
+    }
+
+    #[test]
+    fn options_without_the_one_they_qualify_are_errors() {
+        let e = WorldArgs {
+            bare: true,
+            world: Some("hw/worlds/paper.world".into()),
+            ..args()
+        }
+        .load(None)
+        .unwrap_err();
+        assert!(e.to_string().contains("--bare needs --room"), "{e}");
+        let e = WorldArgs {
+            start: Some(crate::geom::pose(1.0, 1.0, 0.0)),
+            ..args()
+        }
+        .load(None)
+        .unwrap_err();
+        assert!(e.to_string().contains("need --map"), "{e}");
+    }
+
+    #[test]
+    fn a_bare_room_without_its_plan_names_the_missing_file() {
+        // The furnished plan and the segmentation only, from the shared maps.
+        let shared = crate::require_shared!(floorplan::MAPS_DIR);
+        let dir = std::env::temp_dir().join(format!("sweepline-bare-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (furn, seg) = floorplan::map_files(&shared, "office_f");
+        for f in [furn, seg] {
+            std::fs::copy(&f, dir.join(f.file_name().unwrap())).unwrap();
+        }
+        let a = WorldArgs {
+            room: Some("office_f:0".into()),
+            bare: true,
+            maps: Some(dir.clone()),
+            ..args()
+        };
+        let e = a.load(None).unwrap_err();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert!(e.to_string().contains("office_f.png"), "{e}");
+    }
+}

@@ -398,6 +398,11 @@ pub fn cut_rooms(
             .into_iter()
             .filter(|&i| floor.pixels[i] > FREE_ABOVE)
             .collect();
+        // A bare plan drawn with a wall over the whole room (never in the
+        // benchmark's plans) leaves no floor: the room is left out.
+        if kept.is_empty() {
+            continue;
+        }
         let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
         for &i in &kept {
             let (x, y) = (i % w, i / w);
@@ -517,6 +522,9 @@ mod tests {
             (bare_rooms[1].x0, bare_rooms[1].y0),
             (rooms[1].x0, rooms[1].y0)
         );
+        // A bare plan with no floor at all: no room, no panic.
+        let walls = img(20, 10, |_, _| 0);
+        assert!(cut_rooms("t", &furn, &seg, 1, Some(&walls)).is_empty());
         assert_eq!((rooms[0].x0, rooms[0].y0), (1, 1));
         let r = rooms[1].raster();
         // The furniture pixel (14, 4) maps to world x = 14·0.05, y = (10-1-4)·0.05.
