@@ -275,6 +275,12 @@ const BOXED_IN_UPDATES: usize = 25;
 /// they led to had no work the planner could plan.
 const MAX_WAYS_OUT: usize = 2;
 
+/// Longest way (m) off the traversable space a robot boxed in for
+/// [`BOXED_IN_UPDATES`] updates may take out of its pocket, whatever
+/// `plan.way_out_passage` says: the pocket is smaller than the body, so
+/// the way out is at most about a body radius through the margin.
+const BOXED_IN_WAY_OUT: f64 = 0.5;
+
 /// Interruptions not charged to the interrupted task (escapes from an
 /// inflation zone, transits blocked on the way) while the tool sweeps less
 /// than a footprint of new floor; beyond, they are charged a try again, so
@@ -832,7 +838,7 @@ impl CoveragePlanner {
         // Nothing left where the robot can go with the full clearance, but
         // its body fits through to another part of the space with work.
         if cands.is_empty() {
-            if let Some(path) = self.way_out(robot) {
+            if let Some(path) = self.way_out(robot, self.params.way_out_passage) {
                 self.forgive_task();
                 self.stats.ways_out += 1;
                 self.ways_out_in_a_row += 1;
@@ -858,6 +864,26 @@ impl CoveragePlanner {
                 self.motions.clear();
                 self.final_heading = None;
                 return working(Task::Idle);
+            }
+            // Still boxed in: the pocket is a part of the traversable space
+            // smaller than the body (the robot stopped a few centimetres off
+            // its path, in the margin of something seen since), not floor
+            // cut off by walls. Step out where the bare body fits, rather
+            // than finish with the rest of the floor left.
+            if let Some(path) = self.way_out(robot, BOXED_IN_WAY_OUT) {
+                log::warn!(
+                    "robot at ({:.2}, {:.2}) m still boxed in after {BOXED_IN_UPDATES} updates: stepping out to ({:.2}, {:.2}) m where only the bare body fits",
+                    p.x,
+                    p.y,
+                    path.last().map_or(p.x, |q| q.x),
+                    path.last().map_or(p.y, |q| q.y),
+                );
+                self.boxed_in = 0;
+                self.forgive_task();
+                self.stats.ways_out += 1;
+                self.ways_out_in_a_row += 1;
+                self.set_task(Task::Escape, path, None);
+                return working(Task::Escape);
             }
         } else {
             self.boxed_in = 0;
@@ -1443,8 +1469,8 @@ impl CoveragePlanner {
     /// work left (uncovered floor the lanes could reach, or unexplored space
     /// in view), through a passage only the bare body fits; `None` when
     /// there is none, or after [`MAX_WAYS_OUT`] in a row.
-    fn way_out(&mut self, robot: usize) -> Option<Vec<Point2<f64>>> {
-        if self.ways_out_in_a_row >= MAX_WAYS_OUT || self.params.way_out_passage <= 0.0 {
+    fn way_out(&mut self, robot: usize, max_tight: f64) -> Option<Vec<Point2<f64>>> {
+        if self.ways_out_in_a_row >= MAX_WAYS_OUT || max_tight <= 0.0 {
             return None;
         }
         let f = self.cspace.frame;
@@ -1513,7 +1539,7 @@ impl CoveragePlanner {
             &self.cspace,
             robot,
             &self.reachable_mask,
-            self.params.way_out_passage,
+            max_tight,
             has_work,
         )
     }
@@ -2134,6 +2160,79 @@ mod tests {
         let (k, r) = done.expect("done after the wait");
         assert_eq!(k, BOXED_IN_UPDATES);
         assert!(r.unreachable_area > 4.0, "{r:?}");
+    }
+
+    #[test]
+    fn a_robot_boxed_in_a_pocket_the_body_fits_out_of_steps_out_instead_of_finishing() {
+        use crate::grid::CellState;
+        // A 3 m x 2 m room; on its left a 0.7 m x 0.7 m chamber whose door
+        // (0.5 m) lets the bare body (0.17 m radius) through but not the
+        // margin of 0.1 m: the chamber's traversable part is a few cells,
+        // smaller than the footprint, and the rest of the room is only
+        // reachable through the door.
+        let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, 60, 40);
+        for y in 0..40 {
+            for x in 0..60 {
+                let wall = x == 0 || y == 0 || x == 59 || y == 39;
+                let chamber_wall = (x == 15 && (6..=21).contains(&y) && !(9..=18).contains(&y))
+                    || (y == 21 && x <= 15)
+                    || (y == 6 && x <= 15);
+                let s = if wall || chamber_wall {
+                    CellState::Occupied
+                } else {
+                    CellState::Free
+                };
+                g.set_state((x, y), s);
+            }
+        }
+        let params = PlanParams {
+            look_around: false,
+            safety_margin: 0.1,
+            ..PlanParams::default()
+        };
+        let robot = RobotParams::default();
+        let empty = Decomposition::default();
+        let start = crate::geom::pose(0.4, 0.7, 0.0);
+        let mut p = CoveragePlanner::new(&params, &robot).unwrap();
+        p.update(&g, &empty, &start, None).unwrap();
+        assert!(
+            p.boxed_in_now(),
+            "the chamber must be smaller than the body"
+        );
+        for r in [0.05, 0.1, 0.15] {
+            for k in 0..36 {
+                let a = f64::from(k) * 10f64.to_radians();
+                p.record_pose(&crate::geom::pose(
+                    0.4 + r * a.cos(),
+                    0.7 + r * a.sin(),
+                    0.0,
+                ));
+            }
+        }
+        p.interrupt();
+        let mut out = None;
+        for k in 0..=BOXED_IN_UPDATES + 1 {
+            match p.update(&g, &empty, &start, None).unwrap() {
+                PlanStatus::Working {
+                    task: Task::Idle, ..
+                } => continue,
+                PlanStatus::Working {
+                    task: Task::Escape, ..
+                } => {
+                    out = Some(k);
+                    break;
+                }
+                st => panic!("update {k}: {st:?}"),
+            }
+        }
+        assert_eq!(out, Some(BOXED_IN_UPDATES), "waits, then steps out");
+        let end = *p.path().0.last().unwrap();
+        assert!(end.x > 0.8, "out through the door: {end:?}");
+        // Out of the chamber, the room is covered.
+        let st = p
+            .update(&g, &empty, &crate::geom::pose(end.x, end.y, 0.0), None)
+            .unwrap();
+        assert!(covers_floor(&st), "{st:?}");
     }
 
     #[test]
