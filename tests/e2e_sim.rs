@@ -71,6 +71,40 @@ fn daemon_covers_a_small_world_through_the_ptys() {
     assert!(dir.join("state").read_dir().unwrap().next().is_some());
 }
 
+/// A robot switched on at an angle to the walls (its map frame is its start
+/// pose): the daemon lays its map frame along the walls of the first scan,
+/// and the lanes run along them. With `daemon.align_to_walls = false` the
+/// same run crosses the room in slanted lanes (README, "Map frame").
+#[test]
+fn a_robot_switched_on_at_an_angle_to_the_walls_lays_its_map_along_them() {
+    let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());
+    opts.speed = 8.0;
+    opts.time_cap = 900.0;
+    opts.heading_error = 27f64.to_radians();
+    let r = closed_loop::run(&opts).unwrap();
+    let m = &r.metrics;
+    let turn = r.frame_turn.expect("the frame was not decided");
+    eprintln!(
+        "{}: frame turned {:+.2}°, coverage {:.2} %, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°",
+        r.reason,
+        turn.to_degrees(),
+        m.coverage * 100.0,
+        m.overlap * 100.0,
+        r.position_rmse * 1e3,
+        r.heading_rmse.to_degrees()
+    );
+    assert!(
+        (turn.to_degrees() + 27.0).abs() < 0.5,
+        "turned {}°",
+        turn.to_degrees()
+    );
+    assert!(r.finished, "did not finish: {}", r.reason);
+    assert!(m.coverage >= 0.97, "coverage {:.3}", m.coverage);
+    assert_eq!(m.collisions, 0);
+    assert!(r.position_rmse <= 0.03, "position RMSE {}", r.position_rmse);
+    assert!(r.heading_rmse.to_degrees() <= 1.0);
+}
+
 #[test]
 fn bad_speed_is_refused() {
     let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());

@@ -49,6 +49,12 @@ pub struct Args {
     /// Scanner emulator faults (as `sweepline emulate urg --faults`).
     #[arg(long, default_value = "")]
     pub urg_faults: String,
+    /// Tell the daemon a start heading this far off the true one (degrees),
+    /// as for a robot switched on at an angle to the walls: its map frame
+    /// starts turned against the room and must be laid along the walls
+    /// (`daemon.align_to_walls`).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub heading_error: f64,
 }
 
 /// Parses a base name.
@@ -74,6 +80,14 @@ pub fn run(args: Args) -> CliResult {
     opts.time_cap = super::world_args::time_cap(args.time_cap, &opts.world);
     opts.progress = true;
     opts.urg_faults = args.urg_faults.parse()?;
+    if !(args.heading_error.is_finite() && args.heading_error.abs() <= 180.0) {
+        return Err(format!(
+            "--heading-error must be a number of degrees in -180..=180, got {}",
+            args.heading_error
+        )
+        .into());
+    }
+    opts.heading_error = args.heading_error.to_radians();
     if args.out.join("state").exists() {
         std::fs::remove_dir_all(args.out.join("state"))?;
     }

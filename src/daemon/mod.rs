@@ -9,6 +9,7 @@
 //! run` hands it `/dev/...` paths and the monotonic clock, `sweepline sim`
 //! hands it pty paths and a scaled clock; nothing in here knows which.
 
+pub mod align;
 pub mod contact;
 pub mod hooks;
 pub mod messages;
@@ -380,6 +381,8 @@ impl Daemon {
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
                 publish_keyframes: setup.state_dir.is_some(),
                 last_stamp: None,
+                align: (setup.resume.is_none() && cfg.daemon.align_to_walls)
+                    .then(align::WallAlign::new),
             },
         )?;
         pipeline.spawn(

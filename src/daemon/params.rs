@@ -28,6 +28,10 @@ pub struct DaemonParams {
     /// the wheels until scans return: the robot drives on odometry across
     /// a short gap but not blind for long (no obstacle sensing).
     pub scan_timeout: f64,
+    /// At a fresh start, turn the map frame so the walls of the first scan
+    /// run along its axes (the lanes run along the axes; see
+    /// [`super::align`]).
+    pub align_to_walls: bool,
     /// Bumper contact marks.
     pub contact: ContactParams,
 }
@@ -37,6 +41,7 @@ impl Default for DaemonParams {
         Self {
             stuck_after: STUCK_AFTER,
             scan_timeout: SCAN_TIMEOUT,
+            align_to_walls: true,
             contact: ContactParams::default(),
         }
     }

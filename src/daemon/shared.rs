@@ -132,6 +132,10 @@ pub struct LiveStatus {
     /// The bumper contact marks (checkpointed: rays may clear them from a
     /// restored grid, a resumed run marks them again).
     pub contacts: Option<std::sync::Arc<crate::pipeline::checkpoint::ContactArcs>>,
+    /// Rotation (rad) the start heading was turned by to lay the map frame
+    /// along the walls (see [`super::align`]); `None` until decided, and
+    /// for a resumed run.
+    pub frame_turn: Option<f64>,
 }
 
 impl Default for LiveStatus {
@@ -152,6 +156,7 @@ impl Default for LiveStatus {
             tries: None,
             keyframes: None,
             contacts: None,
+            frame_turn: None,
         }
     }
 }

@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
+use super::align::{AlignStep, MAX_ALIGN_SCANS, MIN_WALL_EVIDENCE};
 use super::contact::{
     mapped_touch, turn_in_place, BodyTrack, ContactMark, ContactParams, HeldContact, MotionMemory,
 };
@@ -120,6 +121,9 @@ pub struct LocaliseStage {
     pub publish_keyframes: bool,
     /// Stamp of the previous scan localised (s).
     pub last_stamp: Option<f64>,
+    /// At a fresh start, until decided: turns the map frame to the walls
+    /// of the first scans before tracking starts (see [`super::align`]).
+    pub align: Option<super::align::WallAlign>,
 }
 
 /// A scan further than this many scan intervals after the previous one
@@ -171,6 +175,44 @@ impl Stage for LocaliseStage {
                     r.map(|r| r.score)
                 ),
             }
+        }
+        if let Some(al) = self.align.as_mut() {
+            let scanner = self.tracker.pose();
+            match al.step(&self.points, heading(&scanner)) {
+                // Nothing is tracked (the robot waits for a plan) until the
+                // frame is decided: at most MAX_ALIGN_SCANS scans.
+                AlignStep::NotYet => return Ok(()),
+                AlignStep::GiveUp => {
+                    log::warn!(
+                        "map frame: the first {MAX_ALIGN_SCANS} scans show no rectilinear walls (under {MIN_WALL_EVIDENCE} m of wall lines agreeing modulo 90°); the frame stays the start pose, lanes may cross the walls at an angle"
+                    );
+                    self.shared.with_status(|s| s.frame_turn = Some(0.0));
+                }
+                AlignStep::Turn {
+                    turn,
+                    evidence,
+                    agreement,
+                } => {
+                    let robot = scanner * self.mount.inverse();
+                    let turned = crate::geom::pose(
+                        robot.translation.x,
+                        robot.translation.y,
+                        heading(&robot) + turn,
+                    );
+                    self.tracker = Tracker::new(self.tracker.params().clone(), turned * self.mount)
+                        .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
+                    log::info!(
+                        "map frame turned {:+.1}° to lie along the walls ({evidence:.1} m of wall lines in the first scan, agreement {agreement:.2}); start heading {:.1}°",
+                        turn.to_degrees(),
+                        heading(&turned).to_degrees()
+                    );
+                    self.shared.with_status(|s| {
+                        s.frame_turn = Some(turn);
+                        s.pose = turned;
+                    });
+                }
+            }
+            self.align = None;
         }
         if let Some(prev) = self.last_stamp {
             let gap = msg.stamp - prev;

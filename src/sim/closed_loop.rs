@@ -98,6 +98,11 @@ pub struct SimOptions {
     pub base_faults: Vec<TimedFault>,
     /// Range noise of the scanner (m, standard deviation).
     pub range_noise: f64,
+    /// The daemon is told a start heading this far off the true one (rad):
+    /// a robot switched on at an angle to the walls, whose map frame must
+    /// be laid along them. Poses are scored in the world frame through the
+    /// frame the daemon chose.
+    pub heading_error: f64,
 }
 
 impl SimOptions {
@@ -115,6 +120,7 @@ impl SimOptions {
             urg_faults: urg_emu::Faults::default(),
             base_faults: Vec::new(),
             range_noise: 0.005,
+            heading_error: 0.0,
         }
     }
 }
@@ -137,6 +143,13 @@ pub struct SimReport {
     /// fits best (s; diagnostic of the scanner's time stamping, see
     /// [`best_stamp_shift`]; 0 when the stamps are right).
     pub stamp_offset: f64,
+    /// Rotation (rad) the daemon turned its start heading by to lay its map
+    /// along the walls (`None`: not decided, or `daemon.align_to_walls` off).
+    pub frame_turn: Option<f64>,
+    /// The daemon's map frame in the world (identity but for the frame
+    /// turn and the told start heading): `map_to_world * estimate` is in the
+    /// world frame.
+    pub map_to_world: Pose,
     /// RMS position error of the control stage's live estimate (last fix
     /// composed with odometry) sampled every 50 ms against the truth at the
     /// same instant (m); includes up to one control period of lag.
@@ -174,9 +187,10 @@ pub struct SimReport {
     pub pipeline: MetricsSnapshot,
     /// True trajectory (one pose per sample).
     pub truth: Vec<Pose>,
-    /// Estimated trajectory (same samples).
+    /// Estimated trajectory (same samples), in the daemon's map frame.
     pub estimate: Vec<Pose>,
-    /// Every scored localised pose with its true pose (see [`fix_pairs`]).
+    /// Every scored localised pose with its true pose (see [`fix_pairs`]),
+    /// both in the world frame.
     pub fixes: Vec<FixPair>,
 }
 
@@ -377,6 +391,47 @@ pub fn map_frame(world: &World) -> MapFrame {
     }
 }
 
+/// The start pose the daemon is told: the true one with the heading off
+/// by [`SimOptions::heading_error`].
+fn told_start(opts: &SimOptions) -> Pose {
+    let p = opts.world.start;
+    crate::geom::pose(
+        p.translation.x,
+        p.translation.y,
+        heading(&p) + opts.heading_error,
+    )
+}
+
+/// The map frame to the world frame: the daemon's start pose (the told one
+/// turned by the daemon's `frame_turn`, once decided) is the true start.
+fn to_world(opts: &SimOptions, turn: Option<f64>) -> Pose {
+    let told = told_start(opts);
+    let start = crate::geom::pose(
+        told.translation.x,
+        told.translation.y,
+        heading(&told) + turn.unwrap_or(0.0),
+    );
+    opts.world.start * start.inverse()
+}
+
+/// A map frame for a daemon whose frame may lie at any angle to the world:
+/// a square around the start reaching the world's farthest corner.
+pub fn map_frame_around_start(world: &World) -> MapFrame {
+    let g = map_frame(world);
+    let s = world.start.translation;
+    let (w, h) = (
+        g.width as f64 * g.resolution,
+        g.height as f64 * g.resolution,
+    );
+    let reach = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+        .iter()
+        .map(|(dx, dy)| {
+            (Point2::new(g.origin.x + dx, g.origin.y + dy) - Point2::new(s.x, s.y)).norm()
+        })
+        .fold(0.0f64, f64::max);
+    MapFrame::centred(Point2::new(s.x, s.y), 2.0 * reach, g.resolution)
+}
+
 /// A fresh folder for the device symlinks of one run.
 fn link_dir() -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -496,8 +551,12 @@ fn drive(
         clock: clock.clone(),
         scanner: Box::new(DeviceConnector::new(urg_path)),
         base: driver,
-        start: opts.world.start,
-        map: map_frame(&opts.world),
+        start: told_start(opts),
+        map: if opts.heading_error == 0.0 {
+            map_frame(&opts.world)
+        } else {
+            map_frame_around_start(&opts.world)
+        },
         resume: None,
         state_dir: opts.out.as_ref().map(|o| o.join("state")),
     })?;
@@ -541,7 +600,8 @@ fn drive(
             next_fault += 1;
         }
         let (at, p) = base.truth_stamped();
-        let (est, est_at) = shared.with_status(|s| (s.pose, s.pose_time));
+        let (est_map, est_at, turn) = shared.with_status(|s| (s.pose, s.pose_time, s.frame_turn));
+        let est = to_world(opts, turn) * est_map;
         tracker.record(&p, t);
         // The truth at the estimate's own time (both threads run
         // independently): from the recent truth samples when the estimate
@@ -566,7 +626,7 @@ fn drive(
         n_err += 1;
         max_err = max_err.max(e);
         truth.push(p);
-        estimate.push(est);
+        estimate.push(est_map);
         if opts.progress && last_print.elapsed().as_secs_f64() >= 2.0 {
             last_print = Instant::now();
             println!(
@@ -591,7 +651,13 @@ fn drive(
     let base_emu = base.stats();
     let n = n_err.max(1) as f64;
     let seen = seen.lock().map(|g| g.clone()).unwrap_or_default();
-    let fixes = shared.fixes();
+    let frame_turn = shared.with_status(|s| s.frame_turn);
+    let to_w = to_world(opts, frame_turn);
+    let fixes: Vec<(f64, Pose)> = shared
+        .fixes()
+        .into_iter()
+        .map(|(t, p)| (t, to_w * p))
+        .collect();
     let fix_pairs = fix_pairs(&fixes, &seen, 0.0, 0.2);
     let (pos, head, pmax, pairs) = fix_errors(&fix_pairs);
     let best_offset = best_stamp_shift(&fixes, &seen);
@@ -602,6 +668,8 @@ fn drive(
         position_max: pmax,
         scored_fixes: pairs,
         stamp_offset: best_offset,
+        frame_turn,
+        map_to_world: to_w,
         live_position_rmse: (se_pos / n).sqrt(),
         live_heading_rmse: (se_head / n).sqrt(),
         live_position_max: max_err,

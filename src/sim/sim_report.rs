@@ -93,15 +93,27 @@ pub fn write(
 ) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let (grid, decomp) = shared.with_status(|s| (s.grid.clone(), s.decomposition.clone()));
+    // The map and the cells are in the daemon's frame, the world in its own
+    // (they differ when the daemon was told a wrong start heading).
+    let to_world = r.map_to_world;
     if let Some(g) = &grid {
-        svg::save(dir.join("map.svg"), &map_svg(g, &r.truth, &r.estimate))?;
+        let world_to_map = to_world.inverse();
+        let truth: Vec<Pose> = r.truth.iter().map(|p| world_to_map * p).collect();
+        svg::save(dir.join("map.svg"), &map_svg(g, &truth, &r.estimate))?;
     }
     let radius = opts.config.robot.radius;
     if let Some(d) = &decomp {
+        let mut d = (**d).clone();
+        for c in &mut d.cells {
+            for q in &mut c.polygon {
+                *q = to_world * *q;
+            }
+        }
+        let estimate: Vec<Pose> = r.estimate.iter().map(|p| to_world * p).collect();
         let doc = coverage_svg::cells_svg(
             &opts.world,
-            d,
-            &r.estimate,
+            &d,
+            &estimate,
             radius,
             &format!("{} cells, estimated track", d.cells.len()),
         );
@@ -189,6 +201,17 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
                 r.heading_rmse.to_degrees(),
                 r.scored_fixes,
                 r.stamp_offset * 1e3
+            ),
+        ),
+        (
+            "map frame laid along the walls (start heading turned by; heading told off by)",
+            format!(
+                "{}; {:+.1}°",
+                r.frame_turn.map_or("not turned".to_string(), |t| format!(
+                    "{:+.1}°",
+                    t.to_degrees()
+                )),
+                opts.heading_error.to_degrees()
             ),
         ),
         (
