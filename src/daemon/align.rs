@@ -12,13 +12,22 @@ use crate::geom::{wrap_angle, IPoint, Segment};
 use crate::map::lines::{Curve, LineExtractor, ScanLine};
 use crate::map::params::MapParams;
 
-/// Least wall length (m) the first scan's line features must add up to.
-pub const MIN_WALL_EVIDENCE: f64 = 1.5;
+/// Least length (m) of the first scan's line features within
+/// [`INLIER_BAND`] of the axes found.
+pub const MIN_WALL_EVIDENCE: f64 = 3.0;
 
-/// Least agreement of the line directions modulo 90° (the length-weighted
-/// mean resultant of `e^{4iθ}`, 1 = every line on one axis pair): below it
-/// the scan sees no rectilinear room (clutter, a curved wall).
-pub const MIN_AGREEMENT: f64 = 0.6;
+/// Least share of the line features' length within [`INLIER_BAND`] of the
+/// axes found: below it the scan sees no rectilinear room (clutter, walls
+/// at several angles).
+pub const MIN_AGREEMENT: f64 = 0.7;
+
+/// Lines within this angle (rad) of the axes, modulo 90°, count as walls
+/// along them: the axes are re-estimated from these alone, so that clutter
+/// at other angles does not pull them.
+pub const INLIER_BAND: f64 = 8.0 * std::f64::consts::PI / 180.0;
+
+/// Re-estimations of the axes from the lines within [`INLIER_BAND`].
+const REFINE_ROUNDS: usize = 3;
 
 /// Scans tried before the frame is left as it is.
 pub const MAX_ALIGN_SCANS: u32 = 20;
@@ -26,14 +35,15 @@ pub const MAX_ALIGN_SCANS: u32 = 20;
 /// What the first scans say about the walls' direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AlignStep {
-    /// Turn the start heading by `turn` (rad, in (-π/4, π/4]); `evidence`
-    /// metres of wall agree with `agreement`.
+    /// Turn the start heading by `turn` (rad, in (-π/4, π/4]): `evidence`
+    /// metres of wall lines, the share `agreement` of all, lie along the
+    /// axes found.
     Turn {
         /// Rotation added to the start heading (rad).
         turn: f64,
-        /// Wall length behind it (m).
+        /// Length of the wall lines along the axes (m).
         evidence: f64,
-        /// Agreement of the line directions, 0..=1.
+        /// Their share of all line features' length, 0..=1.
         agreement: f64,
     },
     /// This scan says too little; wait for the next.
@@ -72,7 +82,9 @@ impl WallAlign {
     }
 
     /// The dominant wall axis of one scan's `points` (scanner frame, beam
-    /// order) with the agreement of its lines; `None` without line features.
+    /// order), re-estimated from the lines within [`INLIER_BAND`] of it,
+    /// with the length (m) and the share of the lines that agree with it;
+    /// `None` without line features.
     pub fn wall_axis(&mut self, points: &[IPoint]) -> Option<(AxisEstimate, f64)> {
         let origin = nalgebra::Point2::origin();
         self.extractor.extract(
@@ -84,13 +96,33 @@ impl WallAlign {
         );
         self.segments.clear();
         self.segments.extend(self.lines.iter().map(|l| l.seg));
-        let axis = from_segments(&self.segments)?;
-        let along: f64 = self
+        let all = from_segments(&self.segments)?;
+        let mut angle = all.angle;
+        let near = |s: &Segment, a: f64| turn_to_axes(s.angle() - a).abs() <= INLIER_BAND;
+        for _ in 0..REFINE_ROUNDS {
+            let (mut sx, mut sy) = (0.0, 0.0);
+            for s in self.segments.iter().filter(|s| near(s, angle)) {
+                sx += s.length() * (4.0 * s.angle()).cos();
+                sy += s.length() * (4.0 * s.angle()).sin();
+            }
+            if sx == 0.0 && sy == 0.0 {
+                break;
+            }
+            angle = sy.atan2(sx) / 4.0;
+        }
+        let inliers: f64 = self
             .segments
             .iter()
-            .map(|s| s.length() * (4.0 * (s.angle() - axis.angle)).cos())
+            .filter(|s| near(s, angle))
+            .map(Segment::length)
             .sum();
-        Some((axis, along / axis.evidence))
+        Some((
+            AxisEstimate {
+                angle,
+                evidence: inliers,
+            },
+            inliers / all.evidence,
+        ))
     }
 
     /// Looks at one more scan taken with the scanner at `heading` (rad, in

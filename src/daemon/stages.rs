@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use nalgebra::Point2;
 
-use super::align::{AlignStep, MAX_ALIGN_SCANS, MIN_WALL_EVIDENCE};
+use super::align::{AlignStep, MAX_ALIGN_SCANS, MIN_AGREEMENT, MIN_WALL_EVIDENCE};
 use super::contact::{
     mapped_touch, turn_in_place, BodyTrack, ContactMark, ContactParams, HeldContact, MotionMemory,
 };
@@ -184,7 +184,8 @@ impl Stage for LocaliseStage {
                 AlignStep::NotYet => return Ok(()),
                 AlignStep::GiveUp => {
                     log::warn!(
-                        "map frame: the first {MAX_ALIGN_SCANS} scans show no rectilinear walls (under {MIN_WALL_EVIDENCE} m of wall lines agreeing modulo 90°); the frame stays the start pose, lanes may cross the walls at an angle"
+                        "map frame: the first {MAX_ALIGN_SCANS} scans show no rectilinear walls (not {MIN_WALL_EVIDENCE} m of wall lines, {:.0} % of all, along one pair of axes); the frame stays the start pose, lanes may cross the walls at an angle",
+                        MIN_AGREEMENT * 100.0
                     );
                     self.shared.with_status(|s| s.frame_turn = Some(0.0));
                 }
@@ -202,8 +203,9 @@ impl Stage for LocaliseStage {
                     self.tracker = Tracker::new(self.tracker.params().clone(), turned * self.mount)
                         .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
                     log::info!(
-                        "map frame turned {:+.1}° to lie along the walls ({evidence:.1} m of wall lines in the first scan, agreement {agreement:.2}); start heading {:.1}°",
+                        "map frame turned {:+.1}° to lie along the walls ({evidence:.1} m of wall lines along the axes in the first scan, {:.0} % of all); start heading {:.1}°",
                         turn.to_degrees(),
+                        agreement * 100.0,
                         heading(&turned).to_degrees()
                     );
                     self.shared.with_status(|s| {
