@@ -245,6 +245,17 @@ pub struct ThrottleMetrics {
     pub throttled_time: f64,
 }
 
+/// CPU time of the process's threads of one name since the pipeline
+/// started (see [`super::threads`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ThreadMetrics {
+    /// Thread name (15 characters at most, as the kernel keeps it).
+    pub name: String,
+    /// User + system CPU time (s), 10 ms ticks.
+    pub cpu: f64,
+}
+
 /// Everything the report needs, at one instant of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -257,6 +268,8 @@ pub struct MetricsSnapshot {
     pub cores: usize,
     /// Process CPU time since the pipeline started (s), all threads.
     pub process_cpu: f64,
+    /// Process CPU by thread name, largest first (empty without `/proc`).
+    pub threads: Vec<ThreadMetrics>,
     /// Whole-process CPU budget, fraction of one core.
     pub cpu_budget: f64,
     /// Per stage, in spawn order.

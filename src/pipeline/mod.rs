@@ -71,6 +71,7 @@ pub mod rt;
 pub mod signals;
 pub mod stage;
 pub mod supervisor;
+pub mod threads;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -83,7 +84,10 @@ pub use stage::{Poll, RunState, Stage, StageCtx, StageFault, StageHealth};
 
 use clock::{core_count, process_cpu_time, Stamp};
 use edge::EdgeStats;
-use metrics::{EdgeMetrics, MetricsSnapshot, SupervisorMetrics, ThrottleMetrics, METRICS_VERSION};
+use metrics::{
+    EdgeMetrics, MetricsSnapshot, SupervisorMetrics, ThreadMetrics, ThrottleMetrics,
+    METRICS_VERSION,
+};
 use stage::StageBudget;
 
 /// Why the pipeline could not be set up.
@@ -135,6 +139,7 @@ pub struct Pipeline {
     edges: Vec<EdgeEntry>,
     started: Stamp,
     cpu0: Duration,
+    threads0: std::collections::BTreeMap<u32, (String, f64)>,
     throttle0: Option<cgroup::Throttling>,
     supervisor: Arc<SupervisorCounters>,
 }
@@ -150,6 +155,7 @@ impl Pipeline {
             edges: Vec::new(),
             started: Stamp::now(),
             cpu0: process_cpu_time(),
+            threads0: threads::read_threads(),
             throttle0: cgroup::read_throttling(),
             supervisor: Arc::new(SupervisorCounters::default()),
         }
@@ -263,6 +269,10 @@ impl Pipeline {
             wall: Stamp::now().since(self.started).as_secs_f64(),
             cores: core_count(),
             process_cpu: process_cpu_time().saturating_sub(self.cpu0).as_secs_f64(),
+            threads: threads::cpu_by_name(&self.threads0)
+                .into_iter()
+                .map(|(name, cpu)| ThreadMetrics { name, cpu })
+                .collect(),
             cpu_budget: self.params.cpu_budget,
             stages: self.stages().map(|s| s.metrics()).collect(),
             edges: self

@@ -172,6 +172,10 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
          CPU time (`CLOCK_THREAD_CPUTIME_ID`), waiting included.\n"
     );
 
+    if !s.threads.is_empty() {
+        write_threads(&mut md, s);
+    }
+
     let _ = writeln!(md, "## Channels\n");
     if s.edges.is_empty() {
         let _ = writeln!(md, "No channels were registered.\n");
@@ -210,6 +214,53 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
         let _ = writeln!(md, "![{}]({})", st.name, histogram_file(&st.name));
     }
     md
+}
+
+/// The "CPU by thread" section: every thread name's CPU, and the share of
+/// in-process device emulators (the simulator's), which a robot does not run.
+fn write_threads(md: &mut String, s: &MetricsSnapshot) {
+    let share = |cpu: f64| {
+        if s.wall > 0.0 {
+            pct(cpu / s.wall)
+        } else {
+            "–".into()
+        }
+    };
+    let _ = writeln!(md, "## CPU by thread\n");
+    let emulated: f64 = s
+        .threads
+        .iter()
+        .filter(|t| crate::pipeline::threads::is_emulator(&t.name))
+        .map(|t| t.cpu)
+        .sum();
+    if emulated > 0.0 {
+        let rest = (s.process_cpu - emulated).max(0.0);
+        let _ = writeln!(
+            md,
+            "In-process device emulators (threads `{}`…, the simulator's, not run on a robot): \
+             {:.2} s = {} of one core; **the process without them: {} of one core** \
+             (against the budget of {}: **{}**).\n",
+            crate::pipeline::threads::EMULATOR_PREFIXES.join("`…, `"),
+            emulated,
+            share(emulated),
+            share(rest),
+            pct(s.cpu_budget),
+            ok_mark(s.wall > 0.0 && rest / s.wall <= s.cpu_budget),
+        );
+    }
+    let _ = writeln!(md, "| thread | CPU | share of one core |");
+    let _ = writeln!(md, "|---|--:|--:|");
+    let staged = |n: &str| s.stages.iter().any(|st| st.name == n);
+    for t in s.threads.iter().filter(|t| !staged(&t.name)) {
+        let _ = writeln!(md, "| {} | {:.2} s | {} |", t.name, t.cpu, share(t.cpu));
+    }
+    let _ = writeln!(
+        md,
+        "\nThreads besides the stages (whose CPU is in the table above), live when the \
+         snapshot was taken: user + system time since the pipeline started \
+         (`/proc/self/task/*/stat`, 10 ms ticks), summed over threads of one name. The \
+         process figure counts ended threads too.\n"
+    );
 }
 
 /// Writes `report.md` and the SVG histograms into `dir` (created if needed);
@@ -263,4 +314,61 @@ pub fn write_budget_report(dir: &Path, s: &MetricsSnapshot) -> Result<PathBuf, R
 pub fn report_run_dir(run_dir: &Path) -> Result<PathBuf, ReportError> {
     let snap = MetricsSnapshot::read(&run_dir.join(METRICS_FILE))?;
     write_budget_report(run_dir, &snap)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::metrics::{StageMetrics, ThreadMetrics};
+
+    fn snapshot(threads: &[(&str, f64)]) -> MetricsSnapshot {
+        MetricsSnapshot {
+            wall: 60.0,
+            cores: 2,
+            process_cpu: 6.0,
+            cpu_budget: 0.05,
+            stages: vec![StageMetrics {
+                name: "localise".into(),
+                ..Default::default()
+            }],
+            threads: threads
+                .iter()
+                .map(|(n, c)| ThreadMetrics {
+                    name: n.to_string(),
+                    cpu: *c,
+                })
+                .collect(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn the_emulators_threads_are_told_apart_from_the_daemons() {
+        let md = budget_markdown(&snapshot(&[
+            ("emu-roboclaw", 3.0),
+            ("localise", 1.0),
+            ("urg-emulator", 0.6),
+            ("supervisor", 0.2),
+        ]));
+        assert!(md.contains("**10.00 % of one core**"), "{md}");
+        assert!(
+            md.contains("3.60 s = 6.00 % of one core; **the process without them: 4.00 % of one core** (against the budget of 5.00 %: **within**)"),
+            "{md}"
+        );
+        assert!(md.contains("| emu-roboclaw | 3.00 s | 5.00 % |"), "{md}");
+        assert!(md.contains("| supervisor | 0.20 s | 0.33 % |"), "{md}");
+        // A stage's thread is in the stage table, not listed again.
+        assert!(!md.contains("| localise | 1.00 s"), "{md}");
+        // Over the budget without the emulators too.
+        let md = budget_markdown(&snapshot(&[("emu-create2", 1.0)]));
+        assert!(md.contains("without them: 8.33 % of one core"), "{md}");
+        assert!(md.contains("5.00 %: **OVER**"), "{md}");
+        // On a robot: no emulator line, the thread table only.
+        let md = budget_markdown(&snapshot(&[("supervisor", 0.2)]));
+        assert!(
+            md.contains("## CPU by thread") && !md.contains("emulators"),
+            "{md}"
+        );
+        assert!(!budget_markdown(&snapshot(&[])).contains("## CPU by thread"));
+    }
 }
