@@ -31,6 +31,16 @@ pub struct LaserScan {
 }
 
 impl LaserScan {
+    /// The same scan seen from a sensor turned upside down: every angle
+    /// negated, the beams reversed so they stay counter-clockwise. In place,
+    /// no allocation.
+    pub fn mirror(&mut self) {
+        self.beams.reverse();
+        for b in self.beams.iter_mut() {
+            b.angle = -b.angle;
+        }
+    }
+
     /// Number of valid beams.
     pub fn valid_count(&self) -> usize {
         self.beams.iter().filter(|b| b.valid).count()
@@ -48,5 +58,33 @@ impl LaserScan {
             out.push(IPoint::new(b.range * c, b.range * s, b.intensity));
         }
         out.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mirrored_scan_keeps_its_beams_counter_clockwise() {
+        let mut s = LaserScan::default();
+        for (a, r) in [(-1.0, 2.0), (0.0, 3.0), (0.5, 4.0)] {
+            s.beams
+                .push(Beam {
+                    angle: a,
+                    range: r,
+                    intensity: 0.0,
+                    valid: true,
+                })
+                .unwrap();
+        }
+        s.mirror();
+        let got: Vec<(f64, f64)> = s.beams.iter().map(|b| (b.angle, b.range)).collect();
+        assert_eq!(got, vec![(-0.5, 4.0), (0.0, 3.0), (1.0, 2.0)]);
+        // A point seen at +0.5 rad by the upside-down sensor lies at -0.5
+        // rad in the upright frame.
+        let mut pts = Vec::new();
+        s.points_into(&mut pts);
+        assert!((pts[0].y - 4.0 * (-0.5f64).sin()).abs() < 1e-12);
     }
 }

@@ -25,6 +25,27 @@ pub struct RobotParams {
     pub max_turn_rate: f64,
     /// Scanner mounting offset forward of the wheel axle centre (m).
     pub scanner_offset_x: f64,
+    /// Scanner mounting offset to the left of the wheel axle centre (m).
+    pub scanner_offset_y: f64,
+    /// Direction (rad, counter-clockwise from the robot's front) of the
+    /// scanner's own front (its 0° beam).
+    pub scanner_yaw: f64,
+    /// The scanner is mounted upside down: it sweeps clockwise as seen from
+    /// above, so its beam angles are mirrored.
+    pub scanner_upside_down: bool,
+}
+
+impl RobotParams {
+    /// The scanner's pose in the robot frame (offsets and yaw); an
+    /// upside-down mount mirrors the beams besides (see
+    /// [`crate::scan::LaserScan::mirror`]).
+    pub fn scanner_mount(&self) -> crate::geom::Pose {
+        crate::geom::pose(
+            self.scanner_offset_x,
+            self.scanner_offset_y,
+            self.scanner_yaw,
+        )
+    }
 }
 
 impl Default for RobotParams {
@@ -37,6 +58,9 @@ impl Default for RobotParams {
             max_speed: 0.226,
             max_turn_rate: 0.78,
             scanner_offset_x: 0.0,
+            scanner_offset_y: 0.0,
+            scanner_yaw: 0.0,
+            scanner_upside_down: false,
         }
     }
 }
@@ -192,8 +216,20 @@ impl Config {
         positive("robot.wheel_radius", r.wheel_radius)?;
         positive("robot.max_speed", r.max_speed)?;
         positive("robot.max_turn_rate", r.max_turn_rate)?;
-        if !r.scanner_offset_x.is_finite() {
-            return Err(invalid("robot.scanner_offset_x", "must be a finite number"));
+        for (key, v) in [
+            ("robot.scanner_offset_x", r.scanner_offset_x),
+            ("robot.scanner_offset_y", r.scanner_offset_y),
+        ] {
+            if !v.is_finite() {
+                return Err(invalid(key, "must be a finite number"));
+            }
+        }
+        let y = r.scanner_yaw;
+        if !(y.is_finite() && (-std::f64::consts::PI..=std::f64::consts::PI).contains(&y)) {
+            return Err(invalid(
+                "robot.scanner_yaw",
+                &format!("must be an angle in radians within -pi..=pi, got {y:?}"),
+            ));
         }
         self.pipeline.validate()?;
         self.motor.validate()?;
@@ -243,6 +279,30 @@ mod tests {
     fn bad_value_is_named() {
         let e = Config::from_toml("[robot]\nradius = -1.0\n", "t.toml").unwrap_err();
         assert!(e.to_string().contains("robot.radius"), "{e}");
+    }
+
+    #[test]
+    fn a_scanner_mount_is_checked_and_gives_the_scanner_pose() {
+        for bad in [
+            "scanner_yaw = 4.0",
+            "scanner_yaw = nan",
+            "scanner_offset_y = inf",
+        ] {
+            let e = Config::from_toml(&format!("[robot]\n{bad}\n"), "t.toml").unwrap_err();
+            let key = bad.split(' ').next().unwrap();
+            assert!(
+                e.to_string().contains(&format!("robot.{key}")),
+                "{bad}: {e}"
+            );
+        }
+        let cfg = Config::from_toml(
+            "[robot]\nscanner_offset_x = 0.1\nscanner_offset_y = -0.05\nscanner_yaw = 1.5\n",
+            "t.toml",
+        )
+        .unwrap();
+        let m = cfg.robot.scanner_mount();
+        assert!((m.translation.x - 0.1).abs() < 1e-12 && (m.translation.y + 0.05).abs() < 1e-12);
+        assert!((m.rotation.angle() - 1.5).abs() < 1e-12);
     }
 
     #[test]

@@ -29,7 +29,7 @@ use crate::clock::SharedClock;
 use crate::config::Config;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
-use crate::geom::{pose, Pose};
+use crate::geom::Pose;
 use crate::grid::Grid;
 use crate::icp::{Tracker, TrackerState};
 use crate::motor::DiffDriveBase;
@@ -192,7 +192,7 @@ impl Daemon {
         let cfg = setup.config;
         let clock = setup.clock;
         let robot = cfg.robot.clone();
-        let mount = pose(robot.scanner_offset_x, 0.0, 0.0);
+        let mount = robot.scanner_mount();
         let supervisor = Supervisor::new(&cfg.pipeline);
         let mut pipeline = Pipeline::new(&cfg.pipeline);
         let shared = Arc::new(Shared::default());
@@ -392,6 +392,7 @@ impl Daemon {
                 tx: scan_tx,
                 shared: shared.clone(),
                 mount,
+                upside_down: robot.scanner_upside_down,
             },
         )?;
         Ok(Daemon {

@@ -57,6 +57,8 @@ pub struct ScannerStage {
     pub shared: Arc<Shared>,
     /// Pose of the scanner in the robot frame.
     pub mount: Pose,
+    /// The scanner is mounted upside down: its scans are mirrored.
+    pub upside_down: bool,
 }
 
 impl Stage for ScannerStage {
@@ -73,8 +75,11 @@ impl Stage for ScannerStage {
         }
     }
 
-    fn process(&mut self, work: Self::Work, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, mut work: Self::Work, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         let t0 = Stamp::now();
+        if self.upside_down {
+            work.scan.mirror();
+        }
         let odom = self.shared.odom.at(work.scan.stamp) * self.mount;
         let msg = ScanMsg {
             t0,

@@ -334,7 +334,10 @@ struct WorldScene {
     base: Arc<EmulatorHandle>,
     seen: TruthLog,
     wheel_base: f64,
-    mount: f64,
+    /// The scanner's pose on the robot.
+    mount: Pose,
+    /// The scanner is mounted upside down (it sweeps clockwise).
+    upside_down: bool,
     noise: f64,
     rng: ChaCha8Rng,
 }
@@ -360,13 +363,12 @@ impl Scene for WorldScene {
         if let Ok(mut g) = self.seen.lock() {
             g.push((t, p));
         }
-        let th = heading(&p);
-        let o = Point2::new(
-            p.translation.x + self.mount * th.cos(),
-            p.translation.y + self.mount * th.sin(),
-        );
+        let sensor = p * self.mount;
+        let th = heading(&sensor);
+        let o = Point2::from(sensor.translation.vector);
+        let turn = if self.upside_down { -1.0 } else { 1.0 };
         for (a, e) in angles.iter().zip(out.iter_mut()) {
-            *e = match self.world.cast_ray(&o, th + a, URG_RANGE) {
+            *e = match self.world.cast_ray(&o, th + turn * a, URG_RANGE) {
                 Some(hit) => {
                     let r = hit.range + self.noise * self.gauss();
                     Echo::Hit {
@@ -467,7 +469,8 @@ fn start_emulators(
         base: base.clone(),
         seen,
         wheel_base: opts.config.robot.wheel_base,
-        mount: opts.config.robot.scanner_offset_x,
+        mount: opts.config.robot.scanner_mount(),
+        upside_down: opts.config.robot.scanner_upside_down,
         noise: opts.range_noise,
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
     };
