@@ -108,7 +108,37 @@ fn a_scanner_mounted_upside_down_and_turned_is_read_through_its_mount() {
     cfg.robot.scanner_offset_y = -0.04;
     cfg.robot.scanner_yaw = 20f64.to_radians();
     cfg.robot.scanner_upside_down = true;
-    small_run(cfg, |_| {});
+    let r = small_run(cfg, |_| {});
+    let ratio = r.turn_ratio.expect("no quarter turn checked");
+    assert!(
+        (0.9..=1.1).contains(&ratio),
+        "scans turned {ratio} of the wheels' turn"
+    );
+}
+
+/// The same scanner upside down, but the configuration says upright: the
+/// scans turn against the wheels, and the daemon stops at its first
+/// quarter turn, naming the key, instead of mapping nonsense (without the
+/// check the run ended "coverage finished" at 1.19 %).
+#[test]
+fn a_scanner_upside_down_but_configured_upright_stops_the_daemon() {
+    let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());
+    opts.speed = 8.0;
+    opts.time_cap = 300.0;
+    opts.scanner_truth = Some((sweepline::geom::Pose::identity(), true));
+    let r = closed_loop::run(&opts).unwrap();
+    eprintln!(
+        "{}: turn ratio {:?}, coverage {:.2} %, {:.0} s sim",
+        r.reason,
+        r.turn_ratio,
+        r.metrics.coverage * 100.0,
+        r.sim_time
+    );
+    assert!(!r.finished);
+    assert!(r.reason.contains("localise"), "{}", r.reason);
+    let ratio = r.turn_ratio.expect("no quarter turn checked");
+    assert!(ratio < 0.0, "scans turned {ratio} of the wheels' turn");
+    assert!(r.sim_time < 60.0, "stopped only after {} s", r.sim_time);
 }
 
 #[test]

@@ -19,6 +19,7 @@ pub mod resume;
 pub mod shared;
 pub mod stages;
 pub mod stuck;
+pub mod turn_check;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -383,6 +384,7 @@ impl Daemon {
                 last_stamp: None,
                 align: (setup.resume.is_none() && cfg.daemon.align_to_walls)
                     .then(align::WallAlign::new),
+                turn_check: turn_check::TurnCheck::default(),
             },
         )?;
         pipeline.spawn(

@@ -136,6 +136,9 @@ pub struct LiveStatus {
     /// along the walls (see [`super::align`]); `None` until decided, and
     /// for a resumed run.
     pub frame_turn: Option<f64>,
+    /// The matched scans' turn over the wheels' over the first quarter turn
+    /// (see [`super::turn_check`]); `None` until then.
+    pub turn_ratio: Option<f64>,
 }
 
 impl Default for LiveStatus {
@@ -157,6 +160,7 @@ impl Default for LiveStatus {
             keyframes: None,
             contacts: None,
             frame_turn: None,
+            turn_ratio: None,
         }
     }
 }

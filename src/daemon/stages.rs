@@ -16,6 +16,7 @@ use super::contact::{
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
+use super::turn_check::TurnVerdict;
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
@@ -129,6 +130,8 @@ pub struct LocaliseStage {
     /// At a fresh start, until decided: turns the map frame to the walls
     /// of the first scans before tracking starts (see [`super::align`]).
     pub align: Option<super::align::WallAlign>,
+    /// Whether the scans turn with the wheels (a wrong scanner mount).
+    pub turn_check: super::turn_check::TurnCheck,
 }
 
 /// A scan further than this many scan intervals after the previous one
@@ -259,6 +262,27 @@ impl Stage for LocaliseStage {
         }
         let robot = step.pose * self.mount.inverse();
         let robot_odom = msg.odom * self.mount.inverse();
+        match self.turn_check.step(&robot_odom, &robot, matched) {
+            TurnVerdict::Undecided => {}
+            TurnVerdict::Agree { ratio } => {
+                log::info!(
+                    "scans and wheels agree on the first quarter turn (the scans turned {:.0} % of the wheels' turn)",
+                    ratio * 100.0
+                );
+                self.shared.with_status(|s| s.turn_ratio = Some(ratio));
+            }
+            TurnVerdict::Disagree { scans, wheels } => {
+                self.shared
+                    .with_status(|s| s.turn_ratio = Some(scans / wheels));
+                // Mapping on, with the pose turning the wrong way, would
+                // build a map of nothing and drive blind: stop instead.
+                return Err(StageFault::Fatal(format!(
+                    "scans and wheels disagree: over the first quarter turn the wheels turned {:+.0}° and the matched scans {:+.0}°; is the scanner mounted upside down (robot.scanner_upside_down)? Stopping: the pose cannot be trusted",
+                    wheels.to_degrees(),
+                    scans.to_degrees()
+                )));
+            }
+        }
         self.shared.with_status(|s| {
             s.scans += 1;
             if !matched {

@@ -103,6 +103,10 @@ pub struct SimOptions {
     /// be laid along them. Poses are scored in the world frame through the
     /// frame the daemon chose.
     pub heading_error: f64,
+    /// The emulated scanner's true mount (its pose on the robot, upside
+    /// down) when it differs from what `config.robot` tells the daemon: a
+    /// wrongly configured robot. `None`: as configured.
+    pub scanner_truth: Option<(Pose, bool)>,
 }
 
 impl SimOptions {
@@ -121,6 +125,7 @@ impl SimOptions {
             base_faults: Vec::new(),
             range_noise: 0.005,
             heading_error: 0.0,
+            scanner_truth: None,
         }
     }
 }
@@ -146,6 +151,9 @@ pub struct SimReport {
     /// Rotation (rad) the daemon turned its start heading by to lay its map
     /// along the walls (`None`: not decided, or `daemon.align_to_walls` off).
     pub frame_turn: Option<f64>,
+    /// The matched scans' turn over the wheels' over the first quarter turn
+    /// (the daemon's check of the scanner's mount; `None`: not reached).
+    pub turn_ratio: Option<f64>,
     /// The daemon's map frame in the world (identity but for the frame
     /// turn and the told start heading): `map_to_world * estimate` is in the
     /// world frame.
@@ -469,8 +477,12 @@ fn start_emulators(
         base: base.clone(),
         seen,
         wheel_base: opts.config.robot.wheel_base,
-        mount: opts.config.robot.scanner_mount(),
-        upside_down: opts.config.robot.scanner_upside_down,
+        mount: opts
+            .scanner_truth
+            .map_or_else(|| opts.config.robot.scanner_mount(), |t| t.0),
+        upside_down: opts
+            .scanner_truth
+            .map_or(opts.config.robot.scanner_upside_down, |t| t.1),
         noise: opts.range_noise,
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
     };
@@ -672,6 +684,7 @@ fn drive(
         scored_fixes: pairs,
         stamp_offset: best_offset,
         frame_turn,
+        turn_ratio: shared.with_status(|s| s.turn_ratio),
         map_to_world: to_w,
         live_position_rmse: (se_pos / n).sqrt(),
         live_heading_rmse: (se_head / n).sqrt(),
