@@ -53,7 +53,7 @@ pub struct Args {
     /// as for a robot switched on at an angle to the walls: its map frame
     /// starts turned against the room and must be laid along the walls
     /// (`daemon.align_to_walls`).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_heading_error)]
     pub heading_error: f64,
 }
 
@@ -65,6 +65,14 @@ pub fn parse_base(s: &str) -> Result<BaseKind, String> {
         other => Err(format!(
             "unknown base `{other}`: expected roboclaw or create2"
         )),
+    }
+}
+
+/// Parses `--heading-error`: degrees in -180..=180.
+pub fn parse_heading_error(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= 180.0 => Ok(v),
+        _ => Err(format!("expected degrees in -180..=180, got `{s}`")),
     }
 }
 
@@ -80,13 +88,6 @@ pub fn run(args: Args) -> CliResult {
     opts.time_cap = super::world_args::time_cap(args.time_cap, &opts.world);
     opts.progress = true;
     opts.urg_faults = args.urg_faults.parse()?;
-    if !(args.heading_error.is_finite() && args.heading_error.abs() <= 180.0) {
-        return Err(format!(
-            "--heading-error must be a number of degrees in -180..=180, got {}",
-            args.heading_error
-        )
-        .into());
-    }
     opts.heading_error = args.heading_error.to_radians();
     if args.out.join("state").exists() {
         std::fs::remove_dir_all(args.out.join("state"))?;
@@ -123,5 +124,20 @@ pub fn run(args: Args) -> CliResult {
         Ok(())
     } else {
         Err(format!("coverage did not finish: {}", r.reason).into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_heading_error_is_degrees_within_a_half_turn() {
+        assert_eq!(parse_heading_error("-35"), Ok(-35.0));
+        assert_eq!(parse_heading_error("180"), Ok(180.0));
+        for bad in ["181", "nan", "inf", "20deg", ""] {
+            let e = parse_heading_error(bad).unwrap_err();
+            assert!(e.contains("-180..=180") && e.contains(bad), "{bad}: {e}");
+        }
     }
 }

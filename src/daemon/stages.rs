@@ -262,7 +262,7 @@ impl Stage for LocaliseStage {
         }
         let robot = step.pose * self.mount.inverse();
         let robot_odom = msg.odom * self.mount.inverse();
-        match self.turn_check.step(&robot_odom, &robot, matched) {
+        match self.turn_check.step(&self.points, &robot_odom) {
             TurnVerdict::Undecided => {}
             TurnVerdict::Agree { ratio } => {
                 log::info!(
@@ -277,7 +277,7 @@ impl Stage for LocaliseStage {
                 // Mapping on, with the pose turning the wrong way, would
                 // build a map of nothing and drive blind: stop instead.
                 return Err(StageFault::Fatal(format!(
-                    "scans and wheels disagree: over the first quarter turn the wheels turned {:+.0}° and the matched scans {:+.0}°; is the scanner mounted upside down (robot.scanner_upside_down)? Stopping: the pose cannot be trusted",
+                    "scans and wheels disagree: over the first quarter turn the wheels turned {:+.0}° and the walls in the scans {:+.0}°; is the scanner mounted upside down (robot.scanner_upside_down)? Stopping: the pose cannot be trusted",
                     wheels.to_degrees(),
                     scans.to_degrees()
                 )));

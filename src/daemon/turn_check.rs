@@ -1,19 +1,29 @@
 //! Do the scans turn with the wheels? A scanner mounted upside down but
-//! configured upright in `[robot]` (or the reverse) makes the scan matcher
-//! see the robot turn the other way than the wheels say. The first quarter
-//! turn the wheels report (the look-around at the start turns in place) is
-//! compared with the turn the matched scans add up to over the same scans;
-//! the localise stage stops the daemon when the ratio is far from one. A
-//! wrong `scanner_yaw` does not change turns and is not caught here. Pure:
-//! fed one localised scan at a time.
+//! configured upright in `[robot]` (or the reverse) sees the room turn the
+//! wrong way as the robot turns. Over the first quarter turn the wheels
+//! report (the look-around at the start turns in place), the turn of the
+//! dominant wall axes from scan to scan ([`super::align`], independent of
+//! the scan matcher, which fails often on mirrored scans) is compared with
+//! the wheels'; the localise stage stops the daemon when the ratio is far
+//! from one. A wrong `scanner_yaw` does not change turns and is not caught
+//! here. Pure: fed one scan at a time.
 
-use crate::geom::{heading, wrap_angle, Pose};
+use super::align::{turn_to_axes, WallAlign, MIN_AGREEMENT, MIN_WALL_EVIDENCE};
+use crate::geom::{heading, wrap_angle, IPoint, Pose};
 
 /// Wheel turn (rad) over which the check is made.
 pub const CHECK_TURN: f64 = std::f64::consts::FRAC_PI_2;
 
 /// The scans' turn over the wheels' must lie within these bounds.
 pub const AGREE: (f64, f64) = (0.5, 1.5);
+
+/// Scans after which an undecided check stops looking (no quarter turn
+/// with walls in view: nothing to compare, and no cost from then on).
+pub const MAX_SCANS: u32 = 600;
+
+/// Largest wheel turn (rad) between two scans that is compared: the wall
+/// axes repeat every 90°, so larger steps could alias.
+const MAX_STEP: f64 = 0.5;
 
 /// What the check says.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,9 +35,10 @@ pub enum TurnVerdict {
         /// The scans' turn over the wheels'.
         ratio: f64,
     },
-    /// They disagree: `scans` rad matched while the wheels turned `wheels`.
+    /// They disagree: the scans turned `scans` rad while the wheels turned
+    /// `wheels`.
     Disagree {
-        /// Turn of the matched scans (rad).
+        /// Turn of the scans' walls (rad).
         scans: f64,
         /// Turn of the wheel odometry over the same scans (rad).
         wheels: f64,
@@ -35,31 +46,58 @@ pub enum TurnVerdict {
 }
 
 /// The running comparison (see the module docs).
-#[derive(Clone, Debug, Default)]
+#[derive(Default)]
 pub struct TurnCheck {
-    prev: Option<(Pose, Pose)>,
+    walls: WallAlign,
+    prev: Option<(Pose, f64)>,
     wheels: f64,
     scans: f64,
+    seen: u32,
     done: bool,
 }
 
 impl TurnCheck {
-    /// Adds one scan: the wheel odometry pose and the matched pose at it
-    /// (`matched` false when the matcher fell back to the odometry, which
-    /// breaks the chain). Returns a verdict once, then `Undecided` for ever.
-    pub fn step(&mut self, odom: &Pose, pose: &Pose, matched: bool) -> TurnVerdict {
+    /// Adds one scan (its points in the scanner frame) with the wheel
+    /// odometry pose at it. Returns a verdict once, then `Undecided`.
+    pub fn step(&mut self, points: &[IPoint], odom: &Pose) -> TurnVerdict {
         if self.done {
             return TurnVerdict::Undecided;
         }
-        if !matched {
-            self.prev = None;
+        self.seen += 1;
+        if self.seen > MAX_SCANS {
+            self.done = true;
             return TurnVerdict::Undecided;
         }
-        if let Some((o0, p0)) = self.prev {
-            self.wheels += wrap_angle(heading(odom) - heading(&o0));
-            self.scans += wrap_angle(heading(pose) - heading(&p0));
+        let axis = match self.walls.wall_axis(points) {
+            Some((a, share)) if a.evidence >= MIN_WALL_EVIDENCE && share >= MIN_AGREEMENT => {
+                a.angle
+            }
+            // Too few walls in this scan: the chain breaks here.
+            _ => {
+                self.prev = None;
+                return TurnVerdict::Undecided;
+            }
+        };
+        self.step_axis(axis, odom)
+    }
+
+    /// [`TurnCheck::step`] with the scan's wall axis (rad, scanner frame,
+    /// modulo 90°) already found.
+    pub fn step_axis(&mut self, axis: f64, odom: &Pose) -> TurnVerdict {
+        if self.done {
+            return TurnVerdict::Undecided;
         }
-        self.prev = Some((*odom, *pose));
+        if let Some((o0, a0)) = self.prev {
+            let dw = wrap_angle(heading(odom) - heading(&o0));
+            if dw.abs() <= MAX_STEP {
+                self.wheels += dw;
+                // The robot turning left turns its walls right in the
+                // scanner's frame by as much: the least turn that maps the
+                // new axis back onto the old one.
+                self.scans += turn_to_axes(axis - a0);
+            }
+        }
+        self.prev = Some((*odom, axis));
         if self.wheels.abs() < CHECK_TURN {
             return TurnVerdict::Undecided;
         }
@@ -80,16 +118,16 @@ impl TurnCheck {
 mod tests {
     use super::*;
     use crate::geom::pose;
+    use crate::icp::synth::{cast, room, ScanSpec};
 
-    fn turn(check: &mut TurnCheck, wheel_rate: f64, scan_rate: f64, n: usize) -> TurnVerdict {
+    /// Turns at `rate` rad per scan for `n` scans; the walls seen turn at
+    /// `-rate * seen` (1 = a correct mount, -1 = mirrored).
+    fn turn(check: &mut TurnCheck, rate: f64, seen: f64, n: usize) -> TurnVerdict {
         let mut last = TurnVerdict::Undecided;
         for k in 0..n {
-            let t = k as f64 * 0.1;
-            let v = check.step(
-                &pose(0.0, 0.0, wheel_rate * t),
-                &pose(1.0, 2.0, 0.3 + scan_rate * t),
-                true,
-            );
+            let a = rate * k as f64;
+            let axis = turn_to_axes(-(0.2 - seen * a));
+            let v = check.step_axis(axis, &pose(0.0, 0.0, a));
             if v != TurnVerdict::Undecided {
                 last = v;
             }
@@ -98,45 +136,69 @@ mod tests {
     }
 
     #[test]
-    fn scans_turning_with_the_wheels_agree_and_against_them_do_not() {
-        // 0.5 rad/s for 4 s: past a quarter turn, across the ±π wrap.
-        match turn(&mut TurnCheck::default(), 0.5, 0.48, 80) {
-            TurnVerdict::Agree { ratio } => assert!((ratio - 0.96).abs() < 1e-9, "{ratio}"),
+    fn walls_turning_with_the_wheels_agree_and_against_them_do_not() {
+        // 0.05 rad a scan for 40 scans: past a quarter turn, the axes
+        // wrapping every 90° and the heading at ±π.
+        match turn(&mut TurnCheck::default(), 0.05, 1.0, 40) {
+            TurnVerdict::Agree { ratio } => assert!((ratio - 1.0).abs() < 1e-9, "{ratio}"),
             v => panic!("{v:?}"),
         }
-        match turn(&mut TurnCheck::default(), -0.5, 0.5, 80) {
+        match turn(&mut TurnCheck::default(), -0.05, -1.0, 40) {
             TurnVerdict::Disagree { scans, wheels } => assert!(scans > 1.5 && wheels < -1.5),
             v => panic!("{v:?}"),
         }
-        // Scans that hardly turn (a yaw set far off makes the matcher hold on).
-        assert!(matches!(
-            turn(&mut TurnCheck::default(), 0.5, 0.1, 80),
-            TurnVerdict::Disagree { .. }
-        ));
-        // Too little turn: no verdict.
         assert_eq!(
-            turn(&mut TurnCheck::default(), 0.05, 0.05, 20),
+            turn(&mut TurnCheck::default(), 0.005, 1.0, 40),
+            TurnVerdict::Undecided
+        );
+        // Steps too large to compare are left out.
+        assert_eq!(
+            turn(&mut TurnCheck::default(), 0.6, -1.0, 40),
             TurnVerdict::Undecided
         );
     }
 
     #[test]
-    fn unmatched_scans_break_the_chain_and_a_verdict_comes_once() {
-        let mut c = TurnCheck::default();
+    fn real_scans_of_a_turning_robot_agree_and_mirrored_ones_do_not() {
+        let walls = room(6.5, 4.1, 0.5);
+        let mut right = TurnCheck::default();
+        let mut mirrored = TurnCheck::default();
+        let (mut r, mut m) = (TurnVerdict::Undecided, TurnVerdict::Undecided);
         for k in 0..40 {
-            let a = k as f64 * 0.05;
-            // Every other scan unmatched: its turn is not counted.
-            let v = c.step(&pose(0.0, 0.0, a), &pose(0.0, 0.0, a), k % 2 == 0);
-            assert_eq!(v, TurnVerdict::Undecided, "scan {k}");
+            let a = 0.3 + 0.06 * k as f64;
+            let pts = cast(&walls, &pose(2.0, 1.5, a), &ScanSpec::default());
+            let flipped: Vec<IPoint> = pts
+                .iter()
+                .rev()
+                .map(|p| IPoint::new(p.x, -p.y, p.intensity))
+                .collect();
+            let odom = pose(0.0, 0.0, a);
+            if let v @ (TurnVerdict::Agree { .. } | TurnVerdict::Disagree { .. }) =
+                right.step(&pts, &odom)
+            {
+                r = v;
+            }
+            if let v @ (TurnVerdict::Agree { .. } | TurnVerdict::Disagree { .. }) =
+                mirrored.step(&flipped, &odom)
+            {
+                m = v;
+            }
         }
-        let mut d = TurnCheck::default();
-        let verdicts = (0..100)
-            .map(|k| {
-                let a = k as f64 * 0.05;
-                d.step(&pose(0.0, 0.0, a), &pose(0.0, 0.0, a), true)
-            })
-            .filter(|v| *v != TurnVerdict::Undecided)
-            .count();
-        assert_eq!(verdicts, 1);
+        assert!(
+            matches!(r, TurnVerdict::Agree { ratio } if (ratio - 1.0).abs() < 0.05),
+            "{r:?}"
+        );
+        assert!(
+            matches!(m, TurnVerdict::Disagree { scans, .. } if scans < -1.4),
+            "{m:?}"
+        );
+        // No walls: no verdict.
+        let mut none = TurnCheck::default();
+        for k in 0..40 {
+            assert_eq!(
+                none.step(&[], &pose(0.0, 0.0, 0.06 * k as f64)),
+                TurnVerdict::Undecided
+            );
+        }
     }
 }
