@@ -59,6 +59,7 @@ pub struct WallAlign {
     lines: Vec<ScanLine>,
     curves: Vec<Curve>,
     segments: Vec<Segment>,
+    inliers: Vec<Segment>,
     scans: u32,
 }
 
@@ -77,6 +78,7 @@ impl WallAlign {
             lines: Vec::new(),
             curves: Vec::new(),
             segments: Vec::new(),
+            inliers: Vec::new(),
             scans: 0,
         }
     }
@@ -97,32 +99,20 @@ impl WallAlign {
         self.segments.clear();
         self.segments.extend(self.lines.iter().map(|l| l.seg));
         let all = from_segments(&self.segments)?;
-        let mut angle = all.angle;
-        let near = |s: &Segment, a: f64| turn_to_axes(s.angle() - a).abs() <= INLIER_BAND;
+        let mut axis = all;
         for _ in 0..REFINE_ROUNDS {
-            let (mut sx, mut sy) = (0.0, 0.0);
-            for s in self.segments.iter().filter(|s| near(s, angle)) {
-                sx += s.length() * (4.0 * s.angle()).cos();
-                sy += s.length() * (4.0 * s.angle()).sin();
+            let near = |s: &&Segment| turn_to_axes(s.angle() - axis.angle).abs() <= INLIER_BAND;
+            self.inliers.clear();
+            self.inliers.extend(self.segments.iter().filter(near));
+            match from_segments(&self.inliers) {
+                Some(a) => axis = a,
+                None => break,
             }
-            if sx == 0.0 && sy == 0.0 {
-                break;
-            }
-            angle = sy.atan2(sx) / 4.0;
         }
-        let inliers: f64 = self
-            .segments
-            .iter()
-            .filter(|s| near(s, angle))
-            .map(Segment::length)
-            .sum();
-        Some((
-            AxisEstimate {
-                angle,
-                evidence: inliers,
-            },
-            inliers / all.evidence,
-        ))
+        // `evidence` is the inliers' length around the final angle.
+        let near = |s: &&Segment| turn_to_axes(s.angle() - axis.angle).abs() <= INLIER_BAND;
+        axis.evidence = self.segments.iter().filter(near).map(Segment::length).sum();
+        Some((axis, axis.evidence / all.evidence))
     }
 
     /// Looks at one more scan taken with the scanner at `heading` (rad, in

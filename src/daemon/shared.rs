@@ -136,8 +136,8 @@ pub struct LiveStatus {
     /// along the walls (see [`super::align`]); `None` until decided, and
     /// for a resumed run.
     pub frame_turn: Option<f64>,
-    /// The matched scans' turn over the wheels' over the first quarter turn
-    /// (see [`super::turn_check`]); `None` until then.
+    /// The turn of the scans' walls over the wheels' over the first quarter
+    /// turn (see [`super::turn_check`]); `None` until then.
     pub turn_ratio: Option<f64>,
 }
 

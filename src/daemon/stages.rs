@@ -202,12 +202,8 @@ impl Stage for LocaliseStage {
                     evidence,
                     agreement,
                 } => {
-                    let robot = scanner * self.mount.inverse();
-                    let turned = crate::geom::pose(
-                        robot.translation.x,
-                        robot.translation.y,
-                        heading(&robot) + turn,
-                    );
+                    // Turned about the robot's own position.
+                    let turned = scanner * self.mount.inverse() * crate::geom::pose(0.0, 0.0, turn);
                     self.tracker = Tracker::new(self.tracker.params().clone(), turned * self.mount)
                         .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
                     log::info!(

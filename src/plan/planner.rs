@@ -839,10 +839,7 @@ impl CoveragePlanner {
         // its body fits through to another part of the space with work.
         if cands.is_empty() {
             if let Some(path) = self.way_out(robot, self.params.way_out_passage) {
-                self.forgive_task();
-                self.stats.ways_out += 1;
-                self.ways_out_in_a_row += 1;
-                self.set_task(Task::Escape, path, None);
+                self.take_way_out(path);
                 return working(Task::Escape);
             }
         }
@@ -879,10 +876,7 @@ impl CoveragePlanner {
                     path.last().map_or(p.y, |q| q.y),
                 );
                 self.boxed_in = 0;
-                self.forgive_task();
-                self.stats.ways_out += 1;
-                self.ways_out_in_a_row += 1;
-                self.set_task(Task::Escape, path, None);
+                self.take_way_out(path);
                 return working(Task::Escape);
             }
         } else {
@@ -1542,6 +1536,15 @@ impl CoveragePlanner {
             max_tight,
             has_work,
         )
+    }
+
+    /// Starts driving a way out (see [`Self::way_out`]): the task it leaves
+    /// is not charged a try, and ways out in a row are counted.
+    fn take_way_out(&mut self, path: Vec<Point2<f64>>) {
+        self.forgive_task();
+        self.stats.ways_out += 1;
+        self.ways_out_in_a_row += 1;
+        self.set_task(Task::Escape, path, None);
     }
 
     /// Whether the space reachable from the robot is smaller than its own

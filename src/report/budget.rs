@@ -41,6 +41,15 @@ fn pct(x: f64) -> String {
     format!("{:.2} %", x * 100.0)
 }
 
+/// `cpu` seconds as a share of one core over `wall` seconds ("–" for none).
+fn core_share(cpu: f64, wall: f64) -> String {
+    if wall > 0.0 {
+        pct(cpu / wall)
+    } else {
+        "–".into()
+    }
+}
+
 fn ok_mark(ok: bool) -> &'static str {
     if ok {
         "within"
@@ -157,11 +166,7 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
             st.late,
             st.errors,
             st.cpu,
-            if s.wall > 0.0 {
-                pct(st.cpu / s.wall)
-            } else {
-                "–".into()
-            },
+            core_share(st.cpu, s.wall),
         );
     }
     let _ = writeln!(
@@ -219,13 +224,7 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
 /// The "CPU by thread" section: every thread name's CPU, and the share of
 /// in-process device emulators (the simulator's), which a robot does not run.
 fn write_threads(md: &mut String, s: &MetricsSnapshot) {
-    let share = |cpu: f64| {
-        if s.wall > 0.0 {
-            pct(cpu / s.wall)
-        } else {
-            "–".into()
-        }
-    };
+    let share = |cpu: f64| core_share(cpu, s.wall);
     let _ = writeln!(md, "## CPU by thread\n");
     let emulated: f64 = s
         .threads

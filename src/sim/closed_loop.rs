@@ -151,8 +151,8 @@ pub struct SimReport {
     /// Rotation (rad) the daemon turned its start heading by to lay its map
     /// along the walls (`None`: not decided, or `daemon.align_to_walls` off).
     pub frame_turn: Option<f64>,
-    /// The matched scans' turn over the wheels' over the first quarter turn
-    /// (the daemon's check of the scanner's mount; `None`: not reached).
+    /// The turn of the scans' walls over the wheels' over the first quarter
+    /// turn (the daemon's check of the scanner's mount; `None`: not reached).
     pub turn_ratio: Option<f64>,
     /// The daemon's map frame in the world (identity but for the frame
     /// turn and the told start heading): `map_to_world * estimate` is in the
@@ -404,23 +404,13 @@ pub fn map_frame(world: &World) -> MapFrame {
 /// The start pose the daemon is told: the true one with the heading off
 /// by [`SimOptions::heading_error`].
 fn told_start(opts: &SimOptions) -> Pose {
-    let p = opts.world.start;
-    crate::geom::pose(
-        p.translation.x,
-        p.translation.y,
-        heading(&p) + opts.heading_error,
-    )
+    opts.world.start * crate::geom::pose(0.0, 0.0, opts.heading_error)
 }
 
 /// The map frame to the world frame: the daemon's start pose (the told one
 /// turned by the daemon's `frame_turn`, once decided) is the true start.
 fn to_world(opts: &SimOptions, turn: Option<f64>) -> Pose {
-    let told = told_start(opts);
-    let start = crate::geom::pose(
-        told.translation.x,
-        told.translation.y,
-        heading(&told) + turn.unwrap_or(0.0),
-    );
+    let start = told_start(opts) * crate::geom::pose(0.0, 0.0, turn.unwrap_or(0.0));
     opts.world.start * start.inverse()
 }
 
