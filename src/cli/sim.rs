@@ -55,6 +55,11 @@ pub struct Args {
     /// (`daemon.align_to_walls`).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_heading_error)]
     pub heading_error: f64,
+    /// Mount the emulated scanner this far (degrees, counter-clockwise)
+    /// from the `robot.scanner_yaw` the daemon is told: a wrongly
+    /// configured mount, which the daemon should catch on its first drive.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_heading_error)]
+    pub mount_yaw_error: f64,
 }
 
 /// Parses a base name.
@@ -89,6 +94,12 @@ pub fn run(args: Args) -> CliResult {
     opts.progress = true;
     opts.urg_faults = args.urg_faults.parse()?;
     opts.heading_error = args.heading_error.to_radians();
+    if args.mount_yaw_error != 0.0 {
+        let r = &opts.config.robot;
+        let turned =
+            r.scanner_mount() * crate::geom::pose(0.0, 0.0, args.mount_yaw_error.to_radians());
+        opts.scanner_truth = Some((turned, r.scanner_upside_down));
+    }
     if args.out.join("state").exists() {
         std::fs::remove_dir_all(args.out.join("state"))?;
     }

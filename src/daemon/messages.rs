@@ -13,14 +13,15 @@ use crate::motor::WheelSpeeds;
 use crate::pipeline::clock::Stamp;
 use crate::scan::LaserScan;
 
-/// scanner → localise: one scan with the odometry of the scanner at its time.
+/// scanner → localise: one scan with the robot's odometry at its time.
 #[derive(Clone, Debug)]
 pub struct ScanMsg {
     /// When the scan arrived (monotonic).
     pub t0: Stamp,
     /// The scan's time on the daemon clock (s).
     pub stamp: f64,
-    /// Odometry pose of the scanner at `stamp` (odometry frame).
+    /// Odometry pose of the robot at `stamp` (odometry frame); the localise
+    /// stage, which owns the scanner's mount, composes the scanner's.
     pub odom: Pose,
     /// Time between two scans when none is lost (s; 0 when unknown).
     pub interval: f64,

@@ -19,6 +19,7 @@ pub mod resume;
 pub mod shared;
 pub mod stages;
 pub mod stuck;
+pub mod travel_check;
 pub mod turn_check;
 
 use std::path::PathBuf;
@@ -378,6 +379,7 @@ impl Daemon {
                 to_map: map_tx,
                 shared: shared.clone(),
                 mount,
+                fit_yaw: cfg.daemon.fit_scanner_yaw,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
                 publish_keyframes: setup.state_dir.is_some(),
@@ -385,6 +387,7 @@ impl Daemon {
                 align: (setup.resume.is_none() && cfg.daemon.align_to_walls)
                     .then(align::WallAlign::new),
                 turn_check: turn_check::TurnCheck::default(),
+                travel_check: travel_check::TravelCheck::default(),
             },
         )?;
         pipeline.spawn(
@@ -393,7 +396,6 @@ impl Daemon {
                 driver: Some(driver),
                 tx: scan_tx,
                 shared: shared.clone(),
-                mount,
                 upside_down: robot.scanner_upside_down,
             },
         )?;

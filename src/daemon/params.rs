@@ -32,6 +32,11 @@ pub struct DaemonParams {
     /// run along its axes (the lanes run along the axes; see
     /// [`super::align`]).
     pub align_to_walls: bool,
+    /// Take the scanner's yaw error measured over the first metre driven
+    /// straight into the mount for the run (a mount a degree or two off
+    /// what `robot.scanner_yaw` says); off, such an error only warns, and
+    /// stops the daemon above a few degrees (see [`super::travel_check`]).
+    pub fit_scanner_yaw: bool,
     /// Bumper contact marks.
     pub contact: ContactParams,
 }
@@ -42,6 +47,7 @@ impl Default for DaemonParams {
             stuck_after: STUCK_AFTER,
             scan_timeout: SCAN_TIMEOUT,
             align_to_walls: true,
+            fit_scanner_yaw: true,
             contact: ContactParams::default(),
         }
     }

@@ -139,6 +139,12 @@ pub struct LiveStatus {
     /// The turn of the scans' walls over the wheels' over the first quarter
     /// turn (see [`super::turn_check`]); `None` until then.
     pub turn_ratio: Option<f64>,
+    /// The scans' travel against the wheels' over the first metre driven
+    /// straight (see [`super::travel_check`]); `None` until then.
+    pub travel_fit: Option<super::travel_check::TravelFit>,
+    /// The scanner's mount yaw (rad) the daemon drives with, when the
+    /// travel check refitted it; `None`: as configured.
+    pub mount_yaw: Option<f64>,
 }
 
 impl Default for LiveStatus {
@@ -161,6 +167,8 @@ impl Default for LiveStatus {
             contacts: None,
             frame_turn: None,
             turn_ratio: None,
+            travel_fit: None,
+            mount_yaw: None,
         }
     }
 }

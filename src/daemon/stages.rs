@@ -16,6 +16,9 @@ use super::contact::{
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
+use super::travel_check::{
+    TravelFit, TravelVerdict, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
+};
 use super::turn_check::TurnVerdict;
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
@@ -56,8 +59,6 @@ pub struct ScannerStage {
     pub tx: Tx<ScanMsg>,
     /// Shared state.
     pub shared: Arc<Shared>,
-    /// Pose of the scanner in the robot frame.
-    pub mount: Pose,
     /// The scanner is mounted upside down: its scans are mirrored.
     pub upside_down: bool,
 }
@@ -81,7 +82,7 @@ impl Stage for ScannerStage {
         if self.upside_down {
             work.scan.mirror();
         }
-        let odom = self.shared.odom.at(work.scan.stamp) * self.mount;
+        let odom = self.shared.odom.at(work.scan.stamp);
         let msg = ScanMsg {
             t0,
             stamp: work.scan.stamp,
@@ -115,8 +116,12 @@ pub struct LocaliseStage {
     pub to_map: Tx<MapMsg>,
     /// Shared state.
     pub shared: Arc<Shared>,
-    /// Pose of the scanner in the robot frame.
+    /// Pose of the scanner in the robot frame (its yaw refitted once by
+    /// the travel check, see [`super::travel_check`]).
     pub mount: Pose,
+    /// Whether a yaw error the travel check measures is taken into the
+    /// mount for the rest of the run (`daemon.fit_scanner_yaw`).
+    pub fit_yaw: bool,
     /// Reused point buffer.
     pub points: Vec<IPoint>,
     /// The restored map of a resumed run: the first scan is laid onto it
@@ -132,6 +137,8 @@ pub struct LocaliseStage {
     pub align: Option<super::align::WallAlign>,
     /// Whether the scans turn with the wheels (a wrong scanner mount).
     pub turn_check: super::turn_check::TurnCheck,
+    /// Whether the scans move along the robot's heading (a wrong yaw).
+    pub travel_check: super::travel_check::TravelCheck,
 }
 
 /// A scan further than this many scan intervals after the previous one
@@ -234,7 +241,10 @@ impl Stage for LocaliseStage {
         self.last_stamp = Some(msg.stamp);
         let before = self.tracker.pose();
         let restored = self.tracker.map().len();
-        let step = self.tracker.step(&self.points, Some(&msg.odom));
+        let robot_odom = msg.odom;
+        let step = self
+            .tracker
+            .step(&self.points, Some(&(robot_odom * self.mount)));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
         if resuming {
             let how = match step.outcome {
@@ -256,8 +266,7 @@ impl Stage for LocaliseStage {
             let kf = Arc::new(self.tracker.state());
             self.shared.with_status(|s| s.keyframes = Some(kf));
         }
-        let robot = step.pose * self.mount.inverse();
-        let robot_odom = msg.odom * self.mount.inverse();
+        let mut robot = step.pose * self.mount.inverse();
         match self.turn_check.step(&self.points, &robot_odom) {
             TurnVerdict::Undecided => {}
             TurnVerdict::Agree { ratio } => {
@@ -277,6 +286,23 @@ impl Stage for LocaliseStage {
                     wheels.to_degrees(),
                     scans.to_degrees()
                 )));
+            }
+        }
+        if let TravelVerdict::Decided(fit) = self
+            .travel_check
+            .step(matched.then_some(&robot), &robot_odom)
+        {
+            self.shared.with_status(|s| s.travel_fit = Some(fit));
+            if check_travel(&fit, heading(&self.mount), self.fit_yaw)? {
+                // Turned about the scanner's own position: the scans (and
+                // the map) stay; the robot's heading in it moves. The
+                // scanner's odometry jumps with the mount: the motion
+                // prior starts over.
+                self.mount *= crate::geom::pose(0.0, 0.0, -fit.angle);
+                robot = step.pose * self.mount.inverse();
+                self.tracker.set_pose(step.pose);
+                self.shared
+                    .with_status(|s| s.mount_yaw = Some(heading(&self.mount)));
             }
         }
         self.shared.with_status(|s| {
@@ -306,6 +332,59 @@ impl Stage for LocaliseStage {
         }
         Ok(())
     }
+}
+
+/// Judges the scans' travel against the wheels' (see
+/// [`super::travel_check`]): logs it, warns of a wheel scale off, and says
+/// whether the mount's yaw is to be refitted (`fit`: allowed to), or stops
+/// the daemon when the yaw is too far off to drive by.
+fn check_travel(fit: &TravelFit, configured_yaw: f64, may_fit: bool) -> Result<bool, StageFault> {
+    let (deg, dist) = (fit.angle.to_degrees(), fit.driven);
+    let what = format!(
+        "over the first {dist:.1} m driven straight the scans moved {deg:+.1}° off the robot's heading and {:.0} % of the wheels' distance",
+        fit.scale * 100.0
+    );
+    if !(SCALE_WARN.0..=SCALE_WARN.1).contains(&fit.scale) {
+        log::warn!(
+            "{what}: the wheel odometry's scale is off (robot.wheel_radius, robot.wheel_base, or slipping wheels)"
+        );
+    }
+    let error = fit.angle.abs();
+    if error <= YAW_TOLERANCE {
+        log::info!("scans and wheels agree on the direction of travel: {what}");
+        return Ok(false);
+    }
+    let suggest = fit.fitting_yaw(configured_yaw);
+    let fix = format!(
+        "robot.scanner_yaw is {configured_yaw:.3} rad ({:+.1}°), the scans fit {suggest:.3} rad ({:+.1}°)",
+        configured_yaw.to_degrees(),
+        suggest.to_degrees()
+    );
+    let limit = if may_fit {
+        YAW_FIT_MAX
+    } else {
+        YAW_STOP_UNFITTED
+    };
+    if error > limit {
+        // Steering by a heading that far off drives the body crabwise
+        // along every lane, into the walls the margins assume clear.
+        return Err(StageFault::Fatal(format!(
+            "scans and wheels disagree on the direction of travel: {what}; {fix}{}. Stopping: the heading cannot be trusted",
+            if may_fit {
+                ", too far off to be a mounting tolerance"
+            } else {
+                ""
+            }
+        )));
+    }
+    if may_fit {
+        log::warn!(
+            "{what}: the scanner's mount yaw is off; {fix}: driving with {suggest:.3} rad for this run (set it in the configuration)"
+        );
+    } else {
+        log::warn!("{what}: the scanner's mount yaw is off; {fix} (daemon.fit_scanner_yaw is off)");
+    }
+    Ok(may_fit)
 }
 
 /// The map stage: merges registered scans into the explored-area grid and
@@ -1008,5 +1087,39 @@ impl Stage for MotorStage {
             log::warn!("could not stop the wheels on shutdown: {e}");
         }
         self.shared.set_base_health(self.base.health());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(deg: f64) -> TravelFit {
+        TravelFit {
+            angle: deg.to_radians(),
+            scale: 1.0,
+            driven: 1.0,
+        }
+    }
+
+    #[test]
+    fn a_yaw_error_is_refitted_when_allowed_and_stops_the_daemon_beyond_the_limits() {
+        // Within the measurement's noise: nothing to do, fitting or not.
+        assert_eq!(check_travel(&fit(0.8), 0.0, true), Ok(false));
+        assert_eq!(check_travel(&fit(-0.8), 0.0, false), Ok(false));
+        // A mounting tolerance: refitted, or (not allowed) a warning up to 3°.
+        assert_eq!(check_travel(&fit(4.0), 0.2, true), Ok(true));
+        assert_eq!(check_travel(&fit(-19.0), 0.2, true), Ok(true));
+        assert_eq!(check_travel(&fit(2.5), 0.2, false), Ok(false));
+        // Too far off: the daemon stops, naming the key and the value that fits.
+        for (deg, may_fit) in [(4.0, false), (-25.0, true), (90.0, true)] {
+            match check_travel(&fit(deg), 0.2, may_fit) {
+                Err(StageFault::Fatal(m)) => {
+                    let want = format!("the scans fit {:.3} rad", 0.2 - deg.to_radians());
+                    assert!(m.contains("robot.scanner_yaw") && m.contains(&want), "{m}");
+                }
+                r => panic!("{deg}° (fit {may_fit}): {r:?}"),
+            }
+        }
     }
 }

@@ -154,6 +154,12 @@ pub struct SimReport {
     /// The turn of the scans' walls over the wheels' over the first quarter
     /// turn (the daemon's check of the scanner's mount; `None`: not reached).
     pub turn_ratio: Option<f64>,
+    /// The scans' travel against the wheels' over the first metre driven
+    /// straight (the daemon's check of the scanner's yaw; `None`: not reached).
+    pub travel_fit: Option<crate::daemon::travel_check::TravelFit>,
+    /// The mount yaw (rad) the daemon refitted from that check (`None`:
+    /// it drove with the configured one).
+    pub mount_yaw: Option<f64>,
     /// The daemon's map frame in the world (identity but for the frame
     /// turn and the told start heading): `map_to_world * estimate` is in the
     /// world frame.
@@ -407,11 +413,14 @@ fn told_start(opts: &SimOptions) -> Pose {
     opts.world.start * crate::geom::pose(0.0, 0.0, opts.heading_error)
 }
 
-/// The map frame to the world frame: the daemon's start pose (the told one
-/// turned by the daemon's `frame_turn`, once decided) is the true start.
+/// The map frame to the world frame: the daemon's start pose of its
+/// scanner (the told robot pose turned by the daemon's `frame_turn`, once
+/// decided, through the configured mount) is the scanner's true start.
 fn to_world(opts: &SimOptions, turn: Option<f64>) -> Pose {
-    let start = told_start(opts) * crate::geom::pose(0.0, 0.0, turn.unwrap_or(0.0));
-    opts.world.start * start.inverse()
+    let configured = opts.config.robot.scanner_mount();
+    let truth = opts.scanner_truth.map_or(configured, |t| t.0);
+    let start = told_start(opts) * crate::geom::pose(0.0, 0.0, turn.unwrap_or(0.0)) * configured;
+    opts.world.start * truth * start.inverse()
 }
 
 /// A map frame for a daemon whose frame may lie at any angle to the world:
@@ -675,6 +684,8 @@ fn drive(
         stamp_offset: best_offset,
         frame_turn,
         turn_ratio: shared.with_status(|s| s.turn_ratio),
+        travel_fit: shared.with_status(|s| s.travel_fit),
+        mount_yaw: shared.with_status(|s| s.mount_yaw),
         map_to_world: to_w,
         live_position_rmse: (se_pos / n).sqrt(),
         live_heading_rmse: (se_head / n).sqrt(),

@@ -215,6 +215,25 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             ),
         ),
         (
+            "scanner checks: scans' turn / wheels' (first quarter turn); scans' travel off the heading, distance / wheels' (first metre straight); mount yaw driven with",
+            format!(
+                "{}; {}; {}",
+                r.turn_ratio
+                    .map_or("not reached".to_string(), |t| format!("{:.0} %", t * 100.0)),
+                r.travel_fit.map_or("not reached".to_string(), |f| format!(
+                    "{:+.2}°, {:.1} % over {:.2} m",
+                    f.angle.to_degrees(),
+                    f.scale * 100.0,
+                    f.driven
+                )),
+                r.mount_yaw.map_or("as configured".to_string(), |y| format!(
+                    "refitted to {:+.2}° (configured {:+.2}°)",
+                    y.to_degrees(),
+                    opts.config.robot.scanner_yaw.to_degrees()
+                ))
+            ),
+        ),
+        (
             "live estimate (20 Hz, incl. lag): position RMSE / max, heading RMSE",
             format!(
                 "{:.1} mm / {:.1} mm, {:.2}°",
