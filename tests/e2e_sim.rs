@@ -37,9 +37,10 @@ fn small_report(cfg: Config, set: impl FnOnce(&mut SimOptions)) -> closed_loop::
     let r = closed_loop::run(&opts).unwrap();
     let m = &r.metrics;
     eprintln!(
-        "{}: frame turned {:?}°, travel {:?}, mount yaw {:?}°, coverage {:.2} %, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°, {:.0} s sim in {:.1} s wall",
+        "{}: frame turned {:?}°, turn ratio {:?}, travel {:?}, mount yaw {:?}°, coverage {:.2} %, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°, {:.0} s sim in {:.1} s wall",
         r.reason,
         r.frame_turn.map(f64::to_degrees),
+        r.turn_ratio,
         r.travel_fit,
         r.mount_yaw.map(f64::to_degrees),
         m.coverage * 100.0,
@@ -207,6 +208,23 @@ fn a_scanner_yaw_far_off_or_unfitted_stops_the_daemon() {
         );
         assert_eq!(r.mount_yaw, None);
     }
+}
+
+/// The base's wheels 28 cm apart, configured 23.5 cm: the wheel odometry
+/// reports 19 % more turn than the robot makes, and the turn check
+/// measures the scans' share of it (a warning names the base that fits).
+#[test]
+fn a_wheel_base_configured_short_shows_in_the_turn_check() {
+    let r = small_report(config(), |o| {
+        o.time_cap = 40.0;
+        o.wheel_base_truth = Some(0.28);
+    });
+    let ratio = r.turn_ratio.expect("no quarter turn checked");
+    let want = 0.235 / 0.28;
+    assert!(
+        (ratio - want).abs() <= 0.04,
+        "scans turned {ratio:.3} of the wheels' turn, expected {want:.3}"
+    );
 }
 
 #[test]

@@ -379,6 +379,7 @@ impl Daemon {
                 to_map: map_tx,
                 shared: shared.clone(),
                 mount,
+                wheel_base: robot.wheel_base,
                 fit_yaw: cfg.daemon.fit_scanner_yaw,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),

@@ -19,7 +19,7 @@ use super::stuck::ProgressWatch;
 use super::travel_check::{
     TravelFit, TravelVerdict, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
 };
-use super::turn_check::TurnVerdict;
+use super::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
@@ -119,6 +119,9 @@ pub struct LocaliseStage {
     /// Pose of the scanner in the robot frame (its yaw refitted once by
     /// the travel check, see [`super::travel_check`]).
     pub mount: Pose,
+    /// Distance between the wheels (m, `robot.wheel_base`), for the
+    /// turn check's warning.
+    pub wheel_base: f64,
     /// Whether a yaw error the travel check measures is taken into the
     /// mount for the rest of the run (`daemon.fit_scanner_yaw`).
     pub fit_yaw: bool,
@@ -274,6 +277,14 @@ impl Stage for LocaliseStage {
                     "scans and wheels agree on the first quarter turn (the scans turned {:.0} % of the wheels' turn)",
                     ratio * 100.0
                 );
+                if !(TURN_SCALE_WARN.0..=TURN_SCALE_WARN.1).contains(&ratio) {
+                    log::warn!(
+                        "the wheels' turn is off: the scans turned {:.0} % of it; robot.wheel_base is {:.3} m, the scans fit {:.3} m (or the wheels slip when turning)",
+                        ratio * 100.0,
+                        self.wheel_base,
+                        fitting_wheel_base(ratio, self.wheel_base)
+                    );
+                }
                 self.shared.with_status(|s| s.turn_ratio = Some(ratio));
             }
             TurnVerdict::Disagree { scans, wheels } => {

@@ -17,6 +17,18 @@ pub const CHECK_TURN: f64 = std::f64::consts::FRAC_PI_2;
 /// The scans' turn over the wheels' must lie within these bounds.
 pub const AGREE: (f64, f64) = (0.5, 1.5);
 
+/// A ratio that agrees but lies outside these bounds is logged as a
+/// warning naming the wheel base it fits (the wheels' turn is the wheel
+/// speeds' difference over `robot.wheel_base`: a base configured 10 % too
+/// short makes the wheels report 10 % more turn than the scans see).
+pub const SCALE_WARN: (f64, f64) = (0.9, 1.1);
+
+/// The wheel base (m) a ratio of the scans' turn over the wheels' fits,
+/// given the configured one.
+pub fn fitting_wheel_base(ratio: f64, configured: f64) -> f64 {
+    configured / ratio
+}
+
 /// Scans after which an undecided check stops looking (no quarter turn
 /// with walls in view: nothing to compare, and no cost from then on).
 pub const MAX_SCANS: u32 = 600;
@@ -133,6 +145,21 @@ mod tests {
             }
         }
         last
+    }
+
+    #[test]
+    fn a_wheel_base_configured_short_shows_as_scans_turning_less() {
+        // True base 0.25 m, configured 0.22: the wheels report 0.25/0.22
+        // of the true turn, the walls turn by the true amount.
+        let ratio = 0.22 / 0.25;
+        match turn(&mut TurnCheck::default(), 0.05 / ratio, ratio, 40) {
+            TurnVerdict::Agree { ratio: r } => {
+                assert!((r - ratio).abs() < 1e-9, "{r}");
+                assert!((fitting_wheel_base(r, 0.22) - 0.25).abs() < 1e-9);
+                assert!(!(SCALE_WARN.0..=SCALE_WARN.1).contains(&r));
+            }
+            v => panic!("{v:?}"),
+        }
     }
 
     #[test]

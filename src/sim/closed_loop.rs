@@ -107,6 +107,10 @@ pub struct SimOptions {
     /// down) when it differs from what `config.robot` tells the daemon: a
     /// wrongly configured robot. `None`: as configured.
     pub scanner_truth: Option<(Pose, bool)>,
+    /// The emulated base's true wheel base (m) when it differs from
+    /// `config.robot.wheel_base`: a wrongly configured robot. `None`: as
+    /// configured.
+    pub wheel_base_truth: Option<f64>,
 }
 
 impl SimOptions {
@@ -126,6 +130,7 @@ impl SimOptions {
             range_noise: 0.005,
             heading_error: 0.0,
             scanner_truth: None,
+            wheel_base_truth: None,
         }
     }
 }
@@ -463,6 +468,10 @@ fn start_emulators(
     ecfg.world = Some(opts.world.clone());
     ecfg.seed = opts.seed;
     ecfg.kinematics.seed = opts.seed;
+    let wheel_base = opts
+        .wheel_base_truth
+        .unwrap_or(opts.config.robot.wheel_base);
+    ecfg.kinematics.wheel_base = wheel_base;
     // Stable symlinks, like the udev names on the robot: they follow the
     // emulators' ptys over unplug and replug.
     std::fs::create_dir_all(links)
@@ -475,7 +484,7 @@ fn start_emulators(
         world: opts.world.clone(),
         base: base.clone(),
         seen,
-        wheel_base: opts.config.robot.wheel_base,
+        wheel_base,
         mount: opts
             .scanner_truth
             .map_or_else(|| opts.config.robot.scanner_mount(), |t| t.0),
@@ -629,8 +638,10 @@ fn drive(
         let q = match truth_at(&recent, est_at, 0.25) {
             Some(q) if est_at <= at => q,
             _ => {
-                let twist =
-                    Twist::from_wheels(&to_cmd(base.wheels()), opts.config.robot.wheel_base);
+                let wheel_base = opts
+                    .wheel_base_truth
+                    .unwrap_or(opts.config.robot.wheel_base);
+                let twist = Twist::from_wheels(&to_cmd(base.wheels()), wheel_base);
                 integrate(&p, &twist, (est_at - at).clamp(-0.3, 0.3))
             }
         };
