@@ -227,6 +227,24 @@ fn a_wheel_base_configured_short_shows_in_the_turn_check() {
     );
 }
 
+/// The RoboClaw's motors (and their encoders) wired left for right: every
+/// turn the daemon commands turns the robot the other way while the
+/// encoders report the commanded turn. The quarter-turn check sees the
+/// scans turn against the wheels and stops the daemon (its message names
+/// `motor.roboclaw.m1_is_left` beside `robot.scanner_upside_down`).
+#[test]
+fn wheels_swapped_left_for_right_stop_the_daemon() {
+    let r = small_report(config(), |o| {
+        o.time_cap = 120.0;
+        o.wheels_swapped = true;
+    });
+    assert!(!r.finished);
+    assert!(r.reason.contains("localise"), "{}", r.reason);
+    let ratio = r.turn_ratio.expect("no quarter turn checked");
+    assert!(ratio < 0.0, "scans turned {ratio} of the wheels' turn");
+    assert!(r.sim_time < 60.0, "stopped only after {} s", r.sim_time);
+}
+
 #[test]
 fn bad_speed_is_refused() {
     let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());

@@ -293,7 +293,7 @@ impl Stage for LocaliseStage {
                 // Mapping on, with the pose turning the wrong way, would
                 // build a map of nothing and drive blind: stop instead.
                 return Err(StageFault::Fatal(format!(
-                    "scans and wheels disagree: over the first quarter turn the wheels turned {:+.0}° and the walls in the scans {:+.0}°; is the scanner mounted upside down (robot.scanner_upside_down)? Stopping: the pose cannot be trusted",
+                    "scans and wheels disagree: over the first quarter turn the wheels turned {:+.0}° and the walls in the scans {:+.0}°; is the scanner mounted upside down (robot.scanner_upside_down), or are the left and right wheels swapped (motor.roboclaw.m1_is_left)? Stopping: the pose cannot be trusted",
                     wheels.to_degrees(),
                     scans.to_degrees()
                 )));

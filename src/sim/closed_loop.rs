@@ -111,6 +111,10 @@ pub struct SimOptions {
     /// `config.robot.wheel_base`: a wrongly configured robot. `None`: as
     /// configured.
     pub wheel_base_truth: Option<f64>,
+    /// The emulated RoboClaw's motor 1 drives the other wheel than
+    /// `motor.roboclaw.m1_is_left` says (motors and encoders swapped
+    /// left for right).
+    pub wheels_swapped: bool,
 }
 
 impl SimOptions {
@@ -131,6 +135,7 @@ impl SimOptions {
             heading_error: 0.0,
             scanner_truth: None,
             wheel_base_truth: None,
+            wheels_swapped: false,
         }
     }
 }
@@ -472,6 +477,9 @@ fn start_emulators(
         .wheel_base_truth
         .unwrap_or(opts.config.robot.wheel_base);
     ecfg.kinematics.wheel_base = wheel_base;
+    if opts.wheels_swapped {
+        ecfg.motor.roboclaw.m1_is_left = !ecfg.motor.roboclaw.m1_is_left;
+    }
     // Stable symlinks, like the udev names on the robot: they follow the
     // emulators' ptys over unplug and replug.
     std::fs::create_dir_all(links)
