@@ -345,6 +345,10 @@ impl Stage for LocaliseStage {
     }
 }
 
+/// A travel direction (rad) off the heading by more than this is driving
+/// backward: the scanner faces backward, or the odometry counts backward.
+const BACKWARD: f64 = 3.0 * std::f64::consts::FRAC_PI_4;
+
 /// Judges the scans' travel against the wheels' (see
 /// [`super::travel_check`]): logs it, warns of a wheel scale off, and says
 /// whether the mount's yaw is to be refitted (`fit`: allowed to), or stops
@@ -379,13 +383,17 @@ fn check_travel(fit: &TravelFit, configured_yaw: f64, may_fit: bool) -> Result<b
     if error > limit {
         // Steering by a heading that far off drives the body crabwise
         // along every lane, into the walls the margins assume clear.
+        let why = if error > BACKWARD {
+            // Odometry counting backward looks the same as a scanner
+            // facing backward: both make the scans move against the wheels.
+            ", or the wheel odometry counts backward (encoder polarity)"
+        } else if may_fit {
+            ", too far off to be a mounting tolerance"
+        } else {
+            ""
+        };
         return Err(StageFault::Fatal(format!(
-            "scans and wheels disagree on the direction of travel: {what}; {fix}{}. Stopping: the heading cannot be trusted",
-            if may_fit {
-                ", too far off to be a mounting tolerance"
-            } else {
-                ""
-            }
+            "scans and wheels disagree on the direction of travel: {what}; {fix}{why}. Stopping: the heading cannot be trusted"
         )));
     }
     if may_fit {
@@ -1123,11 +1131,14 @@ mod tests {
         assert_eq!(check_travel(&fit(-19.0), 0.2, true), Ok(true));
         assert_eq!(check_travel(&fit(2.5), 0.2, false), Ok(false));
         // Too far off: the daemon stops, naming the key and the value that fits.
-        for (deg, may_fit) in [(4.0, false), (-25.0, true), (90.0, true)] {
+        for (deg, may_fit) in [(4.0, false), (-25.0, true), (90.0, true), (179.0, true)] {
             match check_travel(&fit(deg), 0.2, may_fit) {
                 Err(StageFault::Fatal(m)) => {
-                    let want = format!("the scans fit {:.3} rad", 0.2 - deg.to_radians());
+                    let yaw = crate::geom::wrap_angle(0.2 - deg.to_radians());
+                    let want = format!("the scans fit {yaw:.3} rad");
                     assert!(m.contains("robot.scanner_yaw") && m.contains(&want), "{m}");
+                    // Travel against the wheels may be the odometry's sign.
+                    assert_eq!(m.contains("counts backward"), deg > 135.0, "{m}");
                 }
                 r => panic!("{deg}° (fit {may_fit}): {r:?}"),
             }
