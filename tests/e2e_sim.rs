@@ -37,12 +37,13 @@ fn small_report(cfg: Config, set: impl FnOnce(&mut SimOptions)) -> closed_loop::
     let r = closed_loop::run(&opts).unwrap();
     let m = &r.metrics;
     eprintln!(
-        "{}: frame turned {:?}°, turn ratio {:?}, travel {:?}, mount yaw {:?}°, coverage {:.2} %, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°, {:.0} s sim in {:.1} s wall",
+        "{}: frame turned {:?}°, turn ratio {:?}, offset {:?}, travel {:?}, refitted mount {:?}, coverage {:.2} %, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°, {:.0} s sim in {:.1} s wall",
         r.reason,
         r.frame_turn.map(f64::to_degrees),
         r.turn_ratio,
+        r.offset_fit,
         r.travel_fit,
-        r.mount_yaw.map(f64::to_degrees),
+        r.refitted_mount,
         m.coverage * 100.0,
         m.overlap * 100.0,
         r.position_rmse * 1e3,
@@ -53,15 +54,21 @@ fn small_report(cfg: Config, set: impl FnOnce(&mut SimOptions)) -> closed_loop::
     r
 }
 
-/// [`small_report`], checking what every such run must hold: finished, ≥ 97 % covered, no collision, the robot's pose
-/// within 3 cm / 1° RMSE.
-fn small_run(cfg: Config, set: impl FnOnce(&mut SimOptions)) -> closed_loop::SimReport {
-    let r = small_report(cfg, set);
+/// What every finished run must hold: finished, ≥ 97 % covered, no
+/// collision, the robot's position within 3 cm RMSE.
+fn assert_covered(r: &closed_loop::SimReport) {
     let m = &r.metrics;
     assert!(r.finished, "did not finish: {}", r.reason);
     assert!(m.coverage >= 0.97, "coverage {:.3}", m.coverage);
     assert_eq!(m.collisions, 0);
     assert!(r.position_rmse <= 0.03, "position RMSE {}", r.position_rmse);
+}
+
+/// [`small_report`], checking what every such run must hold: finished, ≥ 97 % covered, no collision, the robot's pose
+/// within 3 cm / 1° RMSE.
+fn small_run(cfg: Config, set: impl FnOnce(&mut SimOptions)) -> closed_loop::SimReport {
+    let r = small_report(cfg, set);
+    assert_covered(&r);
     assert!(
         r.heading_rmse.to_degrees() <= 1.0,
         "heading RMSE {}°",
@@ -126,7 +133,7 @@ fn a_scanner_mounted_upside_down_and_turned_is_read_through_its_mount() {
     // Configured as mounted: the scans move along the heading, the yaw stands.
     let fit = r.travel_fit.expect("no metre driven straight");
     assert!(fit.angle.to_degrees().abs() <= 1.0, "{fit:?}");
-    assert_eq!(r.mount_yaw, None);
+    assert_eq!(r.refitted_mount, None);
 }
 
 /// The same scanner upside down, but the configuration says upright: the
@@ -154,15 +161,21 @@ fn a_scanner_upside_down_but_configured_upright_stops_the_daemon() {
     assert!(r.sim_time < 60.0, "stopped only after {} s", r.sim_time);
 }
 
-/// Runs the small world with the emulated scanner mounted `deg` degrees
-/// left of the configured (straight ahead) yaw.
-fn yaw_off_run(deg: f64, fit: bool, cap: f64) -> closed_loop::SimReport {
+/// Runs the small world with the emulated scanner mounted at `truth` (on
+/// the robot) while the configuration says it sits at the axle centre,
+/// facing ahead; `fit` is `daemon.fit_scanner_mount`.
+fn mount_off_run(truth: sweepline::geom::Pose, fit: bool, cap: f64) -> closed_loop::SimReport {
     let mut cfg = config();
-    cfg.daemon.fit_scanner_yaw = fit;
+    cfg.daemon.fit_scanner_mount = fit;
     small_report(cfg, |o| {
         o.time_cap = cap;
-        o.scanner_truth = Some((sweepline::geom::pose(0.0, 0.0, deg.to_radians()), false));
+        o.scanner_truth = Some((truth, false));
     })
+}
+
+/// [`mount_off_run`] with the scanner turned `deg` degrees left.
+fn yaw_off_run(deg: f64, fit: bool, cap: f64) -> closed_loop::SimReport {
+    mount_off_run(sweepline::geom::pose(0.0, 0.0, deg.to_radians()), fit, cap)
 }
 
 /// The scanner turned 4° off what `robot.scanner_yaw` says (a mounting
@@ -180,16 +193,9 @@ fn a_scanner_yaw_a_few_degrees_off_is_refitted_on_the_first_metre() {
         fit.angle.to_degrees()
     );
     assert!((0.95..=1.05).contains(&fit.scale), "{fit:?}");
-    let yaw = r.mount_yaw.expect("mount not refitted").to_degrees();
+    let yaw = sweepline::geom::heading(&r.refitted_mount.expect("mount not refitted")).to_degrees();
     assert!((yaw - 4.0).abs() <= 0.7, "refitted to {yaw:.2}°");
-    assert!(r.finished, "did not finish: {}", r.reason);
-    assert!(
-        r.metrics.coverage >= 0.97,
-        "coverage {:.3}",
-        r.metrics.coverage
-    );
-    assert_eq!(r.metrics.collisions, 0);
-    assert!(r.position_rmse <= 0.03, "position RMSE {}", r.position_rmse);
+    assert_covered(&r);
 }
 
 /// Off by 30° (no mounting tolerance), or by 4° with the fit turned off:
@@ -206,7 +212,7 @@ fn a_scanner_yaw_far_off_or_unfitted_stops_the_daemon() {
             "{deg}°: scans' travel {:.2}° off the heading",
             f.angle.to_degrees()
         );
-        assert_eq!(r.mount_yaw, None);
+        assert_eq!(r.refitted_mount, None);
     }
 }
 
@@ -243,6 +249,43 @@ fn wheels_swapped_left_for_right_stop_the_daemon() {
     let ratio = r.turn_ratio.expect("no quarter turn checked");
     assert!(ratio < 0.0, "scans turned {ratio} of the wheels' turn");
     assert!(r.sim_time < 60.0, "stopped only after {} s", r.sim_time);
+}
+
+/// [`mount_off_run`] with the scanner `dx`, `dy` m (ahead, left) off.
+fn offset_off_run(dx: f64, dy: f64, fit: bool, cap: f64) -> closed_loop::SimReport {
+    mount_off_run(sweepline::geom::pose(dx, dy, 0.0), fit, cap)
+}
+
+/// The scanner 10 cm ahead of and 5 cm left of the axle, configured at the
+/// axle: the look-around's half turn in place shows it circling the axle,
+/// the daemon takes the fitted offset into the mount and covers the room
+/// with its pose where the robot is.
+#[test]
+fn a_scanner_offset_off_is_refitted_on_the_first_half_turn() {
+    let r = offset_off_run(0.10, 0.05, true, 900.0);
+    let fit = r.offset_fit.expect("no half turn in place");
+    assert!(
+        (fit.offset.x - 0.10).abs() <= 0.01 && (fit.offset.y - 0.05).abs() <= 0.01,
+        "{fit:?}"
+    );
+    let m = r.refitted_mount.expect("mount not refitted");
+    assert!((m.translation.vector - fit.offset).norm() < 1e-9, "{m:?}");
+    assert_covered(&r);
+}
+
+/// Off by 25 cm (no measuring error), or by 4 cm with the fit turned off:
+/// the daemon stops at its first half turn in place.
+#[test]
+fn a_scanner_offset_far_off_or_unfitted_stops_the_daemon() {
+    for (dx, fit) in [(0.25, true), (-0.04, false)] {
+        let r = offset_off_run(dx, 0.0, fit, 120.0);
+        assert!(!r.finished);
+        assert!(r.reason.contains("localise"), "{}", r.reason);
+        let f = r.offset_fit.expect("no half turn in place");
+        assert!((f.offset.x - dx).abs() <= 0.01, "{dx}: {f:?}");
+        assert_eq!(r.refitted_mount, None);
+        assert!(r.sim_time < 60.0, "stopped only after {} s", r.sim_time);
+    }
 }
 
 #[test]

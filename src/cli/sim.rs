@@ -60,6 +60,11 @@ pub struct Args {
     /// configured mount, which the daemon should catch on its first drive.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_heading_error)]
     pub mount_yaw_error: f64,
+    /// Mount the emulated scanner this far (metres ahead, left: `DX,DY`)
+    /// from the `robot.scanner_offset_x`/`_y` the daemon is told, which it
+    /// should catch on its first half turn in place.
+    #[arg(long, default_value = "0,0", allow_hyphen_values = true, value_parser = parse_offset_error)]
+    pub mount_offset_error: (f64, f64),
 }
 
 /// Parses a base name.
@@ -81,6 +86,21 @@ pub fn parse_heading_error(s: &str) -> Result<f64, String> {
     }
 }
 
+/// Parses `--mount-offset-error`: `DX,DY` in metres, each within ±0.5.
+pub fn parse_offset_error(s: &str) -> Result<(f64, f64), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected DX,DY in metres, got `{s}`"))?;
+    match v[..] {
+        [x, y] if x.is_finite() && y.is_finite() && x.abs() <= 0.5 && y.abs() <= 0.5 => Ok((x, y)),
+        _ => Err(format!(
+            "expected DX,DY in metres, each within ±0.5, got `{s}`"
+        )),
+    }
+}
+
 /// Runs `sweepline sim`.
 pub fn run(args: Args) -> CliResult {
     let world = args.world.load(Some(std::path::Path::new(DEFAULT_WORLD)))?;
@@ -94,11 +114,16 @@ pub fn run(args: Args) -> CliResult {
     opts.progress = true;
     opts.urg_faults = args.urg_faults.parse()?;
     opts.heading_error = args.heading_error.to_radians();
-    if args.mount_yaw_error != 0.0 {
+    let (dx, dy) = args.mount_offset_error;
+    if args.mount_yaw_error != 0.0 || dx != 0.0 || dy != 0.0 {
         let r = &opts.config.robot;
-        let turned =
-            r.scanner_mount() * crate::geom::pose(0.0, 0.0, args.mount_yaw_error.to_radians());
-        opts.scanner_truth = Some((turned, r.scanner_upside_down));
+        let m = r.scanner_mount();
+        let truth = crate::geom::pose(
+            m.translation.x + dx,
+            m.translation.y + dy,
+            crate::geom::heading(&m) + args.mount_yaw_error.to_radians(),
+        );
+        opts.scanner_truth = Some((truth, r.scanner_upside_down));
     }
     if args.out.join("state").exists() {
         std::fs::remove_dir_all(args.out.join("state"))?;
@@ -141,6 +166,16 @@ pub fn run(args: Args) -> CliResult {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_offset_error_is_two_distances_in_metres() {
+        assert_eq!(parse_offset_error("0.05,-0.02"), Ok((0.05, -0.02)));
+        assert_eq!(parse_offset_error(" -0.1 , 0 "), Ok((-0.1, 0.0)));
+        for bad in ["0.05", "0.1,0.2,0.3", "a,b", "0.6,0", "NaN,0", ""] {
+            let e = parse_offset_error(bad).unwrap_err();
+            assert!(e.contains("DX,DY"), "{bad}: {e}");
+        }
+    }
 
     #[test]
     fn a_heading_error_is_degrees_within_a_half_turn() {

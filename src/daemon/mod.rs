@@ -13,6 +13,7 @@ pub mod align;
 pub mod contact;
 pub mod hooks;
 pub mod messages;
+pub mod offset_check;
 pub mod params;
 pub mod relocalise;
 pub mod resume;
@@ -380,7 +381,7 @@ impl Daemon {
                 shared: shared.clone(),
                 mount,
                 wheel_base: robot.wheel_base,
-                fit_yaw: cfg.daemon.fit_scanner_yaw,
+                fit_mount: cfg.daemon.fit_scanner_mount,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
                 publish_keyframes: setup.state_dir.is_some(),
@@ -389,6 +390,8 @@ impl Daemon {
                     .then(align::WallAlign::new),
                 turn_check: turn_check::TurnCheck::default(),
                 travel_check: travel_check::TravelCheck::default(),
+                offset_check: offset_check::OffsetCheck::new(robot.scanner_yaw),
+                offset_fitted: false,
             },
         )?;
         pipeline.spawn(

@@ -32,11 +32,13 @@ pub struct DaemonParams {
     /// run along its axes (the lanes run along the axes; see
     /// [`super::align`]).
     pub align_to_walls: bool,
-    /// Take the scanner's yaw error measured over the first metre driven
-    /// straight into the mount for the run (a mount a degree or two off
-    /// what `robot.scanner_yaw` says); off, such an error only warns, and
-    /// stops the daemon above a few degrees (see [`super::travel_check`]).
-    pub fit_scanner_yaw: bool,
+    /// Take the scanner's offset error measured over the first half turn in
+    /// place and its yaw error measured over the first metre driven
+    /// straight into the mount for the run (a mount a few centimetres or
+    /// degrees off what `[robot]` says); off, such errors only warn, and
+    /// stop the daemon above 3 cm or 3° (see [`super::offset_check`],
+    /// [`super::travel_check`]).
+    pub fit_scanner_mount: bool,
     /// Bumper contact marks.
     pub contact: ContactParams,
 }
@@ -47,7 +49,7 @@ impl Default for DaemonParams {
             stuck_after: STUCK_AFTER,
             scan_timeout: SCAN_TIMEOUT,
             align_to_walls: true,
-            fit_scanner_yaw: true,
+            fit_scanner_mount: true,
             contact: ContactParams::default(),
         }
     }

@@ -142,9 +142,12 @@ pub struct LiveStatus {
     /// The scans' travel against the wheels' over the first metre driven
     /// straight (see [`super::travel_check`]); `None` until then.
     pub travel_fit: Option<super::travel_check::TravelFit>,
-    /// The scanner's mount yaw (rad) the daemon drives with, when the
+    /// The scanner offset fitted from the first half turn in place (see
+    /// [`super::offset_check`]); `None` until then.
+    pub offset_fit: Option<super::offset_check::OffsetFit>,
+    /// The scanner mount the daemon drives with, when the offset or the
     /// travel check refitted it; `None`: as configured.
-    pub mount_yaw: Option<f64>,
+    pub refitted_mount: Option<Pose>,
 }
 
 impl Default for LiveStatus {
@@ -168,7 +171,8 @@ impl Default for LiveStatus {
             frame_turn: None,
             turn_ratio: None,
             travel_fit: None,
-            mount_yaw: None,
+            offset_fit: None,
+            refitted_mount: None,
         }
     }
 }

@@ -14,6 +14,7 @@ use super::contact::{
     mapped_touch, turn_in_place, BodyTrack, ContactMark, ContactParams, HeldContact, MotionMemory,
 };
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
+use super::offset_check::{OffsetFit, OFFSET_FIT_MAX, OFFSET_STOP_UNFITTED, OFFSET_TOLERANCE};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
 use super::travel_check::{
@@ -123,8 +124,8 @@ pub struct LocaliseStage {
     /// turn check's warning.
     pub wheel_base: f64,
     /// Whether a yaw error the travel check measures is taken into the
-    /// mount for the rest of the run (`daemon.fit_scanner_yaw`).
-    pub fit_yaw: bool,
+    /// mount for the rest of the run (`daemon.fit_scanner_mount`).
+    pub fit_mount: bool,
     /// Reused point buffer.
     pub points: Vec<IPoint>,
     /// The restored map of a resumed run: the first scan is laid onto it
@@ -142,6 +143,23 @@ pub struct LocaliseStage {
     pub turn_check: super::turn_check::TurnCheck,
     /// Whether the scans move along the robot's heading (a wrong yaw).
     pub travel_check: super::travel_check::TravelCheck,
+    /// Whether the scanner circles the axle at its configured offset when
+    /// the robot turns in place (a wrong offset).
+    pub offset_check: super::offset_check::OffsetCheck,
+    /// The mount's offset was refitted by the offset check.
+    pub offset_fitted: bool,
+}
+
+impl LocaliseStage {
+    /// Drives with `mount` from now on (a check refitted it); returns the
+    /// robot's pose under it, the scanner at `scanner`. The scanner's
+    /// odometry jumps with the mount: the motion prior starts over.
+    fn refit_mount(&mut self, mount: Pose, scanner: &Pose) -> Pose {
+        self.mount = mount;
+        self.tracker.set_pose(*scanner);
+        self.shared.with_status(|s| s.refitted_mount = Some(mount));
+        scanner * mount.inverse()
+    }
 }
 
 /// A scan further than this many scan intervals after the previous one
@@ -299,21 +317,38 @@ impl Stage for LocaliseStage {
                 )));
             }
         }
+        if let Some(fit) = self
+            .offset_check
+            .step(matched.then_some(&step.pose), &robot_odom)
+        {
+            self.shared.with_status(|s| s.offset_fit = Some(fit));
+            if check_offset(&fit, &self.mount, self.fit_mount)? {
+                let yaw = heading(&self.mount);
+                robot = self.refit_mount(
+                    crate::geom::pose(fit.offset.x, fit.offset.y, yaw),
+                    &step.pose,
+                );
+                self.offset_fitted = true;
+            }
+        }
         if let TravelVerdict::Decided(fit) = self
             .travel_check
             .step(matched.then_some(&robot), &robot_odom)
         {
             self.shared.with_status(|s| s.travel_fit = Some(fit));
-            if check_travel(&fit, heading(&self.mount), self.fit_yaw)? {
+            if check_travel(&fit, heading(&self.mount), self.fit_mount)? {
                 // Turned about the scanner's own position: the scans (and
-                // the map) stay; the robot's heading in it moves. The
-                // scanner's odometry jumps with the mount: the motion
-                // prior starts over.
-                self.mount *= crate::geom::pose(0.0, 0.0, -fit.angle);
-                robot = step.pose * self.mount.inverse();
-                self.tracker.set_pose(step.pose);
-                self.shared
-                    .with_status(|s| s.mount_yaw = Some(heading(&self.mount)));
+                // the map) stay; the robot's heading in it moves. An
+                // offset fitted under the old yaw was turned by the error
+                // too (see `offset_check`): it turns back.
+                let m = self.mount;
+                let t = if self.offset_fitted {
+                    nalgebra::Rotation2::new(-fit.angle) * m.translation.vector
+                } else {
+                    m.translation.vector
+                };
+                let refitted = crate::geom::pose(t.x, t.y, heading(&m) - fit.angle);
+                robot = self.refit_mount(refitted, &step.pose);
             }
         }
         self.shared.with_status(|s| {
@@ -343,6 +378,57 @@ impl Stage for LocaliseStage {
         }
         Ok(())
     }
+}
+
+/// Judges the scanner offset fitted from turning in place (see
+/// [`super::offset_check`]) against the `mount` configured: logs it, and
+/// says whether the offset is to be refitted (`may_fit`: allowed to), or
+/// stops the daemon when it is too far off to drive by.
+fn check_offset(fit: &OffsetFit, mount: &Pose, may_fit: bool) -> Result<bool, StageFault> {
+    let (t, c) = (fit.offset, mount.translation.vector);
+    let error = (t - c).norm();
+    let what = format!(
+        "turning in place over {:.0}° the scanner circled the axle at ({:.3}, {:.3}) m (ahead, left)",
+        fit.turned.to_degrees(),
+        t.x,
+        t.y
+    );
+    if error <= OFFSET_TOLERANCE {
+        log::info!(
+            "scanner offset agrees: {what}, {:.1} cm from the configured one",
+            error * 100.0
+        );
+        return Ok(false);
+    }
+    let fix = format!(
+        "robot.scanner_offset_x, robot.scanner_offset_y are ({:.3}, {:.3}) m, {:.1} cm off",
+        c.x,
+        c.y,
+        error * 100.0
+    );
+    let limit = if may_fit {
+        OFFSET_FIT_MAX
+    } else {
+        OFFSET_STOP_UNFITTED
+    };
+    if error > limit {
+        return Err(StageFault::Fatal(format!(
+            "the scanner is not where the configuration says: {what}; {fix}{}. Stopping: the position cannot be trusted",
+            if may_fit {
+                ", too far off to be a measuring error"
+            } else {
+                ""
+            }
+        )));
+    }
+    if may_fit {
+        log::warn!(
+            "{what}; {fix}: driving with the fitted offset for this run (set it in the configuration)"
+        );
+    } else {
+        log::warn!("{what}; {fix} (daemon.fit_scanner_mount is off)");
+    }
+    Ok(may_fit)
 }
 
 /// A travel direction (rad) off the heading by more than this is driving
@@ -401,7 +487,9 @@ fn check_travel(fit: &TravelFit, configured_yaw: f64, may_fit: bool) -> Result<b
             "{what}: the scanner's mount yaw is off; {fix}: driving with {suggest:.3} rad for this run (set it in the configuration)"
         );
     } else {
-        log::warn!("{what}: the scanner's mount yaw is off; {fix} (daemon.fit_scanner_yaw is off)");
+        log::warn!(
+            "{what}: the scanner's mount yaw is off; {fix} (daemon.fit_scanner_mount is off)"
+        );
     }
     Ok(may_fit)
 }

@@ -23,7 +23,7 @@ pub const CHECK_DISTANCE: f64 = 1.0;
 /// mount stands (the check measured 0.0-0.3° on correctly configured runs).
 pub const YAW_TOLERANCE: f64 = 1.0 * std::f64::consts::PI / 180.0;
 
-/// With `daemon.fit_scanner_yaw` off, a yaw error (rad) above this stops
+/// With `daemon.fit_scanner_mount` off, a yaw error (rad) above this stops
 /// the daemon (3° cost 1.2 points of coverage and 18 of overlap in the
 /// bench room, the lanes followed with the body crabbing).
 pub const YAW_STOP_UNFITTED: f64 = 3.0 * std::f64::consts::PI / 180.0;

@@ -167,9 +167,12 @@ pub struct SimReport {
     /// The scans' travel against the wheels' over the first metre driven
     /// straight (the daemon's check of the scanner's yaw; `None`: not reached).
     pub travel_fit: Option<crate::daemon::travel_check::TravelFit>,
-    /// The mount yaw (rad) the daemon refitted from that check (`None`:
-    /// it drove with the configured one).
-    pub mount_yaw: Option<f64>,
+    /// The scanner offset the daemon fitted from its first half turn in
+    /// place (`None`: not reached).
+    pub offset_fit: Option<crate::daemon::offset_check::OffsetFit>,
+    /// The scanner mount the daemon refitted from those checks (`None`: it
+    /// drove with the configured one).
+    pub refitted_mount: Option<Pose>,
     /// The daemon's map frame in the world (identity but for the frame
     /// turn and the told start heading): `map_to_world * estimate` is in the
     /// world frame.
@@ -704,7 +707,8 @@ fn drive(
         frame_turn,
         turn_ratio: shared.with_status(|s| s.turn_ratio),
         travel_fit: shared.with_status(|s| s.travel_fit),
-        mount_yaw: shared.with_status(|s| s.mount_yaw),
+        offset_fit: shared.with_status(|s| s.offset_fit),
+        refitted_mount: shared.with_status(|s| s.refitted_mount),
         map_to_world: to_w,
         live_position_rmse: (se_pos / n).sqrt(),
         live_heading_rmse: (se_head / n).sqrt(),

@@ -215,21 +215,28 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             ),
         ),
         (
-            "scanner checks: scans' turn / wheels' (first quarter turn); scans' travel off the heading, distance / wheels' (first metre straight); mount yaw driven with",
+            "scanner checks: scans' turn / wheels' (first quarter turn); offset fitted turning in place; scans' travel off the heading, distance / wheels' (first metre straight); mount driven with",
             format!(
-                "{}; {}; {}",
+                "{}; {}; {}; {}",
                 r.turn_ratio
                     .map_or("not reached".to_string(), |t| format!("{:.0} %", t * 100.0)),
+                r.offset_fit.map_or("not reached".to_string(), |f| format!(
+                    "({:.3}, {:.3}) m over {:.0}°",
+                    f.offset.x,
+                    f.offset.y,
+                    f.turned.to_degrees()
+                )),
                 r.travel_fit.map_or("not reached".to_string(), |f| format!(
                     "{:+.2}°, {:.1} % over {:.2} m",
                     f.angle.to_degrees(),
                     f.scale * 100.0,
                     f.driven
                 )),
-                r.mount_yaw.map_or("as configured".to_string(), |y| format!(
-                    "refitted to {:+.2}° (configured {:+.2}°)",
-                    y.to_degrees(),
-                    opts.config.robot.scanner_yaw.to_degrees()
+                r.refitted_mount.map_or("as configured".to_string(), |m| format!(
+                    "refitted to ({:.3}, {:.3}) m, {:+.2}°",
+                    m.translation.x,
+                    m.translation.y,
+                    crate::geom::heading(&m).to_degrees()
                 ))
             ),
         ),
