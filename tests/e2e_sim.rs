@@ -163,19 +163,44 @@ fn a_scanner_upside_down_but_configured_upright_stops_the_daemon() {
 
 /// Runs the small world with the emulated scanner mounted at `truth` (on
 /// the robot) while the configuration says it sits at the axle centre,
-/// facing ahead; `fit` is `daemon.fit_scanner_mount`.
-fn mount_off_run(truth: sweepline::geom::Pose, fit: bool, cap: f64) -> closed_loop::SimReport {
+/// facing ahead; `fit` is `daemon.fit_scanner_mount`. The report folder
+/// is `name` under the test's temporary folder.
+fn mount_off_run(
+    name: &str,
+    truth: sweepline::geom::Pose,
+    fit: bool,
+    cap: f64,
+) -> closed_loop::SimReport {
     let mut cfg = config();
     cfg.daemon.fit_scanner_mount = fit;
     small_report(cfg, |o| {
         o.time_cap = cap;
         o.scanner_truth = Some((truth, false));
+        o.out = Some(out_dir(name));
     })
+}
+
+/// The `[robot]` value of `key` in the run folder `name`'s `mount.toml`.
+fn mount_toml_value(name: &str, key: &str) -> f64 {
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(name)
+        .join("mount.toml");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let v: toml::Table = text.parse().unwrap();
+    v["robot"][key]
+        .as_float()
+        .unwrap_or_else(|| panic!("no {key} in\n{text}"))
 }
 
 /// [`mount_off_run`] with the scanner turned `deg` degrees left.
 fn yaw_off_run(deg: f64, fit: bool, cap: f64) -> closed_loop::SimReport {
-    mount_off_run(sweepline::geom::pose(0.0, 0.0, deg.to_radians()), fit, cap)
+    let name = format!("e2e_yaw_{deg}_{fit}");
+    mount_off_run(
+        &name,
+        sweepline::geom::pose(0.0, 0.0, deg.to_radians()),
+        fit,
+        cap,
+    )
 }
 
 /// The scanner turned 4° off what `robot.scanner_yaw` says (a mounting
@@ -195,6 +220,12 @@ fn a_scanner_yaw_a_few_degrees_off_is_refitted_on_the_first_metre() {
     assert!((0.95..=1.05).contains(&fit.scale), "{fit:?}");
     let yaw = sweepline::geom::heading(&r.refitted_mount.expect("mount not refitted")).to_degrees();
     assert!((yaw - 4.0).abs() <= 0.7, "refitted to {yaw:.2}°");
+    // The run folder says what to configure.
+    let written = mount_toml_value("e2e_yaw_4_true", "scanner_yaw").to_degrees();
+    assert!(
+        (written - yaw).abs() < 0.01,
+        "mount.toml {written}°, refitted {yaw}°"
+    );
     assert_covered(&r);
 }
 
@@ -253,7 +284,8 @@ fn wheels_swapped_left_for_right_stop_the_daemon() {
 
 /// [`mount_off_run`] with the scanner `dx`, `dy` m (ahead, left) off.
 fn offset_off_run(dx: f64, dy: f64, fit: bool, cap: f64) -> closed_loop::SimReport {
-    mount_off_run(sweepline::geom::pose(dx, dy, 0.0), fit, cap)
+    let name = format!("e2e_offset_{dx}_{dy}_{fit}");
+    mount_off_run(&name, sweepline::geom::pose(dx, dy, 0.0), fit, cap)
 }
 
 /// The scanner 10 cm ahead of and 5 cm left of the axle, configured at the
@@ -270,6 +302,11 @@ fn a_scanner_offset_off_is_refitted_on_the_first_half_turn() {
     );
     let m = r.refitted_mount.expect("mount not refitted");
     assert!((m.translation.vector - fit.offset).norm() < 1e-9, "{m:?}");
+    // The run folder says what to configure (the yaw as measured, near 0).
+    let name = "e2e_offset_0.1_0.05_true";
+    let x = mount_toml_value(name, "scanner_offset_x");
+    assert!((x - 0.10).abs() <= 0.01, "mount.toml scanner_offset_x {x}");
+    assert!(mount_toml_value(name, "scanner_yaw").abs() < 0.0175);
     assert_covered(&r);
 }
 

@@ -34,6 +34,8 @@ pub struct DaemonHooks {
     pub heartbeat_errors: u64,
     /// Kind of the planner's task last logged.
     task_kind: String,
+    /// The robot as configured, for the run folder's `mount.toml`.
+    robot: Option<crate::config::RobotParams>,
 }
 
 impl DaemonHooks {
@@ -67,7 +69,15 @@ impl DaemonHooks {
             checkpoint_errors: 0,
             heartbeat_errors: 0,
             task_kind: String::new(),
+            robot: None,
         }
+    }
+
+    /// Writes the run folder's `mount.toml` (what the mount and wheel
+    /// checks measured) for a robot configured as `robot`.
+    pub fn with_robot(mut self, robot: crate::config::RobotParams) -> Self {
+        self.robot = Some(robot);
+        self
     }
 
     /// The run's progress now.
@@ -203,5 +213,15 @@ impl Hooks for DaemonHooks {
     fn after_stop(&mut self, _reason: &StopReason, _final: &MetricsSnapshot) {
         self.checkpoint();
         self.heartbeat();
+    }
+
+    fn run_folder_files(&self) -> Vec<(&'static str, String)> {
+        let Some(robot) = &self.robot else {
+            return Vec::new();
+        };
+        self.shared
+            .with_status(|s| super::mount_report::mount_toml(robot, s))
+            .map(|t| vec![(super::mount_report::MOUNT_FILE, t)])
+            .unwrap_or_default()
     }
 }

@@ -13,6 +13,7 @@ pub mod align;
 pub mod contact;
 pub mod hooks;
 pub mod messages;
+pub mod mount_report;
 pub mod offset_check;
 pub mod params;
 pub mod relocalise;
@@ -187,6 +188,8 @@ pub struct Daemon {
     checkpoint_period: f64,
     heartbeat_period: f64,
     resume_entry: Option<ResumeEntry>,
+    /// The robot as configured (for the run folder's `mount.toml`).
+    robot: crate::config::RobotParams,
 }
 
 impl Daemon {
@@ -414,6 +417,7 @@ impl Daemon {
             state_dir: setup.state_dir,
             checkpoint_period: cfg.pipeline.checkpoint_period,
             heartbeat_period: cfg.pipeline.heartbeat_period,
+            robot: cfg.robot.clone(),
         })
     }
 
@@ -442,6 +446,7 @@ impl Daemon {
             self.heartbeat_period,
             self.resume,
         )
+        .with_robot(self.robot.clone())
     }
 
     /// What the resume this daemon started from lost (none: a fresh start),

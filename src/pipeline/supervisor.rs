@@ -101,6 +101,12 @@ pub trait Hooks {
     /// Shutdown, last step, after every stage thread has been joined: write
     /// the final checkpoint and metrics.
     fn after_stop(&mut self, _reason: &StopReason, _final: &MetricsSnapshot) {}
+
+    /// Files for the run folder beside the metrics, written at the end
+    /// (name, text): what the run found out besides its metrics.
+    fn run_folder_files(&self) -> Vec<(&'static str, String)> {
+        Vec::new()
+    }
 }
 
 /// Hooks that do nothing (tests, tools).

@@ -103,9 +103,19 @@ impl<H: Hooks> Hooks for RunFolderHooks<H> {
         self.inner.before_stop(reason, pipeline);
     }
 
+    fn run_folder_files(&self) -> Vec<(&'static str, String)> {
+        self.inner.run_folder_files()
+    }
+
     fn after_stop(&mut self, reason: &StopReason, snap: &MetricsSnapshot) {
         self.inner.after_stop(reason, snap);
         self.write(snap);
+        for (name, text) in self.inner.run_folder_files() {
+            let path = self.dir.join(name);
+            if let Err(e) = std::fs::write(&path, text) {
+                log::warn!("cannot write {}: {e}", path.display());
+            }
+        }
         match write_budget_report(&self.dir, snap) {
             Ok(p) => self.report = Some(p),
             Err(e) => log::warn!("cannot write the budget report: {e}"),
