@@ -116,7 +116,9 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
-        let (lattice, tries) = self.shared.with_status(|s| (s.lattice, s.tries.clone()));
+        let (lattice, tries, refitted) = self
+            .shared
+            .with_status(|s| (s.lattice, s.tries.clone(), s.refitted_mount));
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)
@@ -139,6 +141,13 @@ impl DaemonHooks {
         }
         if let Some(c) = contacts {
             r = r.and_then(|()| cp.put(&*c));
+        }
+        if let (Some(refitted), Some(robot)) = (refitted, &self.robot) {
+            let rec = crate::pipeline::checkpoint::MountRecord {
+                configured: robot.scanner_mount(),
+                refitted,
+            };
+            r = r.and_then(|()| cp.put(&rec));
         }
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;

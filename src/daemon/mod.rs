@@ -33,7 +33,7 @@ use crate::clock::SharedClock;
 use crate::config::Config;
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
-use crate::geom::Pose;
+use crate::geom::{heading, Pose};
 use crate::grid::Grid;
 use crate::icp::{Tracker, TrackerState};
 use crate::motor::DiffDriveBase;
@@ -131,6 +131,9 @@ pub struct Resume {
     /// The bumper contact marks at the checkpoint, marked again in the map
     /// so that rays cannot clear them.
     pub contacts: Vec<contact::ContactMark>,
+    /// The scanner mount refitted before the checkpoint (none: the run
+    /// drove with the configured one).
+    pub mount: Option<crate::pipeline::checkpoint::MountRecord>,
     /// What the restart lost, for the run's report.
     pub entry: ResumeEntry,
 }
@@ -198,7 +201,10 @@ impl Daemon {
         let cfg = setup.config;
         let clock = setup.clock;
         let robot = cfg.robot.clone();
-        let mount = robot.scanner_mount();
+        // A resumed run drives with the mount refitted before its
+        // checkpoint (while the configuration is unchanged).
+        let refitted = setup.resume.as_ref().and_then(|r| r.mount);
+        let mount = resume::resumed_mount(robot.scanner_mount(), refitted.as_ref());
         let supervisor = Supervisor::new(&cfg.pipeline);
         let mut pipeline = Pipeline::new(&cfg.pipeline);
         let shared = Arc::new(Shared::default());
@@ -224,6 +230,8 @@ impl Daemon {
                 if !r.contacts.is_empty() {
                     s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
                 }
+                // Later checkpoints keep the refitted mount.
+                s.refitted_mount = (mount != robot.scanner_mount()).then_some(mount);
             }
         });
 
@@ -392,8 +400,8 @@ impl Daemon {
                 align: (setup.resume.is_none() && cfg.daemon.align_to_walls)
                     .then(align::WallAlign::new),
                 turn_check: turn_check::TurnCheck::default(),
-                travel_check: travel_check::TravelCheck::default(),
-                offset_check: offset_check::OffsetCheck::new(robot.scanner_yaw),
+                travel_check: travel_check::TravelCheck::new(heading(&mount)),
+                offset_check: offset_check::OffsetCheck::new(heading(&mount)),
                 offset_fitted: false,
             },
         )?;

@@ -49,7 +49,7 @@ pub fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
         Some(f) => {
             s += &format!(
                 "scanner_yaw = {:.4}  # configured {:.4}; the scans moved {:+.2}° off the heading over {:.2} m driven straight ({:.1} % of the wheels' distance)\n",
-                f.fitting_yaw(robot.scanner_yaw),
+                f.fitting_yaw(),
                 robot.scanner_yaw,
                 f.angle.to_degrees(),
                 f.driven,
@@ -105,6 +105,7 @@ mod tests {
                 angle: -0.05,
                 scale: 1.01,
                 driven: 1.02,
+                yaw: 0.0,
             }),
             turn_ratio: Some(robot.wheel_base / 0.25),
             ..LiveStatus::default()

@@ -4,12 +4,12 @@
 //! last heartbeat, and says what the restart lost ([`ResumeEntry`]).
 
 use super::Resume;
-use crate::geom::Pose;
+use crate::geom::{heading, Pose};
 use crate::grid::Grid;
 use crate::icp::TrackerState;
 use crate::pipeline::checkpoint::{
-    Checkpoint, CheckpointError, CheckpointStore, ContactArcs, ProgressMark, ResumeEntry,
-    RunProgress, WrittenAt,
+    Checkpoint, CheckpointError, CheckpointStore, ContactArcs, MountRecord, ProgressMark,
+    ResumeEntry, RunProgress, WrittenAt,
 };
 use crate::plan::{LatticePhase, PlanTries, SweptFloor};
 
@@ -141,6 +141,13 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             Vec::new()
         }
     };
+    let mount = match cp.get::<MountRecord>() {
+        Ok(m) => m,
+        Err(e) => {
+            log::warn!("refitted scanner mount unreadable, the checks fit it again: {e}");
+            None
+        }
+    };
     Some(Resume {
         pose,
         grid,
@@ -150,6 +157,55 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         tries,
         tracker,
         contacts,
+        mount,
         entry,
     })
+}
+
+/// The scanner mount a resumed run drives with: the one refitted before
+/// the checkpoint while `[robot]` still configures the mount it was
+/// refitted from, else the configured one (the configuration changed since
+/// the checkpoint, e.g. to the values the run folder's `mount.toml` gave:
+/// it wins).
+pub fn resumed_mount(configured: Pose, record: Option<&MountRecord>) -> Pose {
+    let Some(r) = record else {
+        return configured;
+    };
+    let same = (r.configured.translation.vector - configured.translation.vector).norm() < 1e-6
+        && crate::geom::wrap_angle(heading(&r.configured) - heading(&configured)).abs() < 1e-6;
+    if same {
+        log::info!(
+            "resume: driving with the scanner mount refitted before the checkpoint: ({:.3}, {:.3}) m, {:+.2}°",
+            r.refitted.translation.x,
+            r.refitted.translation.y,
+            heading(&r.refitted).to_degrees()
+        );
+        r.refitted
+    } else {
+        log::info!(
+            "resume: the configured scanner mount changed since the checkpoint; driving with the configured one"
+        );
+        configured
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::pose;
+
+    #[test]
+    fn a_refitted_mount_is_resumed_only_while_the_configuration_is_unchanged() {
+        let configured = pose(0.0, 0.0, 0.0);
+        let rec = MountRecord {
+            configured,
+            refitted: pose(0.08, 0.04, 0.05),
+        };
+        assert_eq!(resumed_mount(configured, None), configured);
+        assert_eq!(resumed_mount(configured, Some(&rec)), rec.refitted);
+        // The configuration now says where the scanner is (e.g. from
+        // mount.toml): it wins.
+        let fixed = pose(0.079, 0.04, 0.052);
+        assert_eq!(resumed_mount(fixed, Some(&rec)), fixed);
+    }
 }

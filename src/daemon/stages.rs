@@ -336,7 +336,7 @@ impl Stage for LocaliseStage {
             .step(matched.then_some(&robot), &robot_odom)
         {
             self.shared.with_status(|s| s.travel_fit = Some(fit));
-            if check_travel(&fit, heading(&self.mount), self.fit_mount)? {
+            if check_travel(&fit, self.fit_mount)? {
                 // Turned about the scanner's own position: the scans (and
                 // the map) stay; the robot's heading in it moves. An
                 // offset fitted under the old yaw was turned by the error
@@ -439,7 +439,7 @@ const BACKWARD: f64 = 3.0 * std::f64::consts::FRAC_PI_4;
 /// [`super::travel_check`]): logs it, warns of a wheel scale off, and says
 /// whether the mount's yaw is to be refitted (`fit`: allowed to), or stops
 /// the daemon when the yaw is too far off to drive by.
-fn check_travel(fit: &TravelFit, configured_yaw: f64, may_fit: bool) -> Result<bool, StageFault> {
+fn check_travel(fit: &TravelFit, may_fit: bool) -> Result<bool, StageFault> {
     let (deg, dist) = (fit.angle.to_degrees(), fit.driven);
     let what = format!(
         "over the first {dist:.1} m driven straight the scans moved {deg:+.1}° off the robot's heading and {:.0} % of the wheels' distance",
@@ -455,10 +455,11 @@ fn check_travel(fit: &TravelFit, configured_yaw: f64, may_fit: bool) -> Result<b
         log::info!("scans and wheels agree on the direction of travel: {what}");
         return Ok(false);
     }
-    let suggest = fit.fitting_yaw(configured_yaw);
+    let suggest = fit.fitting_yaw();
     let fix = format!(
-        "robot.scanner_yaw is {configured_yaw:.3} rad ({:+.1}°), the scans fit {suggest:.3} rad ({:+.1}°)",
-        configured_yaw.to_degrees(),
+        "the robot drives with robot.scanner_yaw = {:.3} rad ({:+.1}°), the scans fit {suggest:.3} rad ({:+.1}°)",
+        fit.yaw,
+        fit.yaw.to_degrees(),
         suggest.to_degrees()
     );
     let limit = if may_fit {
@@ -1206,21 +1207,22 @@ mod tests {
             angle: deg.to_radians(),
             scale: 1.0,
             driven: 1.0,
+            yaw: 0.2,
         }
     }
 
     #[test]
     fn a_yaw_error_is_refitted_when_allowed_and_stops_the_daemon_beyond_the_limits() {
         // Within the measurement's noise: nothing to do, fitting or not.
-        assert_eq!(check_travel(&fit(0.8), 0.0, true), Ok(false));
-        assert_eq!(check_travel(&fit(-0.8), 0.0, false), Ok(false));
+        assert_eq!(check_travel(&fit(0.8), true), Ok(false));
+        assert_eq!(check_travel(&fit(-0.8), false), Ok(false));
         // A mounting tolerance: refitted, or (not allowed) a warning up to 3°.
-        assert_eq!(check_travel(&fit(4.0), 0.2, true), Ok(true));
-        assert_eq!(check_travel(&fit(-19.0), 0.2, true), Ok(true));
-        assert_eq!(check_travel(&fit(2.5), 0.2, false), Ok(false));
+        assert_eq!(check_travel(&fit(4.0), true), Ok(true));
+        assert_eq!(check_travel(&fit(-19.0), true), Ok(true));
+        assert_eq!(check_travel(&fit(2.5), false), Ok(false));
         // Too far off: the daemon stops, naming the key and the value that fits.
         for (deg, may_fit) in [(4.0, false), (-25.0, true), (90.0, true), (179.0, true)] {
-            match check_travel(&fit(deg), 0.2, may_fit) {
+            match check_travel(&fit(deg), may_fit) {
                 Err(StageFault::Fatal(m)) => {
                     let yaw = crate::geom::wrap_angle(0.2 - deg.to_radians());
                     let want = format!("the scans fit {yaw:.3} rad");

@@ -58,25 +58,26 @@ pub enum TravelVerdict {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TravelFit {
     /// Direction of the scans' travel in the robot frame (rad, left
-    /// positive): the configured scanner yaw minus the true one.
+    /// positive): the scanner yaw driven with minus the true one.
     pub angle: f64,
     /// The scans' distance over the wheels'.
     pub scale: f64,
     /// Wheel travel compared (m).
     pub driven: f64,
+    /// The scanner yaw (rad) the robot drove with while measured.
+    pub yaw: f64,
 }
 
 impl TravelFit {
-    /// The `robot.scanner_yaw` (rad) the measurement fits, given the one
-    /// configured.
-    pub fn fitting_yaw(&self, configured: f64) -> f64 {
-        crate::geom::wrap_angle(configured - self.angle)
+    /// The `robot.scanner_yaw` (rad) the measurement fits.
+    pub fn fitting_yaw(&self) -> f64 {
+        crate::geom::wrap_angle(self.yaw - self.angle)
     }
 }
 
 /// The running comparison (see the module docs).
-#[derive(Default)]
 pub struct TravelCheck {
+    yaw: f64,
     prev: Option<(Pose, Pose)>,
     sum: Vector2<f64>,
     driven: f64,
@@ -84,6 +85,17 @@ pub struct TravelCheck {
 }
 
 impl TravelCheck {
+    /// A check of a robot driving with its scanner's yaw at `yaw` (rad).
+    pub fn new(yaw: f64) -> Self {
+        Self {
+            yaw,
+            prev: None,
+            sum: Vector2::zeros(),
+            driven: 0.0,
+            done: false,
+        }
+    }
+
     /// Adds one scan: the localised robot pose (`None` when the scan was
     /// not matched, which breaks the chain) and the wheel odometry pose at
     /// it. Returns the fit once, when [`CHECK_DISTANCE`] is reached.
@@ -113,6 +125,7 @@ impl TravelCheck {
             angle: self.sum.y.atan2(self.sum.x),
             scale: self.sum.norm() / self.driven,
             driven: self.driven,
+            yaw: self.yaw,
         })
     }
 }
@@ -151,7 +164,7 @@ mod tests {
 
     #[test]
     fn scans_moving_along_the_heading_fit_the_configured_mount() {
-        let v = drive(&mut TravelCheck::default(), 0.0, 1.0, 0.02, 0.0, 80, |_| {
+        let v = drive(&mut TravelCheck::new(0.1), 0.0, 1.0, 0.02, 0.0, 80, |_| {
             false
         });
         let TravelVerdict::Decided(fit) = v else {
@@ -162,7 +175,7 @@ mod tests {
             "{fit:?}"
         );
         assert!((fit.driven - CHECK_DISTANCE).abs() < 0.03, "{fit:?}");
-        assert!((fit.fitting_yaw(0.4) - 0.4).abs() < 1e-9);
+        assert!((fit.fitting_yaw() - 0.1).abs() < 1e-9);
     }
 
     #[test]
@@ -170,7 +183,7 @@ mod tests {
         for (err, back) in [(10f64, false), (-7.0, false), (90.0, false), (25.0, true)] {
             let step = if back { -0.02 } else { 0.02 };
             let e = err.to_radians();
-            let v = drive(&mut TravelCheck::default(), e, 0.95, step, 0.0, 80, |_| {
+            let v = drive(&mut TravelCheck::new(0.1), e, 0.95, step, 0.0, 80, |_| {
                 false
             });
             let TravelVerdict::Decided(fit) = v else {
@@ -178,14 +191,14 @@ mod tests {
             };
             assert!((fit.angle - e).abs() < 1e-9, "{err}: {fit:?}");
             assert!((fit.scale - 0.95).abs() < 1e-9, "{err}: {fit:?}");
-            // Configured 0.1 rad, the scans' travel at +e: the truth is 0.1 - e.
-            assert!((fit.fitting_yaw(0.1) - (0.1 - e)).abs() < 1e-9);
+            // Driven with 0.1 rad, the scans' travel at +e: the truth is 0.1 - e.
+            assert!((fit.fitting_yaw() - (0.1 - e)).abs() < 1e-9);
         }
     }
 
     #[test]
     fn turning_standing_and_unmatched_steps_are_not_counted() {
-        let mut c = TravelCheck::default();
+        let mut c = TravelCheck::new(0.1);
         // Turning in place, and arcs: never straight.
         assert_eq!(
             drive(&mut c, 0.3, 1.0, 0.0, 0.05, 200, |_| false),
@@ -208,7 +221,7 @@ mod tests {
         assert_eq!(c.driven, 0.0);
         // Every fourth unmatched: half the steps end a matched pair, so 1 m
         // takes 100 steps.
-        let mut c = TravelCheck::default();
+        let mut c = TravelCheck::new(0.1);
         let v = drive(&mut c, 0.2, 1.0, 0.02, 0.0, 120, |k| k % 4 == 0);
         assert!(
             matches!(v, TravelVerdict::Decided(f) if (f.angle - 0.2).abs() < 1e-9),

@@ -32,6 +32,7 @@ pub mod codec;
 pub mod contacts;
 pub mod keyframes;
 mod lattice;
+pub mod mount;
 pub mod resume_log;
 mod sections;
 mod swept;
@@ -43,6 +44,7 @@ use std::path::{Path, PathBuf};
 
 pub use codec::{crc32, Decoder, Encoder, GridHeader};
 pub use contacts::{ContactArc, ContactArcs};
+pub use mount::MountRecord;
 pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
 pub use sections::{RunProgress, WrittenAt};
 
