@@ -7,7 +7,10 @@
 //! lost more than the last checkpoint period. Its report (`state/run/
 //! report.md`) must say which checkpoint it resumed from, how old it was at
 //! the crash and how much progress that lost, consistently with what this
-//! test saw.
+//! test saw. The emulated scanner sits 5 cm ahead of where the
+//! configuration says: the first daemon refits its mount on its first half
+//! turn, and the second must drive with the refitted mount from its
+//! checkpoint at once.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -17,9 +20,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use sweepline::clock::{ScaledClock, SharedClock};
 use sweepline::config::Config;
 use sweepline::daemon::resume::HEARTBEAT_FILE;
-use sweepline::geom::Pose;
+use sweepline::geom::{pose, Pose};
 use sweepline::motor::BaseKind;
-use sweepline::pipeline::checkpoint::{CheckpointStore, ResumeLog, RunProgress};
+use sweepline::pipeline::checkpoint::{CheckpointStore, MountRecord, ResumeLog, RunProgress};
 use sweepline::plan::LatticePhase;
 use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
 use sweepline::sim::coverage_metrics::CoverageTracker;
@@ -54,6 +57,9 @@ const SETTLE_SCANS: u64 = 10;
 const MAX_RESUMED_POSE_ERROR: f64 = 0.05;
 /// Simulated time after which the test gives up (s).
 const TIME_CAP: f64 = 900.0;
+/// How far ahead of its configured place (the axle centre) the emulated
+/// scanner sits (m).
+const SCANNER_AHEAD: f64 = 0.05;
 
 fn config() -> Config {
     Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
@@ -121,7 +127,12 @@ fn killed_daemon_resumes_its_coverage() {
     let robot = base_cfg.robot.clone();
     let mut tracker =
         CoverageTracker::new(&world, robot.radius, robot.tool_width, &world.start).unwrap();
-    let opts = SimOptions::new(world.clone(), base_cfg.clone());
+    let mut opts = SimOptions::new(world.clone(), base_cfg.clone());
+    let mount_truth = pose(SCANNER_AHEAD, 0.0, 0.0);
+    opts.scanner_truth = Some((mount_truth, false));
+    // The daemon's map frame starts at its scanner's configured place; the
+    // scanner's true start is the world's start through the true mount.
+    let map_to_world = world.start * mount_truth * base_cfg.robot.scanner_mount().inverse();
 
     // One time base for the emulators here and the daemon in the child.
     let epoch = unix_now();
@@ -147,6 +158,7 @@ fn killed_daemon_resumes_its_coverage() {
     let mut killed: Option<(f64, f64)> = None; // (truth coverage, sim time) at the kill
     let mut at_kill: Option<RunProgress> = None;
     let mut lattice_at_kill: Option<LatticePhase> = None;
+    let mut mount_at_kill: Option<MountRecord> = None;
     let mut first_resumed: Option<(RunProgress, f64)> = None;
     let mut last_poll = Instant::now();
     // Largest distance between a checkpointed pose and the nearest true pose
@@ -181,7 +193,7 @@ fn killed_daemon_resumes_its_coverage() {
             last_poll = Instant::now();
             if let Some((p, est)) = latest_with_pose(&store) {
                 // The daemon's frame is the world frame moved to the start.
-                let est = world.start * est;
+                let est = map_to_world * est;
                 let e = recent
                     .iter()
                     .map(|q: &Pose| (est.translation.vector - q.translation.vector).norm())
@@ -229,6 +241,7 @@ fn killed_daemon_resumes_its_coverage() {
             );
             at_kill = latest(&store);
             lattice_at_kill = lattice(&store);
+            mount_at_kill = mount(&store);
             std::thread::sleep(Duration::from_millis(200));
             daemon = spawn(&dir, &links, 2);
             continue;
@@ -321,7 +334,24 @@ fn killed_daemon_resumes_its_coverage() {
     // The resumed planner kept the lane lattice of the lanes driven before.
     let lattice_at_kill = lattice_at_kill.expect("no lane lattice checkpointed before the kill");
     assert_eq!(lattice(&store), Some(lattice_at_kill));
+    // The first daemon refitted the scanner's mount before the kill, and
+    // the second drove with it from its checkpoint.
+    let m = mount_at_kill.expect("no refitted mount checkpointed before the kill");
+    let ahead = m.refitted.translation.vector;
+    assert!(
+        (ahead.x - SCANNER_AHEAD).abs() <= 0.01 && ahead.y.abs() <= 0.01,
+        "refitted mount {ahead:?}"
+    );
+    assert!(
+        log2.contains("driving with the scanner mount refitted before the checkpoint"),
+        "second daemon did not take the refitted mount:\n{log2}"
+    );
     check_report(&dir.join("state/run"), &at_kill, kill_t);
+}
+
+/// The refitted scanner mount of the newest checkpoint.
+fn mount(store: &CheckpointStore) -> Option<MountRecord> {
+    store.load().ok()??.checkpoint.get::<MountRecord>().ok()?
 }
 
 /// The lane lattice phase of the newest checkpoint.
