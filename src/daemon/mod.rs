@@ -392,6 +392,7 @@ impl Daemon {
                 shared: shared.clone(),
                 mount,
                 wheel_base: robot.wheel_base,
+                wheel_radius: robot.wheel_radius,
                 fit_mount: cfg.daemon.fit_scanner_mount,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),

@@ -58,6 +58,16 @@ pub fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
         }
         None => s += "# scanner_yaw: no metre driven straight with matched scans\n",
     }
+    if let Some(f) = travel {
+        // A comment only: one metre measures the scale to a percent or two.
+        s += &format!(
+            "# wheel_radius = {:.4}  # configured {:.4}; fits the scans' {:.1} % of the wheels' distance over {:.2} m (a 1 m check: trust it beyond a few percent)\n",
+            robot.wheel_radius * f.scale,
+            robot.wheel_radius,
+            f.scale * 100.0,
+            f.driven
+        );
+    }
     match turn {
         Some(r) if r > 0.0 => {
             s += &format!(
@@ -118,6 +128,9 @@ mod tests {
         assert!((get("scanner_offset_y") - 0.04).abs() < 6e-4, "{text}");
         assert!((get("scanner_yaw") - 0.05).abs() < 6e-5, "{text}");
         assert!((get("wheel_base") - 0.25).abs() < 6e-4, "{text}");
+        // The wheel radius from one metre is a comment, never a key.
+        assert!(!r.contains_key("wheel_radius"), "{text}");
+        assert!(text.contains("# wheel_radius = 0.0364"), "{text}");
         // Unmeasured, or mirrored: comments, no keys.
         st.travel_fit = None;
         st.turn_ratio = Some(-1.0);

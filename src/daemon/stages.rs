@@ -123,6 +123,9 @@ pub struct LocaliseStage {
     /// Distance between the wheels (m, `robot.wheel_base`), for the
     /// turn check's warning.
     pub wheel_base: f64,
+    /// Wheel radius (m, `robot.wheel_radius`), for the travel check's
+    /// warning.
+    pub wheel_radius: f64,
     /// Whether a yaw error the travel check measures is taken into the
     /// mount for the rest of the run (`daemon.fit_scanner_mount`).
     pub fit_mount: bool,
@@ -336,7 +339,7 @@ impl Stage for LocaliseStage {
             .step(matched.then_some(&robot), &robot_odom)
         {
             self.shared.with_status(|s| s.travel_fit = Some(fit));
-            if check_travel(&fit, self.fit_mount)? {
+            if check_travel(&fit, self.wheel_radius, self.fit_mount)? {
                 // Turned about the scanner's own position: the scans (and
                 // the map) stay; the robot's heading in it moves. An
                 // offset fitted under the old yaw was turned by the error
@@ -439,7 +442,7 @@ const BACKWARD: f64 = 3.0 * std::f64::consts::FRAC_PI_4;
 /// [`super::travel_check`]): logs it, warns of a wheel scale off, and says
 /// whether the mount's yaw is to be refitted (`fit`: allowed to), or stops
 /// the daemon when the yaw is too far off to drive by.
-fn check_travel(fit: &TravelFit, may_fit: bool) -> Result<bool, StageFault> {
+fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<bool, StageFault> {
     let (deg, dist) = (fit.angle.to_degrees(), fit.driven);
     let what = format!(
         "over the first {dist:.1} m driven straight the scans moved {deg:+.1}° off the robot's heading and {:.0} % of the wheels' distance",
@@ -447,7 +450,8 @@ fn check_travel(fit: &TravelFit, may_fit: bool) -> Result<bool, StageFault> {
     );
     if !(SCALE_WARN.0..=SCALE_WARN.1).contains(&fit.scale) {
         log::warn!(
-            "{what}: the wheel odometry's scale is off (robot.wheel_radius, robot.wheel_base, or slipping wheels)"
+            "{what}: the wheel odometry's scale is off; robot.wheel_radius is {wheel_radius:.4} m, the scans fit {:.4} m (or the encoder counts per revolution are off, or the wheels slip)",
+            wheel_radius * fit.scale
         );
     }
     let error = fit.angle.abs();
@@ -1214,15 +1218,15 @@ mod tests {
     #[test]
     fn a_yaw_error_is_refitted_when_allowed_and_stops_the_daemon_beyond_the_limits() {
         // Within the measurement's noise: nothing to do, fitting or not.
-        assert_eq!(check_travel(&fit(0.8), true), Ok(false));
-        assert_eq!(check_travel(&fit(-0.8), false), Ok(false));
+        assert_eq!(check_travel(&fit(0.8), 0.036, true), Ok(false));
+        assert_eq!(check_travel(&fit(-0.8), 0.036, false), Ok(false));
         // A mounting tolerance: refitted, or (not allowed) a warning up to 3°.
-        assert_eq!(check_travel(&fit(4.0), true), Ok(true));
-        assert_eq!(check_travel(&fit(-19.0), true), Ok(true));
-        assert_eq!(check_travel(&fit(2.5), false), Ok(false));
+        assert_eq!(check_travel(&fit(4.0), 0.036, true), Ok(true));
+        assert_eq!(check_travel(&fit(-19.0), 0.036, true), Ok(true));
+        assert_eq!(check_travel(&fit(2.5), 0.036, false), Ok(false));
         // Too far off: the daemon stops, naming the key and the value that fits.
         for (deg, may_fit) in [(4.0, false), (-25.0, true), (90.0, true), (179.0, true)] {
-            match check_travel(&fit(deg), may_fit) {
+            match check_travel(&fit(deg), 0.036, may_fit) {
                 Err(StageFault::Fatal(m)) => {
                     let yaw = crate::geom::wrap_angle(0.2 - deg.to_radians());
                     let want = format!("the scans fit {yaw:.3} rad");
