@@ -21,8 +21,13 @@ fn config() -> Config {
     Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
 }
 
+/// The folder [`out_dir`] gives `name`, without clearing it.
+fn out_dir_path(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join(name)
+}
+
 fn out_dir(name: &str) -> std::path::PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let d = out_dir_path(name);
     let _ = std::fs::remove_dir_all(&d);
     d
 }
@@ -182,9 +187,7 @@ fn mount_off_run(
 
 /// The `[robot]` value of `key` in the run folder `name`'s `mount.toml`.
 fn mount_toml_value(name: &str, key: &str) -> f64 {
-    let path = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join(name)
-        .join("mount.toml");
+    let path = out_dir_path(name).join("mount.toml");
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let v: toml::Table = text.parse().unwrap();
     v["robot"][key]
@@ -323,6 +326,41 @@ fn a_scanner_offset_far_off_or_unfitted_stops_the_daemon() {
         assert_eq!(r.refitted_mount, None);
         assert!(r.sim_time < 60.0, "stopped only after {} s", r.sim_time);
     }
+}
+
+/// The base's wheels 4.0 cm in radius, configured 3.6 cm: the robot drives
+/// 11 % farther than the odometry says, which the travel check's scale
+/// shows over the first metre; mount.toml notes the radius that fits.
+#[test]
+fn a_wheel_radius_configured_small_shows_in_the_travel_scale() {
+    let name = "e2e_wheel_radius";
+    let r = small_report(config(), |o| {
+        o.time_cap = 60.0;
+        o.wheel_radius_truth = Some(0.040);
+        o.out = Some(out_dir(name));
+    });
+    let fit = r.travel_fit.expect("no metre driven straight");
+    let want = 0.040 / 0.036;
+    assert!(
+        (fit.scale - want).abs() <= 0.03,
+        "scans moved {:.3} of the wheels' distance, expected {want:.3}",
+        fit.scale
+    );
+    let text = std::fs::read_to_string(out_dir_path(name).join("mount.toml")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("# wheel_radius = "))
+        .unwrap_or_else(|| panic!("no wheel radius in\n{text}"));
+    let fitted: f64 = line["# wheel_radius = ".len()..]
+        .split_whitespace()
+        .next()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!((fitted - 0.040).abs() <= 0.0012, "{line}");
+    // The turn is off by the same factor: the base fitted from it, with
+    // the scale taken out, is the configured (true) one.
+    let base = mount_toml_value(name, "wheel_base");
+    assert!((base - 0.235).abs() <= 0.006, "wheel_base {base}\n{text}");
 }
 
 #[test]

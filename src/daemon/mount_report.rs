@@ -70,9 +70,20 @@ pub fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
     }
     match turn {
         Some(r) if r > 0.0 => {
+            // The wheels' turn is scaled by the wheel radius as their
+            // distance is: the first metre's scale takes that part out.
+            let scale = travel.map_or(1.0, |t| t.scale);
+            let how = if travel.is_some() {
+                format!(
+                    ", divided by the first metre's distance scale of {:.1} %",
+                    scale * 100.0
+                )
+            } else {
+                String::new()
+            };
             s += &format!(
-                "wheel_base = {:.3}  # configured {:.3}; the scans turned {:.1} % of the wheels' first quarter turn\n",
-                super::turn_check::fitting_wheel_base(r, robot.wheel_base),
+                "wheel_base = {:.3}  # configured {:.3}; the scans turned {:.1} % of the wheels' first quarter turn{how}\n",
+                super::turn_check::fitting_wheel_base(r, robot.wheel_base) * scale,
                 robot.wheel_base,
                 r * 100.0
             );
@@ -127,7 +138,9 @@ mod tests {
         assert!((get("scanner_offset_x") - 0.08).abs() < 6e-4, "{text}");
         assert!((get("scanner_offset_y") - 0.04).abs() < 6e-4, "{text}");
         assert!((get("scanner_yaw") - 0.05).abs() < 6e-5, "{text}");
-        assert!((get("wheel_base") - 0.25).abs() < 6e-4, "{text}");
+        // Turn ratio and distance scale both off by the radius's 1 %: the
+        // base is the ratio's, corrected by the scale.
+        assert!((get("wheel_base") - 0.25 * 1.01).abs() < 6e-4, "{text}");
         // The wheel radius from one metre is a comment, never a key.
         assert!(!r.contains_key("wheel_radius"), "{text}");
         assert!(text.contains("# wheel_radius = 0.0364"), "{text}");

@@ -300,7 +300,7 @@ impl Stage for LocaliseStage {
                 );
                 if !(TURN_SCALE_WARN.0..=TURN_SCALE_WARN.1).contains(&ratio) {
                     log::warn!(
-                        "the wheels' turn is off: the scans turned {:.0} % of it; robot.wheel_base is {:.3} m, the scans fit {:.3} m (or the wheels slip when turning)",
+                        "the wheels' turn is off: the scans turned {:.0} % of it; robot.wheel_base is {:.3} m, the scans fit {:.3} m if robot.wheel_radius is right (see the first metre's scale; or the wheels slip when turning)",
                         ratio * 100.0,
                         self.wheel_base,
                         fitting_wheel_base(ratio, self.wheel_base)

@@ -111,6 +111,10 @@ pub struct SimOptions {
     /// `config.robot.wheel_base`: a wrongly configured robot. `None`: as
     /// configured.
     pub wheel_base_truth: Option<f64>,
+    /// The emulated base's true wheel radius (m) when it differs from
+    /// `config.robot.wheel_radius`: the wheels drive and count as wheels of
+    /// this radius. `None`: as configured.
+    pub wheel_radius_truth: Option<f64>,
     /// The emulated RoboClaw's motor 1 drives the other wheel than
     /// `motor.roboclaw.m1_is_left` says (motors and encoders swapped
     /// left for right).
@@ -135,6 +139,7 @@ impl SimOptions {
             heading_error: 0.0,
             scanner_truth: None,
             wheel_base_truth: None,
+            wheel_radius_truth: None,
             wheels_swapped: false,
         }
     }
@@ -480,6 +485,9 @@ fn start_emulators(
         .wheel_base_truth
         .unwrap_or(opts.config.robot.wheel_base);
     ecfg.kinematics.wheel_base = wheel_base;
+    if let Some(r) = opts.wheel_radius_truth {
+        ecfg.wheel_radius = r;
+    }
     if opts.wheels_swapped {
         ecfg.motor.roboclaw.m1_is_left = !ecfg.motor.roboclaw.m1_is_left;
     }
