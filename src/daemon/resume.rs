@@ -4,14 +4,12 @@
 //! last heartbeat, and says what the restart lost ([`ResumeEntry`]).
 
 use super::Resume;
-use crate::geom::{heading, Pose};
+use crate::geom::{heading, pose_error, Pose};
 use crate::grid::Grid;
-use crate::icp::TrackerState;
 use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointError, CheckpointStore, ContactArcs, MountRecord, ProgressMark,
-    ResumeEntry, RunProgress, WrittenAt,
+    ResumeEntry, RunProgress, Section, WrittenAt,
 };
-use crate::plan::{LatticePhase, PlanTries, SweptFloor};
 
 /// File name of the heartbeat in the state folder: the run's progress and
 /// the wall time, rewritten every `pipeline.heartbeat_period` (unsynced).
@@ -104,50 +102,23 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             entry.restart
         ),
     }
-    let swept = match cp.get::<SweptFloor>() {
-        Ok(s) => s,
-        Err(e) => {
-            log::warn!("swept-floor record unreadable, covering again: {e}");
-            None
-        }
-    };
-    let lattice = match cp.get::<LatticePhase>() {
-        Ok(l) => l,
-        Err(e) => {
-            log::warn!("lane lattice record unreadable, choosing it again: {e}");
-            None
-        }
-    };
-    let tries = match cp.get::<PlanTries>() {
-        Ok(t) => t,
-        Err(e) => {
-            log::warn!("planner tries record unreadable, floor given up gets its tries again: {e}");
-            None
-        }
-    };
-    let tracker = match cp.get::<TrackerState>() {
-        Ok(t) => t,
-        Err(e) => {
-            log::warn!("tracker keyframes unreadable, starting a new local map: {e}");
-            None
-        }
-    };
-    let contacts = match cp.get::<ContactArcs>() {
-        Ok(c) => c
-            .map(|c| c.arcs.iter().map(|&a| a.into()).collect())
-            .unwrap_or_default(),
-        Err(e) => {
-            log::warn!("bumper contact marks unreadable, only the map's copy of them is left: {e}");
-            Vec::new()
-        }
-    };
-    let mount = match cp.get::<MountRecord>() {
-        Ok(m) => m,
-        Err(e) => {
-            log::warn!("refitted scanner mount unreadable, the checks fit it again: {e}");
-            None
-        }
-    };
+    let swept = optional(cp, "swept-floor record unreadable, covering again");
+    let lattice = optional(cp, "lane lattice record unreadable, choosing it again");
+    let tries = optional(
+        cp,
+        "planner tries record unreadable, floor given up gets its tries again",
+    );
+    let tracker = optional(cp, "tracker keyframes unreadable, starting a new local map");
+    let contacts = optional::<ContactArcs>(
+        cp,
+        "bumper contact marks unreadable, only the map's copy of them is left",
+    )
+    .map(|c| c.arcs.iter().map(|&a| a.into()).collect())
+    .unwrap_or_default();
+    let mount = optional(
+        cp,
+        "refitted scanner mount unreadable, the checks fit it again",
+    );
     Some(Resume {
         pose,
         grid,
@@ -162,6 +133,15 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
     })
 }
 
+/// Section `S` of `cp`, or `None` when it is missing or unreadable (logged
+/// as `unreadable`, then the error): the run resumes without it.
+fn optional<S: Section>(cp: &Checkpoint, unreadable: &str) -> Option<S> {
+    cp.get::<S>().unwrap_or_else(|e| {
+        log::warn!("{unreadable}: {e}");
+        None
+    })
+}
+
 /// The scanner mount a resumed run drives with: the one refitted before
 /// the checkpoint while `[robot]` still configures the mount it was
 /// refitted from, else the configured one (the configuration changed since
@@ -171,8 +151,8 @@ pub fn resumed_mount(configured: Pose, record: Option<&MountRecord>) -> Pose {
     let Some(r) = record else {
         return configured;
     };
-    let same = (r.configured.translation.vector - configured.translation.vector).norm() < 1e-6
-        && crate::geom::wrap_angle(heading(&r.configured) - heading(&configured)).abs() < 1e-6;
+    let (moved, turned) = pose_error(&r.configured, &configured);
+    let same = moved < 1e-6 && turned.abs() < 1e-6;
     if same {
         log::info!(
             "resume: driving with the scanner mount refitted before the checkpoint: ({:.3}, {:.3}) m, {:+.2}°",

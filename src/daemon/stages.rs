@@ -17,9 +17,7 @@ use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::offset_check::{OffsetFit, OFFSET_FIT_MAX, OFFSET_STOP_UNFITTED, OFFSET_TOLERANCE};
 use super::shared::{Progress, Shared};
 use super::stuck::ProgressWatch;
-use super::travel_check::{
-    TravelFit, TravelVerdict, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
-};
+use super::travel_check::{TravelFit, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE};
 use super::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
 use crate::clock::SharedClock;
 use crate::control::PathFollower;
@@ -117,8 +115,9 @@ pub struct LocaliseStage {
     pub to_map: Tx<MapMsg>,
     /// Shared state.
     pub shared: Arc<Shared>,
-    /// Pose of the scanner in the robot frame (its yaw refitted once by
-    /// the travel check, see [`super::travel_check`]).
+    /// Pose of the scanner in the robot frame: the configured (or resumed)
+    /// one, refitted by the offset and travel checks (see
+    /// [`super::offset_check`], [`super::travel_check`]).
     pub mount: Pose,
     /// Distance between the wheels (m, `robot.wheel_base`), for the
     /// turn check's warning.
@@ -126,7 +125,7 @@ pub struct LocaliseStage {
     /// Wheel radius (m, `robot.wheel_radius`), for the travel check's
     /// warning.
     pub wheel_radius: f64,
-    /// Whether a yaw error the travel check measures is taken into the
+    /// Whether offset and yaw errors the checks measure are taken into the
     /// mount for the rest of the run (`daemon.fit_scanner_mount`).
     pub fit_mount: bool,
     /// Reused point buffer.
@@ -334,7 +333,7 @@ impl Stage for LocaliseStage {
                 self.offset_fitted = true;
             }
         }
-        if let TravelVerdict::Decided(fit) = self
+        if let Some(fit) = self
             .travel_check
             .step(matched.then_some(&robot), &robot_odom)
         {
@@ -383,8 +382,43 @@ impl Stage for LocaliseStage {
     }
 }
 
+/// What a mount check's measured error calls for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum MountCall {
+    /// Within the check's tolerance: the mount stands.
+    Agrees,
+    /// Off, and the mount may be refitted: refit it (with a warning).
+    Refit,
+    /// Off, the fit turned off: warn only.
+    Warn,
+    /// Too far off to drive by: stop the daemon.
+    Stop,
+}
+
+/// The call for a mount error `error` against a check's `tolerance`, the
+/// largest error it refits (`fit_max`) and the largest it lets pass with
+/// the fit off (`stop_unfitted`); `may_fit` is `daemon.fit_scanner_mount`.
+fn mount_call(
+    error: f64,
+    tolerance: f64,
+    fit_max: f64,
+    stop_unfitted: f64,
+    may_fit: bool,
+) -> MountCall {
+    let limit = if may_fit { fit_max } else { stop_unfitted };
+    if error <= tolerance {
+        MountCall::Agrees
+    } else if error > limit {
+        MountCall::Stop
+    } else if may_fit {
+        MountCall::Refit
+    } else {
+        MountCall::Warn
+    }
+}
+
 /// Judges the scanner offset fitted from turning in place (see
-/// [`super::offset_check`]) against the `mount` configured: logs it, and
+/// [`super::offset_check`]) against the `mount` driven with: logs it, and
 /// says whether the offset is to be refitted (`may_fit`: allowed to), or
 /// stops the daemon when it is too far off to drive by.
 fn check_offset(fit: &OffsetFit, mount: &Pose, may_fit: bool) -> Result<bool, StageFault> {
@@ -396,42 +430,40 @@ fn check_offset(fit: &OffsetFit, mount: &Pose, may_fit: bool) -> Result<bool, St
         t.x,
         t.y
     );
-    if error <= OFFSET_TOLERANCE {
-        log::info!(
-            "scanner offset agrees: {what}, {:.1} cm from the configured one",
-            error * 100.0
-        );
-        return Ok(false);
-    }
     let fix = format!(
         "robot.scanner_offset_x, robot.scanner_offset_y are ({:.3}, {:.3}) m, {:.1} cm off",
         c.x,
         c.y,
         error * 100.0
     );
-    let limit = if may_fit {
-        OFFSET_FIT_MAX
-    } else {
-        OFFSET_STOP_UNFITTED
-    };
-    if error > limit {
-        return Err(StageFault::Fatal(format!(
-            "the scanner is not where the configuration says: {what}; {fix}{}. Stopping: the position cannot be trusted",
-            if may_fit {
-                ", too far off to be a measuring error"
-            } else {
-                ""
-            }
-        )));
-    }
-    if may_fit {
-        log::warn!(
+    let call = mount_call(
+        error,
+        OFFSET_TOLERANCE,
+        OFFSET_FIT_MAX,
+        OFFSET_STOP_UNFITTED,
+        may_fit,
+    );
+    match call {
+        MountCall::Agrees => log::info!(
+            "scanner offset agrees: {what}, {:.1} cm from the configured one",
+            error * 100.0
+        ),
+        MountCall::Stop => {
+            return Err(StageFault::Fatal(format!(
+                "the scanner is not where the configuration says: {what}; {fix}{}. Stopping: the position cannot be trusted",
+                if may_fit {
+                    ", too far off to be a measuring error"
+                } else {
+                    ""
+                }
+            )))
+        }
+        MountCall::Refit => log::warn!(
             "{what}; {fix}: driving with the fitted offset for this run (set it in the configuration)"
-        );
-    } else {
-        log::warn!("{what}; {fix} (daemon.fit_scanner_mount is off)");
+        ),
+        MountCall::Warn => log::warn!("{what}; {fix} (daemon.fit_scanner_mount is off)"),
     }
-    Ok(may_fit)
+    Ok(call == MountCall::Refit)
 }
 
 /// A travel direction (rad) off the heading by more than this is driving
@@ -439,9 +471,10 @@ fn check_offset(fit: &OffsetFit, mount: &Pose, may_fit: bool) -> Result<bool, St
 const BACKWARD: f64 = 3.0 * std::f64::consts::FRAC_PI_4;
 
 /// Judges the scans' travel against the wheels' (see
-/// [`super::travel_check`]): logs it, warns of a wheel scale off, and says
-/// whether the mount's yaw is to be refitted (`fit`: allowed to), or stops
-/// the daemon when the yaw is too far off to drive by.
+/// [`super::travel_check`]): logs it, warns of a wheel scale off (the
+/// configured `wheel_radius` beside the one that fits), and says whether
+/// the mount's yaw is to be refitted (`may_fit`: allowed to), or stops the
+/// daemon when the yaw is too far off to drive by.
 fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<bool, StageFault> {
     let (deg, dist) = (fit.angle.to_degrees(), fit.driven);
     let what = format!(
@@ -455,10 +488,6 @@ fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<boo
         );
     }
     let error = fit.angle.abs();
-    if error <= YAW_TOLERANCE {
-        log::info!("scans and wheels agree on the direction of travel: {what}");
-        return Ok(false);
-    }
     let suggest = fit.fitting_yaw();
     let fix = format!(
         "the robot drives with robot.scanner_yaw = {:.3} rad ({:+.1}°), the scans fit {suggest:.3} rad ({:+.1}°)",
@@ -466,37 +495,41 @@ fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<boo
         fit.yaw.to_degrees(),
         suggest.to_degrees()
     );
-    let limit = if may_fit {
-        YAW_FIT_MAX
-    } else {
-        YAW_STOP_UNFITTED
-    };
-    if error > limit {
-        // Steering by a heading that far off drives the body crabwise
-        // along every lane, into the walls the margins assume clear.
-        let why = if error > BACKWARD {
-            // Odometry counting backward looks the same as a scanner
-            // facing backward: both make the scans move against the wheels.
-            ", or the wheel odometry counts backward (encoder polarity)"
-        } else if may_fit {
-            ", too far off to be a mounting tolerance"
-        } else {
-            ""
-        };
-        return Err(StageFault::Fatal(format!(
-            "scans and wheels disagree on the direction of travel: {what}; {fix}{why}. Stopping: the heading cannot be trusted"
-        )));
-    }
-    if may_fit {
-        log::warn!(
+    let call = mount_call(
+        error,
+        YAW_TOLERANCE,
+        YAW_FIT_MAX,
+        YAW_STOP_UNFITTED,
+        may_fit,
+    );
+    match call {
+        MountCall::Agrees => {
+            log::info!("scans and wheels agree on the direction of travel: {what}")
+        }
+        MountCall::Stop => {
+            // Steering by a heading that far off drives the body crabwise
+            // along every lane, into the walls the margins assume clear.
+            let why = if error > BACKWARD {
+                // Odometry counting backward looks the same as a scanner
+                // facing backward: both make the scans move against the wheels.
+                ", or the wheel odometry counts backward (encoder polarity)"
+            } else if may_fit {
+                ", too far off to be a mounting tolerance"
+            } else {
+                ""
+            };
+            return Err(StageFault::Fatal(format!(
+                "scans and wheels disagree on the direction of travel: {what}; {fix}{why}. Stopping: the heading cannot be trusted"
+            )));
+        }
+        MountCall::Refit => log::warn!(
             "{what}: the scanner's mount yaw is off; {fix}: driving with {suggest:.3} rad for this run (set it in the configuration)"
-        );
-    } else {
-        log::warn!(
+        ),
+        MountCall::Warn => log::warn!(
             "{what}: the scanner's mount yaw is off; {fix} (daemon.fit_scanner_mount is off)"
-        );
+        ),
     }
-    Ok(may_fit)
+    Ok(call == MountCall::Refit)
 }
 
 /// The map stage: merges registered scans into the explored-area grid and

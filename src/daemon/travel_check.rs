@@ -45,15 +45,6 @@ const STRAIGHT_TURN: f64 = 0.01;
 /// adds only the matcher's jitter).
 const MIN_STEP: f64 = 0.002;
 
-/// What the check says, once.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum TravelVerdict {
-    /// Not enough straight travel seen yet (or already decided).
-    Undecided,
-    /// Decided: the scans' travel direction and length against the wheels'.
-    Decided(TravelFit),
-}
-
 /// The scans' travel against the wheels' over the checked distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TravelFit {
@@ -99,13 +90,13 @@ impl TravelCheck {
     /// Adds one scan: the localised robot pose (`None` when the scan was
     /// not matched, which breaks the chain) and the wheel odometry pose at
     /// it. Returns the fit once, when [`CHECK_DISTANCE`] is reached.
-    pub fn step(&mut self, estimate: Option<&Pose>, odom: &Pose) -> TravelVerdict {
+    pub fn step(&mut self, estimate: Option<&Pose>, odom: &Pose) -> Option<TravelFit> {
         if self.done {
-            return TravelVerdict::Undecided;
+            return None;
         }
         let Some(est) = estimate else {
             self.prev = None;
-            return TravelVerdict::Undecided;
+            return None;
         };
         if let Some((e0, o0)) = self.prev.replace((*est, *odom)) {
             let wheels = o0.inverse() * odom;
@@ -118,10 +109,10 @@ impl TravelCheck {
             }
         }
         if self.driven < CHECK_DISTANCE {
-            return TravelVerdict::Undecided;
+            return None;
         }
         self.done = true;
-        TravelVerdict::Decided(TravelFit {
+        Some(TravelFit {
             angle: self.sum.y.atan2(self.sum.x),
             scale: self.sum.norm() / self.driven,
             driven: self.driven,
@@ -146,16 +137,16 @@ mod tests {
         turn: f64,
         n: usize,
         miss: impl Fn(usize) -> bool,
-    ) -> TravelVerdict {
+    ) -> Option<TravelFit> {
         let (mut odom, mut est) = (pose(1.0, 2.0, 0.3), pose(-4.0, 0.5, 1.2));
-        let mut last = TravelVerdict::Undecided;
+        let mut last = None;
         for k in 0..n {
             odom *= pose(step, 0.0, turn);
             let (s, c) = yaw_error.sin_cos();
             est *= pose(scale * step * c, scale * step * s, turn);
             let v = check.step((!miss(k)).then_some(&est), &odom);
-            if v != TravelVerdict::Undecided {
-                assert_eq!(last, TravelVerdict::Undecided, "decided twice");
+            if v.is_some() {
+                assert_eq!(last, None, "decided twice");
                 last = v;
             }
         }
@@ -167,9 +158,7 @@ mod tests {
         let v = drive(&mut TravelCheck::new(0.1), 0.0, 1.0, 0.02, 0.0, 80, |_| {
             false
         });
-        let TravelVerdict::Decided(fit) = v else {
-            panic!("{v:?}")
-        };
+        let Some(fit) = v else { panic!("{v:?}") };
         assert!(
             fit.angle.abs() < 1e-9 && (fit.scale - 1.0).abs() < 1e-9,
             "{fit:?}"
@@ -186,9 +175,7 @@ mod tests {
             let v = drive(&mut TravelCheck::new(0.1), e, 0.95, step, 0.0, 80, |_| {
                 false
             });
-            let TravelVerdict::Decided(fit) = v else {
-                panic!("{err}: {v:?}")
-            };
+            let Some(fit) = v else { panic!("{err}: {v:?}") };
             assert!((fit.angle - e).abs() < 1e-9, "{err}: {fit:?}");
             assert!((fit.scale - 0.95).abs() < 1e-9, "{err}: {fit:?}");
             // Driven with 0.1 rad, the scans' travel at +e: the truth is 0.1 - e.
@@ -200,23 +187,14 @@ mod tests {
     fn turning_standing_and_unmatched_steps_are_not_counted() {
         let mut c = TravelCheck::new(0.1);
         // Turning in place, and arcs: never straight.
-        assert_eq!(
-            drive(&mut c, 0.3, 1.0, 0.0, 0.05, 200, |_| false),
-            TravelVerdict::Undecided
-        );
-        assert_eq!(
-            drive(&mut c, 0.3, 1.0, 0.02, 0.05, 200, |_| false),
-            TravelVerdict::Undecided
-        );
+        assert_eq!(drive(&mut c, 0.3, 1.0, 0.0, 0.05, 200, |_| false), None);
+        assert_eq!(drive(&mut c, 0.3, 1.0, 0.02, 0.05, 200, |_| false), None);
         // Standing still.
-        assert_eq!(
-            drive(&mut c, 0.3, 1.0, 0.0, 0.0, 500, |_| false),
-            TravelVerdict::Undecided
-        );
+        assert_eq!(drive(&mut c, 0.3, 1.0, 0.0, 0.0, 500, |_| false), None);
         // Every other scan unmatched: no pair of matched scans in a row.
         assert_eq!(
             drive(&mut c, 0.3, 1.0, 0.02, 0.0, 200, |k| k % 2 == 0),
-            TravelVerdict::Undecided
+            None
         );
         assert_eq!(c.driven, 0.0);
         // Every fourth unmatched: half the steps end a matched pair, so 1 m
@@ -224,7 +202,7 @@ mod tests {
         let mut c = TravelCheck::new(0.1);
         let v = drive(&mut c, 0.2, 1.0, 0.02, 0.0, 120, |k| k % 4 == 0);
         assert!(
-            matches!(v, TravelVerdict::Decided(f) if (f.angle - 0.2).abs() < 1e-9),
+            matches!(v, Some(f) if (f.angle - 0.2).abs() < 1e-9),
             "{v:?}"
         );
     }

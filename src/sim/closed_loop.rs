@@ -122,6 +122,21 @@ pub struct SimOptions {
 }
 
 impl SimOptions {
+    /// The emulated scanner's true mount and whether it is upside down:
+    /// [`SimOptions::scanner_truth`], or as configured.
+    pub fn true_mount(&self) -> (Pose, bool) {
+        let r = &self.config.robot;
+        self.scanner_truth
+            .unwrap_or((r.scanner_mount(), r.scanner_upside_down))
+    }
+
+    /// The emulated base's true wheel base (m):
+    /// [`SimOptions::wheel_base_truth`], or as configured.
+    pub fn true_wheel_base(&self) -> f64 {
+        self.wheel_base_truth
+            .unwrap_or(self.config.robot.wheel_base)
+    }
+
     /// Defaults for `world`: RoboClaw base, speed 10, 1 h cap.
     pub fn new(world: World, config: Config) -> Self {
         Self {
@@ -436,7 +451,7 @@ fn told_start(opts: &SimOptions) -> Pose {
 /// decided, through the configured mount) is the scanner's true start.
 fn to_world(opts: &SimOptions, turn: Option<f64>) -> Pose {
     let configured = opts.config.robot.scanner_mount();
-    let truth = opts.scanner_truth.map_or(configured, |t| t.0);
+    let truth = opts.true_mount().0;
     let start = told_start(opts) * crate::geom::pose(0.0, 0.0, turn.unwrap_or(0.0)) * configured;
     opts.world.start * truth * start.inverse()
 }
@@ -481,9 +496,7 @@ fn start_emulators(
     ecfg.world = Some(opts.world.clone());
     ecfg.seed = opts.seed;
     ecfg.kinematics.seed = opts.seed;
-    let wheel_base = opts
-        .wheel_base_truth
-        .unwrap_or(opts.config.robot.wheel_base);
+    let wheel_base = opts.true_wheel_base();
     ecfg.kinematics.wheel_base = wheel_base;
     if let Some(r) = opts.wheel_radius_truth {
         ecfg.wheel_radius = r;
@@ -499,17 +512,14 @@ fn start_emulators(
         base_emu::spawn_on_pty(ecfg, Some(links.join("base")), clock.clone())
             .map_err(|e| SimError::Emulator(e.to_string()))?,
     );
+    let (mount, upside_down) = opts.true_mount();
     let scene = WorldScene {
         world: opts.world.clone(),
         base: base.clone(),
         seen,
         wheel_base,
-        mount: opts
-            .scanner_truth
-            .map_or_else(|| opts.config.robot.scanner_mount(), |t| t.0),
-        upside_down: opts
-            .scanner_truth
-            .map_or(opts.config.robot.scanner_upside_down, |t| t.1),
+        mount,
+        upside_down,
         noise: opts.range_noise,
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
     };
@@ -657,10 +667,7 @@ fn drive(
         let q = match truth_at(&recent, est_at, 0.25) {
             Some(q) if est_at <= at => q,
             _ => {
-                let wheel_base = opts
-                    .wheel_base_truth
-                    .unwrap_or(opts.config.robot.wheel_base);
-                let twist = Twist::from_wheels(&to_cmd(base.wheels()), wheel_base);
+                let twist = Twist::from_wheels(&to_cmd(base.wheels()), opts.true_wheel_base());
                 integrate(&p, &twist, (est_at - at).clamp(-0.3, 0.3))
             }
         };
@@ -705,6 +712,8 @@ fn drive(
     let fix_pairs = fix_pairs(&fixes, &seen, 0.0, 0.2);
     let (pos, head, pmax, pairs) = fix_errors(&fix_pairs);
     let best_offset = best_stamp_shift(&fixes, &seen);
+    let (turn_ratio, travel_fit, offset_fit, refitted_mount) =
+        shared.with_status(|s| (s.turn_ratio, s.travel_fit, s.offset_fit, s.refitted_mount));
     let report = SimReport {
         metrics: tracker.metrics(),
         position_rmse: pos,
@@ -713,10 +722,10 @@ fn drive(
         scored_fixes: pairs,
         stamp_offset: best_offset,
         frame_turn,
-        turn_ratio: shared.with_status(|s| s.turn_ratio),
-        travel_fit: shared.with_status(|s| s.travel_fit),
-        offset_fit: shared.with_status(|s| s.offset_fit),
-        refitted_mount: shared.with_status(|s| s.refitted_mount),
+        turn_ratio,
+        travel_fit,
+        offset_fit,
+        refitted_mount,
         map_to_world: to_w,
         live_position_rmse: (se_pos / n).sqrt(),
         live_heading_rmse: (se_head / n).sqrt(),
