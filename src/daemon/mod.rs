@@ -403,7 +403,7 @@ impl Daemon {
                 turn_check: turn_check::TurnCheck::default(),
                 travel_check: travel_check::TravelCheck::new(heading(&mount)),
                 offset_check: offset_check::OffsetCheck::new(heading(&mount)),
-                offset_fitted: false,
+                offset_fitted: resume::offset_was_fitted(&robot.scanner_mount(), &mount),
             },
         )?;
         pipeline.spawn(

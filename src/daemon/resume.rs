@@ -169,6 +169,14 @@ pub fn resumed_mount(configured: Pose, record: Option<&MountRecord>) -> Pose {
     }
 }
 
+/// Whether the offset of the mount a run drives with came from the offset
+/// check (before a checkpoint) rather than from `[robot]`: a yaw refitted
+/// later then turns that offset back, as it does within one run (an
+/// offset fitted under a wrong yaw is turned by the error).
+pub fn offset_was_fitted(configured: &Pose, driving: &Pose) -> bool {
+    (driving.translation.vector - configured.translation.vector).norm() > 1e-9
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -187,5 +195,14 @@ mod tests {
         // mount.toml): it wins.
         let fixed = pose(0.079, 0.04, 0.052);
         assert_eq!(resumed_mount(fixed, Some(&rec)), fixed);
+    }
+
+    #[test]
+    fn a_resumed_offset_counts_as_fitted_only_where_it_left_the_configured_one() {
+        let configured = pose(0.1, 0.0, 0.0);
+        // Only the yaw was refitted: the offset is still the configured one.
+        assert!(!offset_was_fitted(&configured, &pose(0.1, 0.0, 0.05)));
+        assert!(offset_was_fitted(&configured, &pose(0.14, 0.02, 0.05)));
+        assert!(!offset_was_fitted(&configured, &configured));
     }
 }

@@ -148,7 +148,8 @@ pub struct LocaliseStage {
     /// Whether the scanner circles the axle at its configured offset when
     /// the robot turns in place (a wrong offset).
     pub offset_check: super::offset_check::OffsetCheck,
-    /// The mount's offset was refitted by the offset check.
+    /// The mount's offset was refitted by the offset check (in this run, or
+    /// before the checkpoint it resumed from).
     pub offset_fitted: bool,
 }
 
