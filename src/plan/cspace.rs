@@ -124,6 +124,44 @@ pub struct CSpace {
     heap: BinaryHeap<Entry>,
 }
 
+/// What a cell within the clearance of the robot centre is (see
+/// [`CSpace::blocker`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlockerKind {
+    /// A cell seen occupied.
+    Obstacle,
+    /// A free cell holding a surface (a wall seen in mid-cell).
+    Surface,
+    /// A cell not yet seen.
+    Unexplored,
+    /// The edge of the map's grid.
+    Border,
+}
+
+impl BlockerKind {
+    /// A few words for logs.
+    pub fn describe(self) -> &'static str {
+        match self {
+            BlockerKind::Obstacle => "an obstacle cell",
+            BlockerKind::Surface => "a free cell holding a surface",
+            BlockerKind::Unexplored => "an unexplored cell",
+            BlockerKind::Border => "the map's edge",
+        }
+    }
+}
+
+/// The nearest thing within the robot centre's clearance (see
+/// [`CSpace::blocker`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blocker {
+    /// What it is.
+    pub kind: BlockerKind,
+    /// Its cell's centre (m).
+    pub at: Point2<f64>,
+    /// Distance from the robot centre to the edge of its cell (m).
+    pub distance: f64,
+}
+
 /// An inclusive box of cells.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Rect {
@@ -423,6 +461,69 @@ impl CSpace {
                 }
             }
         }
+    }
+
+    /// What keeps the robot centre at `p` out of the traversable space: of
+    /// the obstacle, unexplored or surface-holding cells bordering free
+    /// floor within the clearance of `p`'s cell, the nearest to `p` (by the
+    /// distance to the edge of its square); else the grid's border; `None`
+    /// when `p` is off the grid or its cell is not blocked.
+    pub fn blocker(&self, p: &Point2<f64>) -> Option<Blocker> {
+        let f = self.frame;
+        let i = f.index_of(p)?;
+        let (w, h) = (f.w as i64, f.h as i64);
+        let (x, y) = ((i as i64) % w, (i as i64) / w);
+        let mut best: Option<Blocker> = None;
+        for &(dx, dy) in &self.inflate {
+            let (nx, ny) = (x + dx, y + dy);
+            if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                continue;
+            }
+            let j = (ny * w + nx) as usize;
+            if self.state[j] == FREE && !self.held[j] {
+                continue;
+            }
+            let borders = NEIGHBOURS.iter().any(|&(ex, ey, _)| {
+                let (bx, by) = (nx + ex, ny + ey);
+                bx >= 0 && by >= 0 && bx < w && by < h && self.state[(by * w + bx) as usize] == FREE
+            });
+            if !borders {
+                continue;
+            }
+            // Within the clearance of the robot's cell (what makes it not
+            // traversable); measured from the robot itself.
+            let c = f.centre(j);
+            let edge = |q: Point2<f64>| {
+                let gx = ((q.x - c.x).abs() - 0.5 * f.res).max(0.0);
+                let gy = ((q.y - c.y).abs() - 0.5 * f.res).max(0.0);
+                gx.hypot(gy)
+            };
+            let distance = edge(*p);
+            if edge(f.centre(i)) >= self.inflation || best.is_some_and(|b| b.distance <= distance) {
+                continue;
+            }
+            let kind = match self.state[j] {
+                OCCUPIED => BlockerKind::Obstacle,
+                FREE => BlockerKind::Surface,
+                _ => BlockerKind::Unexplored,
+            };
+            best = Some(Blocker {
+                kind,
+                at: c,
+                distance,
+            });
+        }
+        if best.is_none() {
+            let edge = x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * f.res;
+            if edge < self.inflation {
+                best = Some(Blocker {
+                    kind: BlockerKind::Border,
+                    at: f.centre(i),
+                    distance: edge,
+                });
+            }
+        }
+        best
     }
 
     /// Whether the bare robot body (radius, no margin) centred on cell `i`
@@ -771,6 +872,30 @@ mod tests {
         assert!(!c.traversable[f.index_of(&Point2::new(0.12, 1.0)).unwrap()]);
         assert!(!c.traversable[f.index_of(&Point2::new(1.85, 1.0)).unwrap()]);
         assert!(c.traversable[f.index_of(&Point2::new(1.7, 1.0)).unwrap()]);
+    }
+
+    #[test]
+    fn the_blocker_of_a_centre_in_the_clearance_is_the_nearest_wall_cell() {
+        let mut c = CSpace::new(0.2, 0.17);
+        let mut g = room_grid();
+        c.rebuild(&g);
+        assert_eq!(c.blocker(&Point2::new(1.0, 1.0)), None);
+        // The inner wall's cells span x 1.95-2.05 (centres 1.975, 2.025):
+        // from x = 1.85 the nearest edge is 0.1 m away.
+        let b = c.blocker(&Point2::new(1.85, 1.0)).unwrap();
+        assert_eq!(b.kind, BlockerKind::Obstacle);
+        assert!((b.distance - 0.1).abs() < 1e-9, "{}", b.distance);
+        assert!((b.at.x - 1.975).abs() < 1e-9 && (b.at.y - 1.0).abs() < 0.026);
+        // Floor not seen yet blocks as well, and is named so.
+        g.set_state(
+            g.cell_of(&Point2::new(1.0, 1.15)).unwrap(),
+            CellState::Unknown,
+        );
+        c.rebuild(&g);
+        let b = c.blocker(&Point2::new(1.0, 1.0)).unwrap();
+        assert_eq!(b.kind, BlockerKind::Unexplored);
+        assert!(b.distance < 0.2);
+        assert!(c.blocker(&Point2::new(-9.0, 1.0)).is_none());
     }
 
     #[test]

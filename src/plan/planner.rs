@@ -780,6 +780,7 @@ impl CoveragePlanner {
             return working(Task::LookAround);
         }
         if !self.cspace.traversable[robot] {
+            self.log_escape_cause(&p);
             if let Some(goal) = self.escape_target(robot) {
                 let forgive = self.may_forgive();
                 // The robot was pushed into an inflation zone (a cell seen
@@ -1651,6 +1652,54 @@ impl CoveragePlanner {
     }
 
     /// The nearest traversable cell reachable over seen-free cells.
+    /// Says why the robot at `p` is out of the traversable space: what lies
+    /// within its clearance, and whether the path it was on is still
+    /// traversable where it passes nearest (the robot left it: tracking)
+    /// or not (the map changed under it: something seen since).
+    fn log_escape_cause(&self, p: &Point2<f64>) {
+        let what = match self.cspace.blocker(p) {
+            Some(b) => format!(
+                "{:.3} m from {} at ({:.2}, {:.2})",
+                b.distance,
+                b.kind.describe(),
+                b.at.x,
+                b.at.y
+            ),
+            None => "in a cell the clearance rules out".into(),
+        };
+        let nearest = self
+            .path
+            .windows(2)
+            .map(|s| {
+                let d = s[1] - s[0];
+                let t = ((p - s[0]).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
+                s[0] + d * t
+            })
+            .min_by(|a, b| (a - p).norm().total_cmp(&(b - p).norm()));
+        let path = match nearest {
+            Some(q) => {
+                let f = self.cspace.frame;
+                let still = f.index_of(&q).is_some_and(|i| self.cspace.traversable[i]);
+                format!(
+                    "{:.1} cm off its path, which is {} there",
+                    (q - p).norm() * 100.0,
+                    if still {
+                        "still traversable (the robot left it)"
+                    } else {
+                        "no longer traversable (seen since)"
+                    }
+                )
+            }
+            None => "on no path".into(),
+        };
+        log::info!(
+            "escape: robot at ({:.2}, {:.2}) m is {what}, inside the {:.2} m clearance; {path}",
+            p.x,
+            p.y,
+            self.cspace.inflation()
+        );
+    }
+
     fn escape_target(&self, robot: usize) -> Option<Point2<f64>> {
         let f = self.cspace.frame;
         let mut seen = vec![false; f.len()];
