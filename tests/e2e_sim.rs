@@ -97,9 +97,30 @@ fn daemon_covers_a_small_world_through_the_ptys() {
     );
     assert!(r.urg.scans > 100 && r.urg.checksum_errors == 0);
     assert!(r.base.received > 100, "{:?}", r.base);
-    for f in ["summary.md", "map.svg", "path.svg", "metrics.toml"] {
+    for f in [
+        "summary.md",
+        "map.svg",
+        "path.svg",
+        "overlap.svg",
+        "metrics.toml",
+    ] {
         assert!(dir.join(f).exists(), "{f} missing");
     }
+    // The overlap is split by what the daemon's plan had the robot doing
+    // (lanes, connections, transits), not all booked as turning in place.
+    let m = &r.metrics;
+    let by_motion: f64 = m.overlap_by[..6].iter().sum();
+    assert!(
+        m.overlap > 0.05 && by_motion > 0.5 * m.overlap,
+        "overlap {:.3}, by cause {:?}",
+        m.overlap,
+        m.overlap_by
+    );
+    let summary = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    assert!(
+        summary.contains("| connection between lanes |"),
+        "{summary}"
+    );
     // The daemon left a checkpoint a restart could resume from.
     assert!(dir.join("state").read_dir().unwrap().next().is_some());
 }

@@ -148,6 +148,22 @@ pub struct LiveStatus {
     /// The scanner mount the daemon drives with, when the offset or the
     /// travel check refitted it; `None`: as configured.
     pub refitted_mount: Option<Pose>,
+    /// The newest path's motions (what the robot does towards each
+    /// waypoint), with its sequence number and the planner's task count:
+    /// with [`Progress`], what the robot is doing now, for the simulator's
+    /// overlap breakdown.
+    pub path_motions: Option<PathMotions>,
+}
+
+/// The motions of one planned path (see [`LiveStatus::path_motions`]).
+#[derive(Clone, Debug)]
+pub struct PathMotions {
+    /// The path's sequence number ([`Progress::path_seq`]).
+    pub seq: u64,
+    /// Tasks the planner had planned when it made the path.
+    pub task: u32,
+    /// The motion towards each waypoint.
+    pub motions: std::sync::Arc<[crate::plan::Motion]>,
 }
 
 impl Default for LiveStatus {
@@ -173,6 +189,7 @@ impl Default for LiveStatus {
             travel_fit: None,
             offset_fit: None,
             refitted_mount: None,
+            path_motions: None,
         }
     }
 }

@@ -808,6 +808,12 @@ impl Stage for PlanStage {
             PlanStatus::Working { new_path: true, .. } => {
                 self.seq += 1;
                 let (points, final_heading) = self.planner.path();
+                let motions = super::shared::PathMotions {
+                    seq: self.seq,
+                    task: u32::try_from(self.planner.stats().tasks).unwrap_or(u32::MAX),
+                    motions: (0..points.len()).map(|i| self.planner.motion(i)).collect(),
+                };
+                self.shared.with_status(|s| s.path_motions = Some(motions));
                 let msg = PathMsg {
                     seq: self.seq,
                     points: points.to_vec(),

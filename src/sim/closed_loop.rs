@@ -652,9 +652,19 @@ fn drive(
             next_fault += 1;
         }
         let (at, p) = base.truth_stamped();
-        let (est_map, est_at, turn) = shared.with_status(|s| (s.pose, s.pose_time, s.frame_turn));
+        let (est_map, est_at, turn, motions) =
+            shared.with_status(|s| (s.pose, s.pose_time, s.frame_turn, s.path_motions.clone()));
         let est = to_world(opts, turn) * est_map;
-        tracker.record(&p, t);
+        // What the robot is doing: the motion towards the waypoint the
+        // control stage heads for on the newest path.
+        let progress = shared.progress();
+        let (motion, task) = match (motions, progress.next) {
+            (Some(m), Some(next)) if m.seq == progress.path_seq => {
+                (m.motions.get(next).copied().unwrap_or_default(), m.task)
+            }
+            (m, _) => (crate::plan::Motion::Other, m.map_or(0, |m| m.task)),
+        };
+        tracker.record_doing(&p, t, motion, task);
         // The truth at the estimate's own time (both threads run
         // independently): from the recent truth samples when the estimate
         // is older, carried forward along the current motion when newer.

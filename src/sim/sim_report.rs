@@ -11,7 +11,7 @@ use svg::node::element::{Polyline, Rectangle};
 use svg::Document;
 
 use super::closed_loop::{FixPair, SimOptions, SimReport};
-use super::coverage_metrics::CoverageTracker;
+use super::coverage_metrics::{CoverageTracker, OVERLAP_CAUSES};
 use super::coverage_svg;
 use crate::daemon::Shared;
 use crate::geom::{heading, Pose};
@@ -128,6 +128,18 @@ pub fn write(
         &format!("{}: closed loop through the ptys", opts.world.name),
     );
     coverage_svg::save(&dir.join("path.svg"), &doc)?;
+    let doc = coverage_svg::overlap_svg(
+        &opts.world,
+        tracker.repeat_causes(),
+        &r.truth,
+        &OVERLAP_CAUSES,
+        &format!(
+            "{}: floor swept again ({:.1}% of swept), by what the robot was doing",
+            opts.world.name,
+            r.metrics.overlap * 100.0
+        ),
+    );
+    coverage_svg::save(&dir.join("overlap.svg"), &doc)?;
     std::fs::write(dir.join("fixes.csv"), fixes_csv(&r.fixes))?;
     std::fs::write(dir.join("summary.md"), summary(opts, r))
 }
@@ -285,6 +297,13 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
     ];
     for (k, v) in rows {
         let _ = writeln!(s, "| {k} | {v} |");
+    }
+    let _ = writeln!(
+        s,
+        "\n## Overlap by what the robot was doing\n\nWhen floor was swept a second time, from the daemon's plan and the waypoint its control stage headed for (% of swept area; `overlap.svg` shows where):\n\n| cause | share |\n|---|---|"
+    );
+    for (cause, v) in OVERLAP_CAUSES.iter().zip(m.overlap_by) {
+        let _ = writeln!(s, "| {cause} | {:.1} % |", v * 100.0);
     }
     let _ = writeln!(
         s,
