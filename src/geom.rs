@@ -119,15 +119,20 @@ impl Segment {
         d.y.atan2(d.x)
     }
 
-    /// Distance from `p` to the closest point of the segment.
-    pub fn distance_to(&self, p: &Point2<f64>) -> f64 {
+    /// The point of the segment closest to `p`.
+    pub fn closest_point(&self, p: &Point2<f64>) -> Point2<f64> {
         let d = self.b - self.a;
         let l2 = d.norm_squared();
         if l2 == 0.0 {
-            return (p - self.a).norm();
+            return self.a;
         }
         let t = ((p - self.a).dot(&d) / l2).clamp(0.0, 1.0);
-        (p - (self.a + d * t)).norm()
+        self.a + d * t
+    }
+
+    /// Distance from `p` to the closest point of the segment.
+    pub fn distance_to(&self, p: &Point2<f64>) -> f64 {
+        (p - self.closest_point(p)).norm()
     }
 }
 

@@ -162,7 +162,8 @@ pub struct PathMotions {
     pub seq: u64,
     /// Tasks the planner had planned when it made the path.
     pub task: u32,
-    /// The motion towards each waypoint.
+    /// The motion towards each waypoint (see
+    /// [`crate::plan::CoveragePlanner::motions`]).
     pub motions: std::sync::Arc<[crate::plan::Motion]>,
 }
 

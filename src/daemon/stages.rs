@@ -811,7 +811,7 @@ impl Stage for PlanStage {
                 let motions = super::shared::PathMotions {
                     seq: self.seq,
                     task: u32::try_from(self.planner.stats().tasks).unwrap_or(u32::MAX),
-                    motions: (0..points.len()).map(|i| self.planner.motion(i)).collect(),
+                    motions: self.planner.motions().into(),
                 };
                 self.shared.with_status(|s| s.path_motions = Some(motions));
                 let msg = PathMsg {

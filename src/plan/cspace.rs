@@ -425,15 +425,7 @@ impl CSpace {
                 }
                 let solid = self.state[i] == OCCUPIED || self.held[i];
                 // Only obstacle/unknown cells that border free space matter.
-                let borders = NEIGHBOURS.iter().any(|&(dx, dy, _)| {
-                    let (nx, ny) = (x + dx, y + dy);
-                    nx >= 0
-                        && ny >= 0
-                        && (nx as usize) < w
-                        && (ny as usize) < h
-                        && self.state[ny as usize * w + nx as usize] == FREE
-                });
-                if !borders {
+                if !self.borders_free(x, y) {
                     continue;
                 }
                 for &(dx, dy) in &self.inflate {
@@ -455,12 +447,28 @@ impl CSpace {
         // The grid's border counts as unexplored.
         for y in target.y0..=target.y1 {
             for x in target.x0..=target.x1 {
-                let near_edge = x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * self.frame.res;
-                if near_edge < self.inflation {
+                if self.edge_distance(x, y) < self.inflation {
                     self.traversable[y * w + x] = false;
                 }
             }
         }
+    }
+
+    /// Whether cell (`x`, `y`) has a free 8-neighbour: only obstacle and
+    /// unexplored cells bordering free floor bound the clearance.
+    fn borders_free(&self, x: i64, y: i64) -> bool {
+        let (w, h) = (self.frame.w as i64, self.frame.h as i64);
+        NEIGHBOURS.iter().any(|&(dx, dy, _)| {
+            let (nx, ny) = (x + dx, y + dy);
+            nx >= 0 && ny >= 0 && nx < w && ny < h && self.state[(ny * w + nx) as usize] == FREE
+        })
+    }
+
+    /// Distance (m, whole cells) of cell (`x`, `y`) from the grid's edge,
+    /// which counts as unexplored.
+    fn edge_distance(&self, x: usize, y: usize) -> f64 {
+        let (w, h) = (self.frame.w, self.frame.h);
+        x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * self.frame.res
     }
 
     /// What keeps the robot centre at `p` out of the traversable space: of
@@ -483,11 +491,7 @@ impl CSpace {
             if self.state[j] == FREE && !self.held[j] {
                 continue;
             }
-            let borders = NEIGHBOURS.iter().any(|&(ex, ey, _)| {
-                let (bx, by) = (nx + ex, ny + ey);
-                bx >= 0 && by >= 0 && bx < w && by < h && self.state[(by * w + bx) as usize] == FREE
-            });
-            if !borders {
+            if !self.borders_free(nx, ny) {
                 continue;
             }
             // Within the clearance of the robot's cell (what makes it not
@@ -514,7 +518,7 @@ impl CSpace {
             });
         }
         if best.is_none() {
-            let edge = x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * f.res;
+            let edge = self.edge_distance(x as usize, y as usize);
             if edge < self.inflation {
                 best = Some(Blocker {
                     kind: BlockerKind::Border,

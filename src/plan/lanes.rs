@@ -11,6 +11,7 @@
 use nalgebra::Point2;
 
 use super::cspace::Frame;
+use crate::geom::Segment;
 
 /// Lane direction on the grid (the world is rectilinear: lanes run along x or y).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -263,12 +264,11 @@ impl Sweep<'_> {
                 if (q - p).norm() > join {
                     continue;
                 }
-                let d = q - p;
+                let join_line = Segment::new(p, q);
                 for v in self.v_lo..=self.v_hi {
                     for uu in self.u_lo..=self.u_hi {
                         let c = point(axis, self.coord(uu, self.ou), self.coord(v, self.ov));
-                        let t = ((c - p).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
-                        if (c - (p + d * t)).norm() <= self.reach {
+                        if join_line.distance_to(&c) <= self.reach {
                             let i = self.slot(uu, v);
                             self.served[i] = true;
                         }

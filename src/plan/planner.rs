@@ -34,7 +34,7 @@ use super::swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
-use crate::geom::{heading, wrap_angle, Pose};
+use crate::geom::{heading, wrap_angle, Pose, Segment};
 use crate::grid::Grid;
 
 /// Why the planner cannot work.
@@ -399,6 +399,12 @@ impl CoveragePlanner {
     /// ([`Motion::Other`] past its end).
     pub fn motion(&self, next: usize) -> Motion {
         self.motions.get(next).copied().unwrap_or_default()
+    }
+
+    /// The motion towards each waypoint of [`Self::path`] (may be shorter
+    /// than the path: [`Motion::Other`] for the rest).
+    pub fn motions(&self) -> &[Motion] {
+        &self.motions
     }
 
     /// The current task.
@@ -943,11 +949,9 @@ impl CoveragePlanner {
         if self.split_task {
             self.task_targets.retain(|&i| {
                 let c = f.centre(i);
-                lanes.iter().any(|l| {
-                    let d = l.b - l.a;
-                    let t = ((c - l.a).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
-                    (c - (l.a + d * t)).norm() <= near
-                })
+                lanes
+                    .iter()
+                    .any(|l| Segment::new(l.a, l.b).distance_to(&c) <= near)
             });
         }
         working(task)
@@ -1670,11 +1674,7 @@ impl CoveragePlanner {
         let nearest = self
             .path
             .windows(2)
-            .map(|s| {
-                let d = s[1] - s[0];
-                let t = ((p - s[0]).dot(&d) / d.norm_squared().max(1e-12)).clamp(0.0, 1.0);
-                s[0] + d * t
-            })
+            .map(|s| Segment::new(s[0], s[1]).closest_point(p))
             .min_by(|a, b| (a - p).norm().total_cmp(&(b - p).norm()));
         let path = match nearest {
             Some(q) => {
