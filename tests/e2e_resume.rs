@@ -10,7 +10,9 @@
 //! test saw. The emulated scanner sits 5 cm ahead of where the
 //! configuration says: the first daemon refits its mount on its first half
 //! turn, and the second must drive with the refitted mount from its
-//! checkpoint at once.
+//! checkpoint at once. A second case restarts with the mount corrected in
+//! the configuration (as an operator would after reading the first run's
+//! mount report): the configured mount then wins over the checkpointed one.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -115,9 +117,37 @@ fn latest_with_pose(store: &CheckpointStore) -> Option<(RunProgress, Pose)> {
     Some((p, q))
 }
 
+/// What the configuration says between the crash and the restart.
+#[derive(Clone, Copy, PartialEq)]
+enum Restart {
+    /// The same file: the refitted mount of the checkpoint is driven with.
+    SameConfig,
+    /// `robot.scanner_offset_x` corrected to the true mount: it is driven
+    /// with, not the checkpoint's.
+    MountCorrected,
+}
+
+/// One closed loop at a time: two at once on 2 cores starve the ×10 clock.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 #[test]
 fn killed_daemon_resumes_its_coverage() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e_resume");
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    crash_and_resume("e2e_resume", Restart::SameConfig);
+}
+
+#[test]
+fn a_mount_corrected_in_the_configuration_wins_over_the_checkpointed_one() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    crash_and_resume("e2e_resume_mount", Restart::MountCorrected);
+}
+
+fn crash_and_resume(name: &str, restart: Restart) {
+    if restart == Restart::MountCorrected && std::env::var_os(NO_KILL_ENV).is_some() {
+        eprintln!("{NO_KILL_ENV}: no restart, so no corrected mount to test");
+        return;
+    }
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(dir.join("state")).unwrap();
     let links = dir.join("dev");
@@ -243,6 +273,10 @@ fn killed_daemon_resumes_its_coverage() {
             lattice_at_kill = lattice(&store);
             mount_at_kill = mount(&store);
             std::thread::sleep(Duration::from_millis(200));
+            if restart == Restart::MountCorrected {
+                cfg.robot.scanner_offset_x = SCANNER_AHEAD;
+                std::fs::write(dir.join("robot.toml"), toml::to_string(&cfg).unwrap()).unwrap();
+            }
             daemon = spawn(&dir, &links, 2);
             continue;
         }
@@ -342,9 +376,17 @@ fn killed_daemon_resumes_its_coverage() {
         (ahead.x - SCANNER_AHEAD).abs() <= 0.01 && ahead.y.abs() <= 0.01,
         "refitted mount {ahead:?}"
     );
+    let (expected, other) = (
+        "driving with the scanner mount refitted before the checkpoint",
+        "the configured scanner mount changed since the checkpoint; driving with the configured one",
+    );
+    let (expected, other) = match restart {
+        Restart::SameConfig => (expected, other),
+        Restart::MountCorrected => (other, expected),
+    };
     assert!(
-        log2.contains("driving with the scanner mount refitted before the checkpoint"),
-        "second daemon did not take the refitted mount:\n{log2}"
+        log2.contains(expected) && !log2.contains(other),
+        "second daemon did not say {expected:?}:\n{log2}"
     );
     check_report(&dir.join("state/run"), &at_kill, kill_t);
 }

@@ -186,12 +186,8 @@ fn write_pictures(
         world,
         &r.repeat_causes,
         &r.trajectory,
-        &OVERLAP_CAUSES,
-        &format!(
-            "{} ({tag}): floor swept again ({:.1}% of swept), by what the robot was doing",
-            world.name,
-            r.metrics.overlap * 100.0
-        ),
+        &format!("{} ({tag})", world.name),
+        r.metrics.overlap,
     );
     coverage_svg::save(&out.join(format!("overlap_{tag}.svg")), &doc)?;
     let doc = coverage_svg::motions_svg(

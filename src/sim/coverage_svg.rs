@@ -12,7 +12,7 @@ use svg::Document;
 use crate::decomp::{CellStatus, Decomposition};
 use crate::geom::Pose;
 use crate::plan::Motion;
-use crate::sim::coverage_metrics::CoverageMetrics;
+use crate::sim::coverage_metrics::{CoverageMetrics, OVERLAP_CAUSES};
 use crate::sim::world::{FreeRaster, World};
 use crate::svg_canvas::{canvas, label};
 
@@ -239,15 +239,21 @@ const CAUSE_COLOURS: [&str; 7] = [
 ];
 
 /// Where floor was swept a second time, coloured by what the robot was
-/// doing then (`causes`: per ground-truth cell, an index into `legend`, or
-/// `u8::MAX` for floor swept at most once), with the path and a legend.
+/// doing then (`causes`: per ground-truth cell, an index into
+/// [`OVERLAP_CAUSES`], or `u8::MAX` for floor swept at most once), with the
+/// path, a legend and a title naming `subject` and the `overlap` share.
 pub fn overlap_svg(
     world: &World,
     causes: &[u8],
     trajectory: &[Pose],
-    legend: &[&str],
-    title: &str,
+    subject: &str,
+    overlap: f64,
 ) -> Document {
+    let legend = &OVERLAP_CAUSES;
+    let title = format!(
+        "{subject}: floor swept again ({:.1}% of swept), by what the robot was doing",
+        overlap * 100.0
+    );
     let r = &world.free;
     let v = View::of(r);
     let line = 18.0;
@@ -262,7 +268,7 @@ pub fn overlap_svg(
         .add(cells)
         .add(walls(world, &v))
         .add(track(trajectory, &v, "#08306b", 0.8))
-        .add(label(8.0, v.h + 22.0, title, 14));
+        .add(label(8.0, v.h + 22.0, &title, 14));
     let entries = legend
         .iter()
         .enumerate()

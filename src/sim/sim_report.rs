@@ -132,12 +132,8 @@ pub fn write(
         &opts.world,
         tracker.repeat_causes(),
         &r.truth,
-        &OVERLAP_CAUSES,
-        &format!(
-            "{}: floor swept again ({:.1}% of swept), by what the robot was doing",
-            opts.world.name,
-            r.metrics.overlap * 100.0
-        ),
+        &opts.world.name,
+        r.metrics.overlap,
     );
     coverage_svg::save(&dir.join("overlap.svg"), &doc)?;
     std::fs::write(dir.join("fixes.csv"), fixes_csv(&r.fixes))?;
