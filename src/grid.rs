@@ -158,6 +158,18 @@ pub const NEIGHBOURS_8: [(i64, i64); 8] = [
     (-1, -1),
 ];
 
+/// Linear indices of the up to 8 cells around cell `i` of a row-major
+/// `w` × `h` raster that lie inside it, in [`NEIGHBOURS_8`] order.
+pub fn neighbours8_of(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (w, h) = (w as i64, h as i64);
+    let (x, y) = ((i as i64) % w, (i as i64) / w);
+    NEIGHBOURS_8
+        .into_iter()
+        .map(move |(dx, dy)| (x + dx, y + dy))
+        .filter(move |&(nx, ny)| nx >= 0 && ny >= 0 && nx < w && ny < h)
+        .map(move |(nx, ny)| (ny * w + nx) as usize)
+}
+
 /// Integer cell coordinates (column, row); row 0 is the lowest y.
 pub type CellIndex = (usize, usize);
 

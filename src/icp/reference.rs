@@ -176,7 +176,7 @@ impl Reference {
         }
         self.check_size(params)?;
         self.intensity_scale = params.intensity_weight.max(0.0).sqrt();
-        if sorted && std::env::var("NOFAN").is_err() {
+        if sorted {
             self.fan = Some(*pose);
             Ok(())
         } else {

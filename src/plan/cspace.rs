@@ -37,13 +37,7 @@ impl Frame {
     /// Linear indices of the up to 8 cells around cell `i` that lie inside
     /// the frame (the grid's `NEIGHBOURS_8` order).
     pub fn neighbours8(&self, i: usize) -> impl Iterator<Item = usize> {
-        let (w, h) = (self.w as i64, self.h as i64);
-        let (x, y) = ((i as i64) % w, (i as i64) / w);
-        crate::grid::NEIGHBOURS_8
-            .into_iter()
-            .map(move |(dx, dy)| (x + dx, y + dy))
-            .filter(move |&(nx, ny)| nx >= 0 && ny >= 0 && nx < w && ny < h)
-            .map(move |(nx, ny)| (ny * w + nx) as usize)
+        crate::grid::neighbours8_of(i, self.w, self.h)
     }
 
     /// Linear index of the cell containing `p`, if inside.

@@ -1362,18 +1362,10 @@ impl CoveragePlanner {
             stack.push(s);
             while let Some(i) = stack.pop() {
                 comp.push(i);
-                let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-                for dy in -1..=1i64 {
-                    for dx in -1..=1i64 {
-                        let (nx, ny) = (x + dx, y + dy);
-                        if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                            continue;
-                        }
-                        let j = ny as usize * f.w + nx as usize;
-                        if self.targets[j] && !seen[j] {
-                            seen[j] = true;
-                            stack.push(j);
-                        }
+                for j in f.neighbours8(i) {
+                    if self.targets[j] && !seen[j] {
+                        seen[j] = true;
+                        stack.push(j);
                     }
                 }
             }
@@ -2054,17 +2046,9 @@ fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
         while k < comp.len() {
             let i = comp[k];
             k += 1;
-            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-            for dy in -1..=1i64 {
-                for dx in -1..=1i64 {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                        continue;
-                    }
-                    let j = ny as usize * f.w + nx as usize;
-                    if in_list.contains(&j) && seen.insert(j) {
-                        comp.push(j);
-                    }
+            for j in f.neighbours8(i) {
+                if in_list.contains(&j) && seen.insert(j) {
+                    comp.push(j);
                 }
             }
         }

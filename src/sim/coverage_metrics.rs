@@ -30,6 +30,8 @@
 use nalgebra::Point2;
 
 use crate::geom::{heading, wrap_angle, Pose};
+use crate::grid::neighbours8_of;
+use crate::plan::cspace::disk;
 use crate::plan::Motion;
 use crate::sim::world::{FreeRaster, World};
 
@@ -138,20 +140,6 @@ pub struct CoverageTracker {
     time: f64,
 }
 
-/// Cell offsets whose centres lie within `radius` of a cell centre.
-fn disk_offsets(radius: f64, res: f64) -> Vec<(i64, i64)> {
-    let n = (radius / res).ceil() as i64 + 1;
-    let mut v = Vec::new();
-    for dy in -n..=n {
-        for dx in -n..=n {
-            if ((dx * dx + dy * dy) as f64).sqrt() * res <= radius + 1e-9 {
-                v.push((dx, dy));
-            }
-        }
-    }
-    v
-}
-
 /// Cells whose centre lies at least `radius` from every non-free cell (the
 /// obstacle taken as its full square) and inside the raster.
 pub fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
@@ -204,18 +192,10 @@ pub fn connected_from(mask: &[bool], w: usize, h: usize, start: (usize, usize)) 
     out[s] = true;
     let mut stack = vec![s];
     while let Some(i) = stack.pop() {
-        let (x, y) = ((i % w) as i64, (i / w) as i64);
-        for dy in -1..=1i64 {
-            for dx in -1..=1i64 {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                    continue;
-                }
-                let j = ny as usize * w + nx as usize;
-                if mask[j] && !out[j] {
-                    out[j] = true;
-                    stack.push(j);
-                }
+        for j in neighbours8_of(i, w, h) {
+            if mask[j] && !out[j] {
+                out[j] = true;
+                stack.push(j);
             }
         }
     }
@@ -263,15 +243,9 @@ impl CoverageTracker {
         };
         let reachable = connected_from(&centre_ok, w, h, start_cell);
         // One cell more than the tool: membership is decided on exact distance.
-        let tool = disk_offsets(tool_width / 2.0 + res * 1.5, res);
-        let body = disk_offsets(robot_radius, res);
-        let footprint = dilate(
-            &reachable,
-            w,
-            h,
-            &disk_offsets(tool_width / 2.0, res),
-            &raster.free,
-        );
+        let tool = disk(tool_width / 2.0 + res * 1.5, res);
+        let body = disk(robot_radius, res);
+        let footprint = dilate(&reachable, w, h, &disk(tool_width / 2.0, res), &raster.free);
         let touchable = dilate(&reachable, w, h, &body, &raster.free);
         let unreachable_cells = raster
             .free

@@ -372,18 +372,10 @@ pub fn cut_rooms(
         let mut pixels = Vec::new();
         while let Some(i) = stack.pop() {
             pixels.push(i);
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            for dy in -1..=1i64 {
-                for dx in -1..=1i64 {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if seg.pixels[j] > FREE_ABOVE && label[j] == u32::MAX {
-                        label[j] = id;
-                        stack.push(j);
-                    }
+            for j in crate::grid::neighbours8_of(i, w, h) {
+                if seg.pixels[j] > FREE_ABOVE && label[j] == u32::MAX {
+                    label[j] = id;
+                    stack.push(j);
                 }
             }
         }
