@@ -22,8 +22,10 @@ box 1.8 1.0 2.3 1.5 refl 0.8\n\
 low box 0.9 1.9 1.1 2.1\n\
 start 0.5 0.5 0.0\n";
 
-/// Farthest a contact mark may lie from an obstacle (m).
-const MARK_BOUND: f64 = 0.2;
+/// Farthest a contact mark may lie from an obstacle (m): a one-bit
+/// bumper's straight-ahead guess at a contact at its arc's end, 2 (r + gap)
+/// sin 40° = 0.23 m, and a centimetre (see [`assert_marks_on_obstacles`]).
+const MARK_BOUND: f64 = 0.24;
 
 fn config() -> Config {
     Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("hw/robot.toml")).unwrap()
@@ -175,7 +177,10 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
 /// bound is what a bumper that cannot tell its sides allows: a contact at
 /// the end of the ±80° arc marked straight ahead is 2 (r + gap) sin 40° =
 /// 0.23 m from where it is; seen since: up to 0.13 m (a stool's corner
-/// 35° to the side).
+/// 35° to the side), and 0.20 m with the corner 67° to the side of a robot
+/// turning in place (session 20; the bound was 0.2 m until then, below its
+/// own worst case). A mark at the leading end of that turn was 0.32-0.36 m
+/// off, so a one-bit bumper is no longer marked there.
 fn assert_marks_on_obstacles(opts: &SimOptions, r: &closed_loop::SimReport) {
     let astray: Vec<_> = r
         .contacts

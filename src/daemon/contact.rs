@@ -5,7 +5,8 @@
 //! shell. The switches say which side (a Create 2 has two; a RoboClaw base
 //! wires its bumper to one E-stop input, so both sides read closed), and the
 //! motion at the time narrows it further: a robot turning in place can only
-//! close its bumper with the shell's leading end; and nothing can stand
+//! close its bumper with the shell's leading end (so a side switch that
+//! closes on the side leading the turn is at that end); and nothing can stand
 //! where the body itself has been ([`BodyTrack`]), so bearings whose contact
 //! point the body has already passed over are ruled out (a lane that grazes
 //! an obstacle's corner has the previous lane's track on its other side).
@@ -207,10 +208,15 @@ impl ContactMark {
     ///
     /// A disk turning in place sweeps no new space: a turn closes the bumper
     /// only where the end of its arc meets something beside the body, so
-    /// the leading end is the contact when the side that closed (or, for a
-    /// one-bit bumper, either) is the one leading the turn. Both sides of a
-    /// bumper that tells them apart closed together are a contact near the
-    /// middle, whatever the motion.
+    /// the leading end is the contact when the side that closed is the one
+    /// leading the turn. Both sides of a bumper that tells them apart
+    /// closed together are a contact near the middle, whatever the motion.
+    /// A one-bit bumper is marked across its front in a turn too: an
+    /// obstacle resting at the bumper's reach closes it anywhere on the arc
+    /// as the body jitters by a millimetre (the stool room's runs: both
+    /// closures in a turn in place were on the trailing side, and a mark
+    /// at the leading end lay 0.34-0.36 m from the stool, where the
+    /// straight-ahead guess is at most 0.23 m off).
     pub fn estimate(
         params: &ContactParams,
         pose: &Pose,
@@ -220,14 +226,13 @@ impl ContactMark {
         wheel_base: f64,
         track: Option<&BodyTrack>,
     ) -> Self {
-        let (turning, w) = turn_in_place(wheels, radius, wheel_base);
+        let (turning, w) = turn_in_place(params, wheels, radius, wheel_base);
         let lead = |b: f64| (b, (b, b));
         let (bearing, arc) = match sides.map(|s| (s.left, s.right)) {
             Some((true, false)) if turning && w > 0.0 => lead(params.turn_bearing),
             Some((false, true)) if turning && w < 0.0 => lead(-params.turn_bearing),
             Some((true, false)) => (params.side_bearing, (0.0, params.bumper_half_arc)),
             Some((false, true)) => (-params.side_bearing, (-params.bumper_half_arc, 0.0)),
-            None if turning => lead(params.turn_bearing * w.signum()),
             _ => (0.0, (-params.bumper_half_arc, params.bumper_half_arc)),
         };
         let centre: Point2<f64> = pose.translation.vector.into();
@@ -416,16 +421,32 @@ impl HeldContact {
     }
 }
 
-/// Whether `wheels` turn a robot of `radius` in place (the shell's ends
-/// move faster than its middle advances), and the turn rate (rad/s).
-pub fn turn_in_place(wheels: WheelSpeeds, radius: f64, wheel_base: f64) -> (bool, f64) {
+/// Whether a bumper that closed under `wheels` (a robot of `radius`, wheel
+/// base `wheel_base`) closed by the turn, at the leading end of its arc,
+/// rather than by the advance, across its front; and the turn rate (rad/s).
+///
+/// A disc's shell moves outward only by translation: advancing at `v`, the
+/// arc sweeps new ring (the band between the body and the bumper's reach,
+/// `radius + 2 gap`) at `v · 2 reach · sin(half arc)` per second; turning at
+/// `w`, only the arc's leading end sweeps new ring, at `|w| (reach² −
+/// radius²) / 2`. The closure is put on the larger: at 0.5 rad/s a creep of
+/// 2.5 mm/s forward already sweeps more.
+pub fn turn_in_place(
+    params: &ContactParams,
+    wheels: WheelSpeeds,
+    radius: f64,
+    wheel_base: f64,
+) -> (bool, f64) {
     let v = 0.5 * (wheels.left + wheels.right);
     let w = if wheel_base > 0.0 {
         (wheels.right - wheels.left) / wheel_base
     } else {
         0.0
     };
-    let turning = w.is_finite() && v.is_finite() && w.abs() * radius > 2.0 * v.abs();
+    let reach = radius + 2.0 * params.gap;
+    let by_turn = w.abs() * (reach * reach - radius * radius) / 2.0;
+    let by_advance = v.max(0.0) * 2.0 * reach * params.bumper_half_arc.sin();
+    let turning = w.is_finite() && v.is_finite() && by_turn > by_advance;
     (turning, w)
 }
 
@@ -583,10 +604,11 @@ mod tests {
             None,
         );
         assert!(right.at.y < -0.05, "{:?}", right.at);
-        // A RoboClaw E-stop (one bit) while turning right in place.
+        // A RoboClaw E-stop (one bit) while turning right in place: across
+        // the front, where the guess is off by at most half the arc.
         let spin_right = WheelSpeeds::from_body(0.0, -1.0, B);
         let turn = est(&p, None, spin_right, None);
-        assert!(turn.at.y < -0.15, "{:?}", turn.at);
+        assert!(turn.at.x > 0.17 && turn.at.y.abs() < 1e-9, "{:?}", turn.at);
         // The right switch of a Create 2 while turning right: the arc's
         // leading end; the left switch cannot close by that turn.
         let right_end = est(
@@ -609,6 +631,35 @@ mod tests {
             None,
         );
         assert!((trailing.at - left.at).norm() < 1e-9, "{:?}", trailing.at);
+    }
+
+    #[test]
+    fn a_one_bit_bumper_closing_in_a_turn_is_marked_across_its_front() {
+        // Logged in the stool room (`tests/sim_faults.rs`, debug build,
+        // ×8): the robot at its lane's start (0.79, 1.75), the stool's
+        // corner (0.9, 1.9) at its bumper's reach 50-67° to the right, the
+        // RoboClaw's one-bit bumper closing while the robot turned left
+        // (once easing in at 2 cm/s). Marked at the turn's leading end, the
+        // contacts were 0.32-0.36 m from the corner in open floor.
+        let corner = Point2::new(0.9, 1.9);
+        for (deg, left, right) in [
+            (103.0, -0.04, 0.08),
+            (111.0, -0.09, 0.09),
+            (121.0, -0.09, 0.09),
+        ] {
+            let at = pose(0.79, 1.75, f64::to_radians(deg));
+            let m = est(&at, None, WheelSpeeds { left, right }, None);
+            assert!((m.at - corner).norm() < 0.21, "{deg}°: {:?}", m.at);
+        }
+        // A side switch that closes on the side leading the turn is at
+        // that end (a Create 2 turning left, its left switch).
+        let spin = WheelSpeeds::from_body(0.001, 0.8, B);
+        let left = Sides {
+            left: true,
+            right: false,
+        };
+        let lead = est(&pose(0.0, 0.0, 0.0), left, spin, None);
+        assert!(lead.at.y > 0.15, "{:?}", lead.at);
     }
 
     #[test]
@@ -876,7 +927,8 @@ mod tests {
         });
         let fwd = m.interrupted(1.05, turn);
         assert!((fwd.left - 0.2).abs() < 1e-9 && (fwd.right - 0.2).abs() < 1e-9);
-        assert!(!turn_in_place(fwd, R, B).0 && turn_in_place(turn, R, B).0);
+        let params = ContactParams::default();
+        assert!(!turn_in_place(&params, fwd, R, B).0 && turn_in_place(&params, turn, R, B).0);
         // Standing still is not a motion; an old reading gives way.
         m.note(&crate::motor::Odometry {
             t0: 1.02,

@@ -1108,7 +1108,7 @@ impl MotorStage {
                 .find(|m| m.explains(&self.contact, at, sides, self.radius))
         });
         let touched = explained.map(|m| ("the contact marked", m.at)).or_else(|| {
-            let (turning, _) = turn_in_place(wheels, self.radius, self.wheel_base);
+            let (turning, _) = turn_in_place(&self.contact, wheels, self.radius, self.wheel_base);
             let grid = grid.as_deref()?;
             turning
                 .then(|| mapped_touch(grid, &self.contact, at, sides, self.radius))
