@@ -34,8 +34,8 @@ pub struct ContactParams {
     /// Bearing of a contact on one side only (rad from straight ahead): the
     /// middle of that side's half of the front shell.
     pub side_bearing: f64,
-    /// Bearing of a contact closed by turning in place (rad): the leading
-    /// end of the front shell.
+    /// Bearing of a contact closed by turning in place on the side switch
+    /// leading the turn (rad): the leading end of the front shell.
     pub turn_bearing: f64,
     /// Half width of the bumper's arc (rad from straight ahead).
     pub bumper_half_arc: f64,
@@ -213,9 +213,9 @@ impl ContactMark {
     /// closed together are a contact near the middle, whatever the motion.
     /// A one-bit bumper is marked across its front in a turn too: an
     /// obstacle resting at the bumper's reach closes it anywhere on the arc
-    /// as the body jitters by a millimetre (the stool room's runs: both
-    /// closures in a turn in place were on the trailing side, and a mark
-    /// at the leading end lay 0.34-0.36 m from the stool, where the
+    /// when wheel slip moves the body by a millimetre (in the stool room's
+    /// runs three closures in a turn were on the trailing side, and their
+    /// marks at the leading end lay 0.32-0.36 m from the stool; the
     /// straight-ahead guess is at most 0.23 m off).
     pub fn estimate(
         params: &ContactParams,
