@@ -1,7 +1,9 @@
 //! Coverage planner update time on the paper workspace, room known (the
 //! decomposition's cells all final): `plan_decision` is an update that plans
 //! a new task (configuration space, Dijkstra, lanes of every candidate cell,
-//! the tour search), `plan_steady` an update that keeps the current task
+//! the tour lane by lane through all of them, with its travel searches
+//! between lane ends), `plan_decision_by_region` the same choosing one cell
+//! (`plan.lane_tour = false`: the tour search over cells), `plan_steady` an update that keeps the current task
 //! (configuration space rebuild and the blocked-path check);
 //! `plan_decision_plain_distance` is `plan_decision` with travel priced by
 //! distance alone (`plan.new_overlap_cost = 0`), the price of the overlap
@@ -52,6 +54,17 @@ fn bench(c: &mut Criterion) {
     c.bench_function("plan_decision", |b| {
         b.iter_batched(
             || CoveragePlanner::new(&params, &cfg.robot).expect("planner"),
+            |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
+            BatchSize::SmallInput,
+        )
+    });
+    let by_region = PlanParams {
+        lane_tour: false,
+        ..params.clone()
+    };
+    c.bench_function("plan_decision_by_region", |b| {
+        b.iter_batched(
+            || CoveragePlanner::new(&by_region, &cfg.robot).expect("planner"),
             |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
             BatchSize::SmallInput,
         )

@@ -40,15 +40,17 @@ fn five_floor_plan_rooms() {
     for spec in ROOMS {
         let (on, off) = cover(spec, &floorplan::load_room(&dir, spec).unwrap());
         let (m, o) = (&on.metrics, &off.metrics);
-        // Target <= 15 %, not reached: measured 0.17-0.44 online and
-        // 0.18-0.39 offline with the session-7 grid (exact beam walk, faces
+        // Target <= 15 %, not reached: measured 0.18-0.36 online and
+        // 0.17-0.39 offline since the lanes left once the room is explored
+        // are driven in one tour lane by lane (session 21); 0.17-0.44 /
+        // 0.18-0.39 with the session-7 grid (exact beam walk, faces
         // seen at a grazing angle no frontier); 0.21-0.43 / 0.18-0.39 with
         // travel priced by the overlap it adds (0.28-0.55 / 0.20-0.50 before; 0.28-0.55 / 0.26-0.51 before the lane order was
         // improved inside a region; 0.53-0.62 / 0.48-0.64 before the lane
         // lattice), most of it transits between cells and lane connections
         // among furniture with the tool always on.
-        assert!(m.overlap <= 0.50, "{spec}: online overlap {}", m.overlap);
-        assert!(o.overlap <= 0.45, "{spec}: offline overlap {}", o.overlap);
+        assert!(m.overlap <= 0.45, "{spec}: online overlap {}", m.overlap);
+        assert!(o.overlap <= 0.42, "{spec}: offline overlap {}", o.overlap);
         sum_cov += m.coverage;
     }
     let mean = sum_cov / ROOMS.len() as f64;
@@ -66,7 +68,8 @@ fn five_rooms_without_furniture_are_within_the_overlap_target() {
         let furnished = floorplan::load_room(&dir, spec).unwrap();
         assert!(room.free_area() > furnished.free_area(), "{spec}");
         let (on, off) = cover(spec, &room);
-        // Target <= 15 %: measured 6.5-10.5 % online and offline.
+        // Target <= 15 %: measured 7.8-10.7 % online and offline (6.5-10.5 %
+        // before the lane tour).
         assert!(
             on.metrics.overlap <= 0.15,
             "{spec}: online {}",

@@ -116,6 +116,12 @@ pub struct CSpace {
     radius: f64,
     inflation: f64,
     heap: BinaryHeap<Entry>,
+    /// Scratch distances of [`CSpace::travel_linked`] (∞ where untouched).
+    scratch: Vec<f64>,
+    /// Cells `scratch` holds a value for (reset after each search).
+    touched: Vec<u32>,
+    /// Scratch: which source's region a cell is in (see [`CSpace::travel_linked`]).
+    label: Vec<u32>,
 }
 
 /// What a cell within the clearance of the robot centre is (see
@@ -264,6 +270,9 @@ impl CSpace {
             known: None,
             inflation,
             heap: BinaryHeap::new(),
+            scratch: Vec::new(),
+            touched: Vec::new(),
+            label: Vec::new(),
         }
     }
 
@@ -586,6 +595,139 @@ impl CSpace {
         }
     }
 
+    /// Approximate travel costs between `cells`, row-major into `out`
+    /// (`cells.len()²` values, ∞ where unreachable), from one search: a
+    /// Dijkstra from all of them at once splits the space into the region
+    /// each reaches first; two cells whose regions touch are linked by the
+    /// cheapest way across their common border, and the cost between any
+    /// two is the cheapest chain of such links. Exact between neighbours
+    /// whose way stays in their two regions, an upper bound otherwise;
+    /// about the cost of one whole-grid search. [`CSpace::dist`] is left as
+    /// it was.
+    pub fn travel_linked(&mut self, cells: &[usize], out: &mut Vec<f64>) {
+        let n = self.frame.len();
+        let k = cells.len();
+        out.clear();
+        out.resize(k * k, f64::INFINITY);
+        if self.scratch.len() != n {
+            self.scratch = vec![f64::INFINITY; n];
+        }
+        if self.label.len() != n {
+            self.label = vec![u32::MAX; n];
+        }
+        // One node per distinct cell (a cell may be listed twice).
+        let mut node_of = vec![usize::MAX; k];
+        let mut nodes: Vec<usize> = Vec::new();
+        for (a, &c) in cells.iter().enumerate() {
+            if c >= n {
+                continue;
+            }
+            node_of[a] = match nodes.iter().position(|&x| x == c) {
+                Some(p) => p,
+                None => {
+                    nodes.push(c);
+                    nodes.len() - 1
+                }
+            };
+        }
+        self.heap.clear();
+        for (v, &c) in nodes.iter().enumerate() {
+            self.scratch[c] = 0.0;
+            self.label[c] = v as u32;
+            self.touched.push(c as u32);
+            self.heap.push(Entry {
+                cost: 0.0,
+                idx: c as u32,
+            });
+        }
+        while let Some(Entry { cost, idx }) = self.heap.pop() {
+            let i = idx as usize;
+            if cost > self.scratch[i] {
+                continue;
+            }
+            for (j, step) in self.steps(i) {
+                let nc = cost + step;
+                if nc < self.scratch[j] {
+                    if self.scratch[j].is_infinite() {
+                        self.touched.push(j as u32);
+                    }
+                    self.scratch[j] = nc;
+                    self.label[j] = self.label[i];
+                    self.heap.push(Entry {
+                        cost: nc,
+                        idx: j as u32,
+                    });
+                }
+            }
+        }
+        // Links across region borders.
+        let v = nodes.len();
+        let mut link = vec![f64::INFINITY; v * v];
+        for &t in &self.touched {
+            let i = t as usize;
+            let li = self.label[i] as usize;
+            for (j, step) in self.steps(i) {
+                let lj = self.label[j];
+                if lj == u32::MAX || lj as usize == li {
+                    continue;
+                }
+                let c = self.scratch[i] + step + self.scratch[j];
+                let e = &mut link[li * v + lj as usize];
+                if c < *e {
+                    *e = c;
+                }
+            }
+        }
+        for &t in &self.touched {
+            self.scratch[t as usize] = f64::INFINITY;
+            self.label[t as usize] = u32::MAX;
+        }
+        self.touched.clear();
+        // Cheapest chains of links: a Dijkstra per node over the links.
+        let mut adj: Vec<Vec<(usize, f64)>> = vec![Vec::new(); v];
+        for a in 0..v {
+            for b in a + 1..v {
+                let c = link[a * v + b].min(link[b * v + a]);
+                if c.is_finite() {
+                    adj[a].push((b, c));
+                    adj[b].push((a, c));
+                }
+            }
+        }
+        let mut chain = vec![f64::INFINITY; v * v];
+        let mut heap = BinaryHeap::new();
+        for s in 0..v {
+            let row = &mut chain[s * v..(s + 1) * v];
+            row[s] = 0.0;
+            heap.push(Entry {
+                cost: 0.0,
+                idx: s as u32,
+            });
+            while let Some(Entry { cost, idx }) = heap.pop() {
+                let u = idx as usize;
+                if cost > row[u] {
+                    continue;
+                }
+                for &(w, c) in &adj[u] {
+                    if cost + c < row[w] {
+                        row[w] = cost + c;
+                        heap.push(Entry {
+                            cost: cost + c,
+                            idx: w as u32,
+                        });
+                    }
+                }
+            }
+        }
+        for a in 0..k {
+            for b in 0..k {
+                if node_of[a] != usize::MAX && node_of[b] != usize::MAX {
+                    out[a * k + b] = chain[node_of[a] * v + node_of[b]];
+                }
+            }
+        }
+    }
+
     /// The cell path from the last Dijkstra source to `goal`, as cell centres,
     /// shortened by line of sight; `None` when `goal` is unreachable.
     pub fn path_to(&self, goal: usize) -> Option<Vec<Point2<f64>>> {
@@ -894,6 +1036,49 @@ mod tests {
         assert_eq!(b.kind, BlockerKind::Unexplored);
         assert!(b.distance < 0.2);
         assert!(c.blocker(&Point2::new(-9.0, 1.0)).is_none());
+    }
+
+    #[test]
+    fn linked_travel_is_an_upper_bound_close_to_whole_grid_searches() {
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&room_grid());
+        let f = c.frame;
+        let cells: Vec<usize> = [
+            (1.0, 0.5),
+            (3.0, 0.5),
+            (0.6, 2.6),
+            (3.5, 2.5),
+            (1.0, 0.5),
+            (2.0, 2.5),
+            (1.5, 1.5),
+            (2.6, 1.5),
+        ]
+        .iter()
+        .map(|&(x, y)| f.index_of(&Point2::new(x, y)).unwrap())
+        .collect();
+        c.distances_from(cells[2]);
+        let before = c.dist.clone();
+        let mut m = Vec::new();
+        c.travel_linked(&cells, &mut m);
+        // The whole-grid distances are left alone.
+        assert_eq!(c.dist, before);
+        let k = cells.len();
+        for (a, &ca) in cells.iter().enumerate() {
+            c.distances_from(ca);
+            for (b, &cb) in cells.iter().enumerate() {
+                let (got, exact) = (m[a * k + b], c.dist[cb]);
+                assert!(got >= exact - 1e-9, "{a} {b}: {got} below {exact}");
+                assert!(got <= exact * 1.25 + 1e-9, "{a} {b}: {got} vs {exact}");
+            }
+        }
+        // Around the wall, never through it; a cell listed twice is one.
+        assert!(m[1] > 4.0 && m[1] < 5.5, "{}", m[1]);
+        assert_eq!(m[4], 0.0);
+        // A cell inside the wall is unreachable from everywhere.
+        let wall = f.index_of(&Point2::new(2.0, 0.5)).unwrap();
+        c.travel_linked(&[cells[0], wall], &mut m);
+        assert!(m[1].is_infinite() && m[2].is_infinite());
+        assert_eq!(m[0], 0.0);
     }
 
     #[test]

@@ -4,6 +4,7 @@
 //! * [`cspace`]: where the robot centre may be (walls inflated by the robot
 //!   radius plus a margin), travel distances, A* transit paths;
 //! * [`lanes`]: back-and-forth lanes inside one region and their order;
+//! * [`tour`]: one tour, lane by lane, through the lanes of several regions;
 //! * [`planner`]: the event-driven [`CoveragePlanner`]: which final cell next
 //!   (travel cost with look-ahead), exploration toward the frontier when no
 //!   final cell is left, a clean-up of leftover patches, and the report of
@@ -14,6 +15,7 @@ pub mod planner;
 pub mod swept;
 #[cfg(test)]
 pub(crate) mod test_support;
+pub mod tour;
 pub mod unbox;
 
 pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
@@ -76,6 +78,14 @@ pub struct PlanParams {
     /// When no cell is final, cover closed cells whose size still settles
     /// (what they gain later is covered then) before exploring.
     pub cover_settling_cells: bool,
+    /// Once no cell touches unexplored space, drive the lanes of all regions
+    /// left (nearest regions first, up to `tour_max_lanes` lanes) in one
+    /// tour ordered lane by lane (see [`tour`]), instead of one region
+    /// after another.
+    pub lane_tour: bool,
+    /// Most lanes pooled into one tour (bounds the planner's update time:
+    /// one travel search per lane end).
+    pub tour_max_lanes: usize,
 }
 
 impl Default for PlanParams {
@@ -95,6 +105,8 @@ impl Default for PlanParams {
             way_out_passage: 0.0,
             look_around: true,
             cover_settling_cells: true,
+            lane_tour: true,
+            tour_max_lanes: 96,
         }
     }
 }
@@ -128,6 +140,12 @@ impl PlanParams {
                     "must be a finite number > 0, got {}",
                     self.explore_view_distance
                 ),
+            });
+        }
+        if self.lane_tour && self.tour_max_lanes == 0 {
+            return Err(PlanError::BadParam {
+                key: "tour_max_lanes",
+                message: "must be at least 1 when lane_tour is on".into(),
             });
         }
         Ok(())

@@ -13,7 +13,10 @@
 //!    uncovered floor, the one with the least travel cost (Dijkstra over the
 //!    configuration space to its best lane entry) plus a look-ahead term (the
 //!    distance from its exit to the nearest other candidate), reached by the
-//!    shortest transit path and covered by back-and-forth lanes;
+//!    shortest transit path and covered by back-and-forth lanes; once no
+//!    cell touches unexplored space (`plan.lane_tour`), the lanes of all
+//!    cells left instead, in one tour ordered lane by lane ([`super::tour`]),
+//!    so that a cell cut by furniture is finished on the way back;
 //! 4. **explore**: when no final cell has work left, go to the nearest
 //!    reachable place from which unexplored space is within view and face it;
 //! 5. **clean up**: when nothing is left to explore, cover the remaining
@@ -31,6 +34,7 @@ use nalgebra::Point2;
 use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::{lanes, lattice_position, turn_join, variants, Axis, Lane, LaneInput, Variant};
 use super::swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
+use super::tour::{lane_tour, TourCosts};
 use super::PlanParams;
 use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
@@ -262,6 +266,8 @@ pub struct CoveragePlanner {
     forgiven: usize,
     /// Floor given up has had its second round (see `retry_given_up`).
     retried: bool,
+    /// Travel costs between lane ends of the last lane tour (reused buffer).
+    tour_costs: Vec<f64>,
 }
 
 /// Updates the planner waits, planning nothing, while the space reachable
@@ -375,6 +381,7 @@ impl CoveragePlanner {
             forgiven_at: 0,
             forgiven: 0,
             retried: false,
+            tour_costs: Vec::new(),
             in_cell: Vec::new(),
             split_task: false,
         })
@@ -578,25 +585,16 @@ impl CoveragePlanner {
             return;
         }
         let p: Point2<f64> = pose.translation.vector.into();
-        let Some(i) = f.index_of(&p) else { return };
-        let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-        let r2 = self.stamp_radius * self.stamp_radius;
+        if f.index_of(&p).is_none() {
+            return;
+        }
         self.records = self.records.saturating_add(1);
-        for &(dx, dy) in &self.stamp {
-            let (nx, ny) = (x + dx, y + dy);
-            if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
-                let j = ny as usize * f.w + nx as usize;
-                // Exact distance from the pose, not from its cell's centre.
-                if (f.centre(j) - p).norm_squared() <= r2 {
-                    self.covered[j] = true;
-                    if self.last_under[j] == 0
-                        || self.records - self.last_under[j] > SAME_PASS_RECORDS
-                    {
-                        self.passes[j] = self.passes[j].saturating_add(1);
-                    }
-                    self.last_under[j] = self.records;
-                }
+        for j in cells_within(f, &p, &self.stamp, self.stamp_radius) {
+            self.covered[j] = true;
+            if self.last_under[j] == 0 || self.records - self.last_under[j] > SAME_PASS_RECORDS {
+                self.passes[j] = self.passes[j].saturating_add(1);
             }
+            self.last_under[j] = self.records;
         }
     }
 
@@ -904,6 +902,14 @@ impl CoveragePlanner {
         // Look-ahead: the order of the nearest candidates (and the corner
         // each is entered at) that minimises the whole tour, exhaustively.
         cands.sort_by(|a, b| a.cost().total_cmp(&b.cost()));
+        // Once no cell touches unexplored space, what is left is known: one
+        // tour lane by lane through it (while cells are open, regions one
+        // at a time: a tour through what is known so far would be driven
+        // past floor that is seen later; measured worse, 36 % against 32 %).
+        let explored = !decomp.cells.iter().any(|c| c.status == CellStatus::Open);
+        if self.params.lane_tour && explored {
+            return Ok(self.take_lane_tour(&cands));
+        }
         let (k, v) = tour_start(&cands, self.params.lookahead_weight);
         let chosen = cands.swap_remove(k);
         let mut lanes = chosen.variants[v].lanes.clone();
@@ -919,19 +925,13 @@ impl CoveragePlanner {
             }
         }
         if log::log_enabled!(log::Level::Debug) {
-            let list: Vec<String> = lanes
-                .iter()
-                .map(|l| {
-                    let f = if l.fixup { " fix-up" } else { "" };
-                    format!(
-                        "({:.2}, {:.2})->({:.2}, {:.2}){f}",
-                        l.a.x, l.a.y, l.b.x, l.b.y
-                    )
-                })
-                .collect();
-            log::debug!("task {}: lanes {}", self.stats.tasks + 1, list.join(", "));
+            log::debug!(
+                "task {}: lanes {}",
+                self.stats.tasks + 1,
+                describe_lanes(&lanes)
+            );
         }
-        let (path, motions) = self.cover_path(&lanes);
+        let (path, motions) = self.cover_path(&lanes, &[]);
         self.motions = motions;
         match chosen.cell {
             Some(_) => self.stats.cells += 1,
@@ -957,10 +957,103 @@ impl CoveragePlanner {
         working(task)
     }
 
+    /// Drives the lanes of the nearest candidates (all of each, up to
+    /// `plan.tour_max_lanes` in all) in one tour ordered lane by lane (see
+    /// [`super::tour`]); `cands` sorted nearest first, not empty, and
+    /// [`CSpace::dist`] holding the travel cost from the robot.
+    fn take_lane_tour(&mut self, cands: &[Candidate]) -> PlanStatus {
+        let mut pooled: Vec<Lane> = Vec::new();
+        let mut region: Vec<usize> = Vec::new();
+        let mut taken = 0;
+        for (k, c) in cands.iter().enumerate() {
+            let ls = &c.variants[0].lanes;
+            if k > 0 && pooled.len() + ls.len() > self.params.tour_max_lanes {
+                break;
+            }
+            pooled.extend_from_slice(ls);
+            region.extend(std::iter::repeat_n(k, ls.len()));
+            taken = k + 1;
+        }
+        let f = self.cspace.frame;
+        let ends: Vec<usize> = pooled
+            .iter()
+            .flat_map(|l| [l.a, l.b])
+            .map(|p| f.index_of(&p).unwrap_or(usize::MAX))
+            .collect();
+        let start: Vec<f64> = ends
+            .iter()
+            .map(|&i| self.cspace.dist.get(i).copied().unwrap_or(f64::INFINITY))
+            .collect();
+        let mut between = std::mem::take(&mut self.tour_costs);
+        self.cspace.travel_linked(&ends, &mut between);
+        let tour = lane_tour(&TourCosts {
+            start: &start,
+            between: &between,
+        });
+        self.tour_costs = between;
+        let lanes: Vec<Lane> = tour
+            .iter()
+            .map(|&(k, rev)| if rev { pooled[k].reversed() } else { pooled[k] })
+            .collect();
+        // A lane of another region than the lane before is reached by a transit.
+        let new_region: Vec<bool> = tour
+            .iter()
+            .enumerate()
+            .map(|(i, &(k, _))| i == 0 || region[k] != region[tour[i - 1].0])
+            .collect();
+        if log::log_enabled!(log::Level::Debug) {
+            log::debug!(
+                "task {}: one tour through {taken} regions, lanes {}",
+                self.stats.tasks + 1,
+                describe_lanes(&lanes)
+            );
+        }
+        let (path, motions) = self.cover_path(&lanes, &new_region);
+        self.motions = motions;
+        let pooled_cands = &cands[..taken];
+        self.stats.cells += pooled_cands.iter().filter(|c| c.cell.is_some()).count();
+        self.stats.patches += pooled_cands.iter().filter(|c| c.cell.is_none()).count();
+        self.stats.lanes += lanes.len();
+        self.planned_lanes = lanes.len();
+        // Every pooled region's lanes are driven whole: what they leave
+        // uncovered is charged a try as a region's task would be.
+        self.split_task = false;
+        let first = tour.first().map_or(0, |&(k, _)| region[k]);
+        let task = Task::Cover(cands[first].cell);
+        self.set_task(task, path, None);
+        self.task_targets = pooled_cands
+            .iter()
+            .flat_map(|c| c.targets.iter().copied())
+            .collect();
+        PlanStatus::Working {
+            task,
+            new_path: true,
+        }
+    }
+
+    /// Clears the targets within reach of `ls` (the lanes of a region
+    /// pooled into a lane tour): a region after it then lays no lane for
+    /// floor the earlier one's lanes sweep (two regions sharing a border
+    /// row would each drive a lane along it).
+    fn clear_targets_along(&mut self, ls: &[Lane]) {
+        let f = self.cspace.frame;
+        let radius = self.reach + f.res * 0.5;
+        for l in ls {
+            let n = ((l.length() / (f.res * 0.5)).ceil() as usize).max(1);
+            for k in 0..=n {
+                let p = l.a + (l.b - l.a) * (k as f64 / n as f64);
+                for j in cells_within(f, &p, &self.reach_disk, radius) {
+                    self.targets[j] = false;
+                }
+            }
+        }
+    }
+
     /// Transit to the first lane, then the lanes joined by straight
     /// connections where clear, A* elsewhere; with the motion toward each
-    /// waypoint.
-    fn cover_path(&self, ls: &[Lane]) -> (Vec<Point2<f64>>, Vec<Motion>) {
+    /// waypoint. A lane marked in `new_region` (by index; none when empty)
+    /// is reached by a transit rather than a connection.
+    fn cover_path(&self, ls: &[Lane], new_region: &[bool]) -> (Vec<Point2<f64>>, Vec<Motion>) {
         let f = self.cspace.frame;
         let mut path = Vec::new();
         let mut motions = Vec::new();
@@ -978,8 +1071,8 @@ impl CoveragePlanner {
             }
         }
         let mut prev: Option<Point2<f64>> = None;
-        for l in ls {
-            let join = if prev.is_some() {
+        for (k, l) in ls.iter().enumerate() {
+            let join = if prev.is_some() && !new_region.get(k).copied().unwrap_or(false) {
                 Motion::Connection
             } else {
                 Motion::Transit
@@ -1334,6 +1427,9 @@ impl CoveragePlanner {
             if any {
                 let axis = Axis::from_angle(cell.sweep_angle);
                 if let Some(c) = self.region_candidate(Some(cell.id), bbox, axis, min) {
+                    if self.params.lane_tour {
+                        self.clear_targets_along(&c.variants[0].lanes);
+                    }
                     out.push(c);
                 }
             }
@@ -1753,6 +1849,43 @@ impl CoveragePlanner {
 /// Keeps of `cells` (marked in `mark`) the 8-connected clusters of at
 /// least `min_keep` cells, unmarking the rest; returns the largest
 /// cluster's size (`min_keep = usize::MAX`: only measures, unmarking all).
+/// The cells among `offsets` (cell offsets around the cell holding `p`)
+/// whose centres lie within `radius` of `p` itself (exact distance from
+/// the point, not from its cell's centre); none when `p` is off the grid.
+fn cells_within<'a>(
+    f: Frame,
+    p: &Point2<f64>,
+    offsets: &'a [(i64, i64)],
+    radius: f64,
+) -> impl Iterator<Item = usize> + 'a {
+    let centre = f.index_of(p).map(|i| ((i % f.w) as i64, (i / f.w) as i64));
+    let (p, r2) = (*p, radius * radius);
+    offsets.iter().filter_map(move |&(dx, dy)| {
+        let (x, y) = centre?;
+        let (nx, ny) = (x + dx, y + dy);
+        if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+            return None;
+        }
+        let j = ny as usize * f.w + nx as usize;
+        ((f.centre(j) - p).norm_squared() <= r2).then_some(j)
+    })
+}
+
+/// Lanes as `(x, y)->(x, y)` (m) for the debug log, fix-ups marked.
+fn describe_lanes(lanes: &[Lane]) -> String {
+    let list: Vec<String> = lanes
+        .iter()
+        .map(|l| {
+            let f = if l.fixup { " fix-up" } else { "" };
+            format!(
+                "({:.2}, {:.2})->({:.2}, {:.2}){f}",
+                l.a.x, l.a.y, l.b.x, l.b.y
+            )
+        })
+        .collect();
+    list.join(", ")
+}
+
 fn drop_specks(cells: &mut Vec<usize>, mark: &mut [bool], f: Frame, min_keep: usize) -> usize {
     let mut kept = Vec::with_capacity(cells.len());
     let mut best = 0;
