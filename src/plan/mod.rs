@@ -187,6 +187,19 @@ mod tests {
         };
         let e = p.validate().unwrap_err().to_string();
         assert!(e.contains("explore_view_distance"), "{e}");
+        let p = PlanParams {
+            tour_max_lanes: 0,
+            ..PlanParams::default()
+        };
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("tour_max_lanes"), "{e}");
+        // Without the lane tour the cap is not used, so 0 is accepted.
+        let p = PlanParams {
+            lane_tour: false,
+            tour_max_lanes: 0,
+            ..PlanParams::default()
+        };
+        assert!(p.validate().is_ok());
         let robot = crate::config::RobotParams {
             tool_width: 0.01,
             ..Default::default()

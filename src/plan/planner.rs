@@ -2271,6 +2271,56 @@ mod tests {
         g
     }
 
+    /// The first decision in `grid` (cells settled over six updates) with
+    /// the lane tour on or off: the planner's stats and motions after it.
+    fn first_decision(grid: &Grid, lane_tour: bool) -> (PlanStats, Vec<Motion>) {
+        let cfg = crate::config::Config::default();
+        let mut d = crate::decomp::Decomposer::new(&cfg.decomp, cfg.robot.radius).unwrap();
+        for _ in 0..6 {
+            d.update(grid, &[]);
+        }
+        let params = PlanParams {
+            look_around: false,
+            lane_tour,
+            ..PlanParams::default()
+        };
+        let mut p = CoveragePlanner::new(&params, &cfg.robot).unwrap();
+        let start = crate::geom::pose(0.3, 0.3, 0.0);
+        p.update(grid, d.decomposition(), &start, None).unwrap();
+        (p.stats(), p.motions().to_vec())
+    }
+
+    #[test]
+    fn once_the_room_is_explored_its_cells_are_driven_in_one_tour() {
+        // The ring in mid-room cuts the room into cells around it.
+        let grid = room(true);
+        let (by_cell, _) = first_decision(&grid, false);
+        assert_eq!(by_cell.cells, 1, "{by_cell:?}");
+        let (tour, motions) = first_decision(&grid, true);
+        assert!(tour.cells >= 3, "{tour:?}");
+        assert!(tour.lanes > by_cell.lanes, "{tour:?} vs {by_cell:?}");
+        // The tour goes from cell to cell by transits between its lanes.
+        let first_lane = motions.iter().position(|&m| m == Motion::Lane).unwrap();
+        assert!(
+            motions[first_lane..].contains(&Motion::Transit),
+            "{motions:?}"
+        );
+    }
+
+    #[test]
+    fn while_a_cell_is_open_the_cells_are_covered_one_at_a_time() {
+        // The same room with its top right corner unexplored: the cell
+        // along the top wall touches it, the others are final.
+        let mut grid = room(true);
+        for y in 30..39 {
+            for x in 55..59 {
+                grid.set_state((x, y), crate::grid::CellState::Unknown);
+            }
+        }
+        let (stats, _) = first_decision(&grid, true);
+        assert_eq!(stats.cells, 1, "{stats:?}");
+    }
+
     #[test]
     fn a_boxed_in_robot_waits_for_the_map_to_clear() {
         let params = PlanParams {
