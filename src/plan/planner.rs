@@ -1846,9 +1846,6 @@ impl CoveragePlanner {
     }
 }
 
-/// Keeps of `cells` (marked in `mark`) the 8-connected clusters of at
-/// least `min_keep` cells, unmarking the rest; returns the largest
-/// cluster's size (`min_keep = usize::MAX`: only measures, unmarking all).
 /// The cells among `offsets` (cell offsets around the cell holding `p`)
 /// whose centres lie within `radius` of `p` itself (exact distance from
 /// the point, not from its cell's centre); none when `p` is off the grid.
@@ -1886,6 +1883,9 @@ fn describe_lanes(lanes: &[Lane]) -> String {
     list.join(", ")
 }
 
+/// Keeps of `cells` (marked in `mark`) the 8-connected clusters of at
+/// least `min_keep` cells, unmarking the rest; returns the largest
+/// cluster's size (`min_keep = usize::MAX`: only measures, unmarking all).
 fn drop_specks(cells: &mut Vec<usize>, mark: &mut [bool], f: Frame, min_keep: usize) -> usize {
     let mut kept = Vec::with_capacity(cells.len());
     let mut best = 0;
