@@ -96,7 +96,7 @@ fn travel(t: &[Leg], c: &Costs) -> f64 {
 /// The tour through all `costs.start.len() / 2` lanes: nearest lane end
 /// first, then improved by driving stretches backwards (2-opt) and moving
 /// stretches of one to three lanes elsewhere, either way round (or-opt),
-/// while that shortens it. Deterministic; bounded by [`MAX_PASSES`].
+/// while that shortens it. Deterministic; at most 64 passes (`MAX_PASSES`).
 pub fn lane_tour(costs: &TourCosts) -> Vec<Leg> {
     let c = Costs::new(costs);
     let n = c.m / 2;
