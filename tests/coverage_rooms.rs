@@ -40,17 +40,19 @@ fn five_floor_plan_rooms() {
     for spec in ROOMS {
         let (on, off) = cover(spec, &floorplan::load_room(&dir, spec).unwrap());
         let (m, o) = (&on.metrics, &off.metrics);
-        // Target <= 15 %, not reached: measured 0.18-0.36 online and
-        // 0.17-0.39 offline since the lanes left once the room is explored
-        // are driven in one tour lane by lane (session 21); 0.17-0.44 /
+        // Target <= 15 %, not reached: measured 0.22-0.27 online and
+        // 0.14-0.28 offline since no lane piece or fix-up is laid for a
+        // few cells (session 22); 0.18-0.36 / 0.17-0.39 since the lanes
+        // left once the room is explored are driven in one tour lane by
+        // lane (session 21); 0.17-0.44 /
         // 0.18-0.39 with the session-7 grid (exact beam walk, faces
         // seen at a grazing angle no frontier); 0.21-0.43 / 0.18-0.39 with
         // travel priced by the overlap it adds (0.28-0.55 / 0.20-0.50 before; 0.28-0.55 / 0.26-0.51 before the lane order was
         // improved inside a region; 0.53-0.62 / 0.48-0.64 before the lane
         // lattice), most of it transits between cells and lane connections
         // among furniture with the tool always on.
-        assert!(m.overlap <= 0.45, "{spec}: online overlap {}", m.overlap);
-        assert!(o.overlap <= 0.42, "{spec}: offline overlap {}", o.overlap);
+        assert!(m.overlap <= 0.33, "{spec}: online overlap {}", m.overlap);
+        assert!(o.overlap <= 0.33, "{spec}: offline overlap {}", o.overlap);
         sum_cov += m.coverage;
     }
     let mean = sum_cov / ROOMS.len() as f64;

@@ -90,6 +90,13 @@ pub struct LaneInput<'a> {
     /// (see [`lanes`])? False for leftover patches, whose floor lies between
     /// lanes already driven on the lattice.
     pub fit_walls: bool,
+    /// Fewest uncovered floor cells a fix-up lane must reach: a fix-up
+    /// for less costs more in detour (two joins) than it covers.
+    pub min_fixup_cells: usize,
+    /// Fewest uncovered floor cells any other lane piece must newly reach
+    /// (a stub of a lattice lane into a corner, for a few cells, costs two
+    /// joins over swept floor); 0 or 1 keeps every piece.
+    pub min_lane_cells: usize,
 }
 
 /// The lattice lane position (m across) nearest to `v_m`.
@@ -171,9 +178,9 @@ impl Sweep<'_> {
         (r2 <= self.v_hi).then_some((r1, r2, home))
     }
 
-    /// Marks the floor the tool reaches driving from `a` to `b` (m along)
-    /// at `pos` (m across) as served.
-    fn mark(&mut self, a: f64, b: f64, pos: f64) {
+    /// Calls `f(u, v)` for every cell the tool reaches driving from `a` to
+    /// `b` (m along) at `pos` (m across).
+    fn reached(&self, a: f64, b: f64, pos: f64, mut f: impl FnMut(usize, usize)) {
         for v in self.v_lo..=self.v_hi {
             let dv = (self.coord(v, self.ov) - pos).abs();
             if dv > self.reach {
@@ -183,10 +190,27 @@ impl Sweep<'_> {
             for uu in self.u_lo..=self.u_hi {
                 let c = self.coord(uu, self.ou);
                 if c >= a - half && c <= b + half {
-                    let k = self.slot(uu, v);
-                    self.served[k] = true;
+                    f(uu, v);
                 }
             }
+        }
+    }
+
+    /// Unserved target cells the tool reaches driving from `a` to `b` (m
+    /// along) at `pos` (m across).
+    fn fresh(&self, a: f64, b: f64, pos: f64) -> usize {
+        let mut n = 0;
+        self.reached(a, b, pos, |u, v| n += usize::from(self.unserved(u, v)));
+        n
+    }
+
+    /// Marks the floor the tool reaches driving from `a` to `b` (m along)
+    /// at `pos` (m across) as served.
+    fn mark(&mut self, a: f64, b: f64, pos: f64) {
+        let mut slots = Vec::new();
+        self.reached(a, b, pos, |u, v| slots.push(self.slot(u, v)));
+        for k in slots {
+            self.served[k] = true;
         }
     }
 
@@ -237,6 +261,9 @@ impl Sweep<'_> {
             for (lo_t, hi_t) in pieces {
                 let a = lo_t.clamp(s_m, e_m);
                 let b = hi_t.clamp(s_m, e_m);
+                if !fixup && self.fresh(a, b, pos) < self.input.min_lane_cells {
+                    continue;
+                }
                 self.mark(a, b, pos);
                 self.out.push(Lane {
                     a: point(self.input.axis, a, pos),
@@ -495,7 +522,7 @@ impl Sweep<'_> {
                         }
                     }
                 }
-                if count < 4 || best.is_some_and(|(c, ..)| count < c) {
+                if count < input.min_fixup_cells.max(1) || best.is_some_and(|(c, ..)| count < c) {
                     continue;
                 }
                 let clear = self.clearance(
@@ -753,6 +780,25 @@ mod tests {
         }
     }
 
+    /// A lane input over the test frame: lanes along x, 0.29 m apart, the
+    /// lattice at 0.225 m, walls fitted, the shipped least sizes off.
+    fn room_input<'a>(adm: &'a [bool], drv: &'a [bool], tgt: &'a [bool]) -> LaneInput<'a> {
+        LaneInput {
+            frame: frame(),
+            admissible: adm,
+            drivable: drv,
+            targets: tgt,
+            bbox: (0, 0, 59, 39),
+            axis: Axis::X,
+            spacing: 0.29,
+            reach: 0.145,
+            phase: 0.225,
+            fit_walls: true,
+            min_fixup_cells: 4,
+            min_lane_cells: 0,
+        }
+    }
+
     /// Admissible: x in 0.2..2.8, y in 0.2..1.8 (a 3 m x 2 m room inflated by 0.2).
     fn rect_masks(f: &Frame) -> (Vec<bool>, Vec<bool>) {
         let mut adm = vec![false; f.len()];
@@ -765,22 +811,49 @@ mod tests {
         (adm, tgt)
     }
 
+    /// Lanes over a room whose uncovered floor is one band along the
+    /// lattice lane at y = 0.515 plus a blob of `blob` cells near the
+    /// lane's far end, with the given least cells per lane piece.
+    fn band_and_blob(blob: usize, min_lane_cells: usize) -> Vec<Lane> {
+        let f = frame();
+        let (adm, _) = rect_masks(&f);
+        let mut tgt: Vec<bool> = (0..f.len())
+            .map(|i| {
+                let c = f.centre(i);
+                c.y > 0.45 && c.y < 0.6 && c.x > 0.3 && c.x < 1.2
+            })
+            .collect();
+        // The blob: cells on the same lane's row 1.3 m on, beyond the
+        // 0.58 m a piece bridges, so it is a piece of its own.
+        for k in 0..blob {
+            let (x, y) = (50 + k % 3, 9 + k / 3);
+            tgt[y * f.w + x] = true;
+        }
+        let input = LaneInput {
+            fit_walls: false,
+            min_lane_cells,
+            ..room_input(&adm, &adm, &tgt)
+        };
+        lanes(&input)
+    }
+
+    #[test]
+    fn a_lane_stub_for_a_few_cells_is_left_out_and_one_for_more_kept() {
+        // Without a least size, the 3-cell blob gets a stub of its own.
+        assert_eq!(band_and_blob(3, 0).len(), 2);
+        // With 8 cells required the stub goes; the band's lane stays.
+        let ls = band_and_blob(3, 8);
+        assert_eq!(ls.len(), 1, "{ls:?}");
+        assert!(ls[0].b.x < 1.3, "{ls:?}");
+        // A blob of 9 cells is worth its stub.
+        assert_eq!(band_and_blob(9, 8).len(), 2);
+    }
+
     #[test]
     fn lanes_span_the_cell_and_hug_both_walls() {
         let f = frame();
         let (adm, tgt) = rect_masks(&f);
-        let input = LaneInput {
-            frame: f,
-            admissible: &adm,
-            drivable: &adm,
-            targets: &tgt,
-            bbox: (0, 0, 59, 39),
-            axis: Axis::X,
-            spacing: 0.29,
-            reach: 0.145,
-            phase: 0.225,
-            fit_walls: true,
-        };
+        let input = room_input(&adm, &adm, &tgt);
         let ls = lanes(&input);
         // Targets 0.075..1.925 → centres 0.205..1.795 → ceil(1.59/0.29)+1 = 7 lanes.
         assert_eq!(ls.len(), 7, "{ls:?}");
@@ -822,18 +895,7 @@ mod tests {
                 adm[i] = inside && c.y > v0 && c.y < v1;
                 tgt[i] = c.x > 0.07 && c.x < 2.93 && c.y > t0 && c.y < t1;
             }
-            let input = LaneInput {
-                frame: f,
-                admissible: &adm,
-                drivable: &all,
-                targets: &tgt,
-                bbox: (0, 0, 59, 39),
-                axis: Axis::X,
-                spacing: 0.29,
-                reach: 0.145,
-                phase: 0.225,
-                fit_walls: true,
-            };
+            let input = room_input(&adm, &all, &tgt);
             let mut region: Vec<f64> = lanes(&input).iter().map(|l| l.a.y).collect();
             region.sort_by(f64::total_cmp);
             ys.push(region);
@@ -862,16 +924,8 @@ mod tests {
             *t &= c.x > 1.0 && c.x < 1.5 && c.y > 1.0 && c.y < 1.3;
         }
         let input = LaneInput {
-            frame: f,
-            admissible: &adm,
-            drivable: &adm,
-            targets: &tgt,
-            bbox: (0, 0, 59, 39),
             axis: Axis::Y,
-            spacing: 0.29,
-            reach: 0.145,
-            phase: 0.225,
-            fit_walls: true,
+            ..room_input(&adm, &adm, &tgt)
         };
         let ls = lanes(&input);
         assert!(!ls.is_empty() && ls.len() <= 3, "{ls:?}");
@@ -886,18 +940,7 @@ mod tests {
         let f = frame();
         let (adm, _) = rect_masks(&f);
         let none = vec![false; f.len()];
-        let input = LaneInput {
-            frame: f,
-            admissible: &adm,
-            drivable: &adm,
-            targets: &none,
-            bbox: (0, 0, 59, 39),
-            axis: Axis::X,
-            spacing: 0.29,
-            reach: 0.145,
-            phase: 0.225,
-            fit_walls: true,
-        };
+        let input = room_input(&adm, &adm, &none);
         assert!(lanes(&input).is_empty());
         assert!(order(&[], 0.58, |_| 0.0).0.is_empty());
         assert_eq!(Axis::from_angle(1.5), Axis::Y);
@@ -925,17 +968,10 @@ mod tests {
 
     fn strip_lanes(adm: &[bool], drv: &[bool], tgt: &[bool], fit_walls: bool) -> Vec<f64> {
         let input = LaneInput {
-            frame: frame(),
-            admissible: adm,
-            drivable: drv,
-            targets: tgt,
-            bbox: (0, 0, 59, 39),
-            axis: Axis::X,
-            spacing: 0.29,
-            reach: 0.145,
             // Lattice lanes at 0.30 and 0.59: both walls need a lane of their own.
             phase: 0.30,
             fit_walls,
+            ..room_input(adm, drv, tgt)
         };
         let mut ys: Vec<f64> = lanes(&input).iter().map(|l| l.a.y).collect();
         ys.sort_by(f64::total_cmp);

@@ -58,6 +58,13 @@ pub struct PlanParams {
     pub max_lane_join: f64,
     /// Uncovered patches smaller than this are left alone (m²).
     pub min_patch_area: f64,
+    /// Least uncovered floor a fix-up lane must reach (m²): a fix-up lane
+    /// costs a detour in and out, over floor swept already, so one for a
+    /// few cells adds more overlap than it covers floor.
+    pub min_fixup_area: f64,
+    /// Least uncovered floor any other lane piece must newly reach (m²):
+    /// a stub of a lane into a corner for a few cells costs two joins.
+    pub min_lane_area: f64,
     /// At clean-up, patches down to this share of the reachable floor are
     /// still covered where that is less than `min_patch_area` (a small room
     /// would otherwise lose a whole percent to one corner); 0 = off.
@@ -99,6 +106,8 @@ impl Default for PlanParams {
             new_overlap_cost: 2.0,
             max_lane_join: 0.7,
             min_patch_area: 0.08,
+            min_fixup_area: 0.04,
+            min_lane_area: 0.02,
             min_patch_share: 0.0075,
             explore_view_distance: 1.0,
             min_frontier_cells: 4,
@@ -120,6 +129,8 @@ impl PlanParams {
             ("reach_margin", self.reach_margin),
             ("lookahead_weight", self.lookahead_weight),
             ("min_patch_area", self.min_patch_area),
+            ("min_fixup_area", self.min_fixup_area),
+            ("min_lane_area", self.min_lane_area),
             ("min_patch_share", self.min_patch_share),
             ("swept_travel_cost", self.swept_travel_cost),
             ("new_overlap_cost", self.new_overlap_cost),
@@ -181,6 +192,12 @@ mod tests {
         };
         let e = p.validate().unwrap_err().to_string();
         assert!(e.contains("swept_travel_cost"), "{e}");
+        let p = PlanParams {
+            min_lane_area: -0.01,
+            ..PlanParams::default()
+        };
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("min_lane_area"), "{e}");
         let p = PlanParams {
             explore_view_distance: 0.0,
             ..PlanParams::default()

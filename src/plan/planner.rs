@@ -1286,6 +1286,12 @@ impl CoveragePlanner {
         ((self.params.min_patch_area / a).ceil() as usize).max(1)
     }
 
+    /// Grid cells in `area` (m²), rounded up (`min_fixup_area`, `min_lane_area`).
+    fn area_cells(&self, area: f64) -> usize {
+        let a = self.cspace.frame.res * self.cspace.frame.res;
+        (area / a - 1e-9).ceil().max(0.0) as usize
+    }
+
     /// The smallest leftover patch worth a drive at clean-up (grid cells):
     /// [`Self::min_patch_cells`], or `plan.min_patch_share` of the reachable
     /// floor where that is less, so that in a small room no single patch
@@ -1373,6 +1379,8 @@ impl CoveragePlanner {
             reach: self.reach,
             phase,
             fit_walls: cell.is_some(),
+            min_fixup_cells: self.area_cells(self.params.min_fixup_area),
+            min_lane_cells: self.area_cells(self.params.min_lane_area),
         };
         let ls = lanes(&input);
         let dist = &self.cspace.dist;
