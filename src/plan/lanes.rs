@@ -119,6 +119,14 @@ fn xy(axis: Axis, u: usize, v: usize) -> (usize, usize) {
     }
 }
 
+/// (along, across) coordinates (m) of world point `p` for the axis.
+fn along_across(axis: Axis, p: &Point2<f64>) -> (f64, f64) {
+    match axis {
+        Axis::X => (p.x, p.y),
+        Axis::Y => (p.y, p.x),
+    }
+}
+
 /// World point of the along-lane coordinate `u_m` on the lane at `v_m` (m).
 fn point(axis: Axis, u_m: f64, v_m: f64) -> Point2<f64> {
     match axis {
@@ -292,8 +300,15 @@ impl Sweep<'_> {
                     continue;
                 }
                 let join_line = Segment::new(p, q);
-                for v in self.v_lo..=self.v_hi {
-                    for uu in self.u_lo..=self.u_hi {
+                // Only cells within reach of the join's bounding box.
+                let (pu, pv) = along_across(axis, &p);
+                let (qu, qv) = along_across(axis, &q);
+                let (u0, u1) =
+                    self.cells_between(pu.min(qu), pu.max(qu), self.ou, self.u_lo, self.u_hi);
+                let (v0, v1) =
+                    self.cells_between(pv.min(qv), pv.max(qv), self.ov, self.v_lo, self.v_hi);
+                for v in v0..=v1 {
+                    for uu in u0..=u1 {
                         let c = point(axis, self.coord(uu, self.ou), self.coord(v, self.ov));
                         if join_line.distance_to(&c) <= self.reach {
                             let i = self.slot(uu, v);
@@ -303,6 +318,15 @@ impl Sweep<'_> {
                 }
             }
         }
+    }
+
+    /// The range of cells (clamped to `lo..=hi`) whose centres may lie
+    /// within reach of the stretch `a..=b` (m, origin `o`).
+    fn cells_between(&self, a: f64, b: f64, o: f64, lo: usize, hi: usize) -> (usize, usize) {
+        let res = self.input.frame.res;
+        let first = ((a - self.reach - o) / res - 0.5).floor().max(lo as f64) as usize;
+        let last = ((b + self.reach - o) / res - 0.5).ceil().max(0.0) as usize;
+        (first.max(lo), last.min(hi))
     }
 
     /// The extreme rows (v) with unserved floor: (lowest, highest).
@@ -448,11 +472,7 @@ impl Sweep<'_> {
     /// Distance across from `pos` to the nearest lane passing along
     /// `lo..=hi` (m along); infinite when none does.
     fn clearance(&self, pos: f64, lo: f64, hi: f64) -> f64 {
-        let axis = self.input.axis;
-        let ua = |p: &Point2<f64>| match axis {
-            Axis::X => (p.x, p.y),
-            Axis::Y => (p.y, p.x),
-        };
+        let ua = |p: &Point2<f64>| along_across(self.input.axis, p);
         self.out
             .iter()
             .filter(|l| {
