@@ -324,7 +324,7 @@ impl Sweep<'_> {
     /// within reach of the stretch `a..=b` (m, origin `o`).
     fn cells_between(&self, a: f64, b: f64, o: f64, lo: usize, hi: usize) -> (usize, usize) {
         let res = self.input.frame.res;
-        let first = ((a - self.reach - o) / res - 0.5).floor().max(lo as f64) as usize;
+        let first = ((a - self.reach - o) / res - 0.5).floor().max(0.0) as usize;
         let last = ((b + self.reach - o) / res - 0.5).ceil().max(0.0) as usize;
         (first.max(lo), last.min(hi))
     }
@@ -801,7 +801,8 @@ mod tests {
     }
 
     /// A lane input over the test frame: lanes along x, 0.29 m apart, the
-    /// lattice at 0.225 m, walls fitted, the shipped least sizes off.
+    /// lattice at 0.225 m, walls fitted, fix-ups from 4 cells (the size
+    /// fixed before `plan.min_fixup_area`) and every lane piece kept.
     fn room_input<'a>(adm: &'a [bool], drv: &'a [bool], tgt: &'a [bool]) -> LaneInput<'a> {
         LaneInput {
             frame: frame(),
