@@ -51,35 +51,27 @@ fn bench(c: &mut Criterion) {
         look_around: false,
         ..cfg.plan.clone()
     };
-    c.bench_function("plan_decision", |b| {
-        b.iter_batched(
-            || CoveragePlanner::new(&params, &cfg.robot).expect("planner"),
-            |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
-            BatchSize::SmallInput,
-        )
-    });
     let by_region = PlanParams {
         lane_tour: false,
         ..params.clone()
     };
-    c.bench_function("plan_decision_by_region", |b| {
-        b.iter_batched(
-            || CoveragePlanner::new(&by_region, &cfg.robot).expect("planner"),
-            |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
-            BatchSize::SmallInput,
-        )
-    });
     let plain = PlanParams {
         new_overlap_cost: 0.0,
         ..params.clone()
     };
-    c.bench_function("plan_decision_plain_distance", |b| {
-        b.iter_batched(
-            || CoveragePlanner::new(&plain, &cfg.robot).expect("planner"),
-            |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
-            BatchSize::SmallInput,
-        )
-    });
+    for (name, p) in [
+        ("plan_decision", &params),
+        ("plan_decision_by_region", &by_region),
+        ("plan_decision_plain_distance", &plain),
+    ] {
+        c.bench_function(name, |b| {
+            b.iter_batched(
+                || CoveragePlanner::new(p, &cfg.robot).expect("planner"),
+                |mut p| black_box(p.update(&grid, &decomp, &world.start, None).expect("plan")),
+                BatchSize::SmallInput,
+            )
+        });
+    }
     let mut p = CoveragePlanner::new(&params, &cfg.robot).expect("planner");
     p.update(&grid, &decomp, &world.start, None).expect("plan");
     c.bench_function("plan_steady", |b| {

@@ -227,6 +227,68 @@ const NEIGHBOURS: [(i64, i64, f64); 8] = [
     (-1, -1, std::f64::consts::SQRT_2),
 ];
 
+/// The cells one step from cell `i` that the robot may enter, each with the
+/// cost of the step (m, weighted by the entered cell's extra cost); a
+/// diagonal step never cuts past a blocked cell. Allocation-free; a free
+/// function so that a search can borrow the grid beside its own tables.
+fn grid_steps(
+    frame: Frame,
+    traversable: &[bool],
+    extra: &[f32],
+    i: usize,
+) -> heapless::Vec<(usize, f64), 8> {
+    let (w, h, r) = (frame.w as i64, frame.h as i64, frame.res);
+    let (x, y) = ((i as i64) % w, (i as i64) / w);
+    let mut out = heapless::Vec::new();
+    for &(dx, dy, c) in &NEIGHBOURS {
+        let (nx, ny) = (x + dx, y + dy);
+        if nx < 0 || ny < 0 || nx >= w || ny >= h {
+            continue;
+        }
+        let j = (ny * w + nx) as usize;
+        if !traversable[j] {
+            continue;
+        }
+        if dx != 0
+            && dy != 0
+            && (!traversable[(y * w + nx) as usize] || !traversable[(ny * w + x) as usize])
+        {
+            continue;
+        }
+        // At most 8 neighbours: the push cannot fail.
+        let _ = out.push((j, c * r * (1.0 + extra[j] as f64)));
+    }
+    out
+}
+
+/// Dijkstra from the entries already in `heap` (their costs set in `dist`):
+/// settles every cell reachable by `steps`, calling `improved(j, i, old)`
+/// before cell `j`'s cost drops from `old` by a step from `i`.
+fn settle<I: IntoIterator<Item = (usize, f64)>>(
+    heap: &mut BinaryHeap<Entry>,
+    dist: &mut [f64],
+    steps: impl Fn(usize) -> I,
+    mut improved: impl FnMut(usize, usize, f64),
+) {
+    while let Some(Entry { cost, idx }) = heap.pop() {
+        let i = idx as usize;
+        if cost > dist[i] {
+            continue;
+        }
+        for (j, step) in steps(i) {
+            let nc = cost + step;
+            if nc < dist[j] {
+                improved(j, i, dist[j]);
+                dist[j] = nc;
+                heap.push(Entry {
+                    cost: nc,
+                    idx: j as u32,
+                });
+            }
+        }
+    }
+}
+
 /// Cell offsets whose square lies closer than `radius` to a cell centre.
 fn square_offsets(radius: f64, r: f64) -> Vec<(i64, i64)> {
     let k = (radius / r).ceil() as i64 + 1;
@@ -576,23 +638,14 @@ impl CSpace {
             cost: 0.0,
             idx: source as u32,
         });
-        while let Some(Entry { cost, idx }) = self.heap.pop() {
-            let i = idx as usize;
-            if cost > self.dist[i] {
-                continue;
-            }
-            for (j, step) in self.steps(i) {
-                let nc = cost + step;
-                if nc < self.dist[j] {
-                    self.dist[j] = nc;
-                    self.prev[j] = idx;
-                    self.heap.push(Entry {
-                        cost: nc,
-                        idx: j as u32,
-                    });
-                }
-            }
-        }
+        let (frame, trav, extra, prev) =
+            (self.frame, &self.traversable, &self.extra, &mut self.prev);
+        settle(
+            &mut self.heap,
+            &mut self.dist,
+            |i| grid_steps(frame, trav, extra, i),
+            |j, i, _| prev[j] = i as u32,
+        );
     }
 
     /// Approximate travel costs between `cells`, row-major into `out`
@@ -640,26 +693,19 @@ impl CSpace {
                 idx: c as u32,
             });
         }
-        while let Some(Entry { cost, idx }) = self.heap.pop() {
-            let i = idx as usize;
-            if cost > self.scratch[i] {
-                continue;
-            }
-            for (j, step) in self.steps(i) {
-                let nc = cost + step;
-                if nc < self.scratch[j] {
-                    if self.scratch[j].is_infinite() {
-                        self.touched.push(j as u32);
-                    }
-                    self.scratch[j] = nc;
-                    self.label[j] = self.label[i];
-                    self.heap.push(Entry {
-                        cost: nc,
-                        idx: j as u32,
-                    });
+        let (frame, trav, extra) = (self.frame, &self.traversable, &self.extra);
+        let (label, touched) = (&mut self.label, &mut self.touched);
+        settle(
+            &mut self.heap,
+            &mut self.scratch,
+            |i| grid_steps(frame, trav, extra, i),
+            |j, i, old| {
+                if old.is_infinite() {
+                    touched.push(j as u32);
                 }
-            }
-        }
+                label[j] = label[i];
+            },
+        );
         // Links across region borders.
         let v = nodes.len();
         let mut link = vec![f64::INFINITY; v * v];
@@ -703,21 +749,7 @@ impl CSpace {
                 cost: 0.0,
                 idx: s as u32,
             });
-            while let Some(Entry { cost, idx }) = heap.pop() {
-                let u = idx as usize;
-                if cost > row[u] {
-                    continue;
-                }
-                for &(w, c) in &adj[u] {
-                    if cost + c < row[w] {
-                        row[w] = cost + c;
-                        heap.push(Entry {
-                            cost: cost + c,
-                            idx: w as u32,
-                        });
-                    }
-                }
-            }
+            settle(&mut heap, row, |u| adj[u].iter().copied(), |_, _, _| {});
         }
         for a in 0..k {
             for b in 0..k {
@@ -819,34 +851,9 @@ impl CSpace {
         })
     }
 
-    /// The cells one step from cell `i` that the robot may enter, each with
-    /// the cost of the step (m, weighted by the entered cell's extra cost);
-    /// a diagonal step never cuts past a blocked cell. Shared by
-    /// [`CSpace::distances_from`] and [`CSpace::astar`]; allocation-free.
+    /// [`grid_steps`] over this configuration space.
     fn steps(&self, i: usize) -> heapless::Vec<(usize, f64), 8> {
-        let (w, h, r) = (self.frame.w as i64, self.frame.h as i64, self.frame.res);
-        let (x, y) = ((i as i64) % w, (i as i64) / w);
-        let mut out = heapless::Vec::new();
-        for &(dx, dy, c) in &NEIGHBOURS {
-            let (nx, ny) = (x + dx, y + dy);
-            if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                continue;
-            }
-            let j = (ny * w + nx) as usize;
-            if !self.traversable[j] {
-                continue;
-            }
-            if dx != 0
-                && dy != 0
-                && (!self.traversable[(y * w + nx) as usize]
-                    || !self.traversable[(ny * w + x) as usize])
-            {
-                continue;
-            }
-            // At most 8 neighbours: the push cannot fail.
-            let _ = out.push((j, c * r * (1.0 + self.extra[j] as f64)));
-        }
-        out
+        grid_steps(self.frame, &self.traversable, &self.extra, i)
     }
 
     fn extra_at(&self, i: usize) -> f32 {

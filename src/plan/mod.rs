@@ -199,6 +199,12 @@ mod tests {
         let e = p.validate().unwrap_err().to_string();
         assert!(e.contains("min_lane_area"), "{e}");
         let p = PlanParams {
+            min_fixup_area: f64::NAN,
+            ..PlanParams::default()
+        };
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("min_fixup_area"), "{e}");
+        let p = PlanParams {
             explore_view_distance: 0.0,
             ..PlanParams::default()
         };

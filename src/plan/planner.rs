@@ -1281,12 +1281,13 @@ impl CoveragePlanner {
         }
     }
 
+    /// The smallest patch worth a drive (grid cells, `plan.min_patch_area`).
     fn min_patch_cells(&self) -> usize {
-        let a = self.cspace.frame.res * self.cspace.frame.res;
-        ((self.params.min_patch_area / a).ceil() as usize).max(1)
+        self.area_cells(self.params.min_patch_area).max(1)
     }
 
-    /// Grid cells in `area` (m²), rounded up (`min_fixup_area`, `min_lane_area`).
+    /// Grid cells in `area` (m²), rounded up (a float error just above a
+    /// whole number of cells does not count as one more).
     fn area_cells(&self, area: f64) -> usize {
         let a = self.cspace.frame.res * self.cspace.frame.res;
         (area / a - 1e-9).ceil().max(0.0) as usize
