@@ -798,10 +798,11 @@ impl Stage for PlanStage {
                     .with_status(|s| s.decomposition = Some(Arc::new(decomp.clone())));
                 self.shared.done.store(true, Ordering::Relaxed);
                 log::info!(
-                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned",
+                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned, {:.2} m² of leftovers declined",
                     r.covered_area,
                     r.unreachable_area,
-                    r.abandoned_area
+                    r.abandoned_area,
+                    r.declined_area
                 );
                 self.control.stop("coverage finished");
             }

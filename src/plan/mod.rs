@@ -93,6 +93,14 @@ pub struct PlanParams {
     /// Most lanes pooled into one tour (bounds the planner's update time:
     /// one travel search per lane end).
     pub tour_max_lanes: usize,
+    /// Share of the reachable floor the planner has seen that its own
+    /// record must keep swept when it leaves leftovers in the end game
+    /// (0..=1; 1 = fetch every leftover, the default).
+    pub coverage_goal: f64,
+    /// In the end game, a leftover is fetched only if the travel to it
+    /// (priced as transits are) times the tool width is at most this many
+    /// times its floor: more would sweep that much floor again for it.
+    pub leftover_ratio: f64,
 }
 
 impl Default for PlanParams {
@@ -116,6 +124,8 @@ impl Default for PlanParams {
             cover_settling_cells: true,
             lane_tour: true,
             tour_max_lanes: 96,
+            coverage_goal: 1.0,
+            leftover_ratio: 10.0,
         }
     }
 }
@@ -136,6 +146,7 @@ impl PlanParams {
             ("new_overlap_cost", self.new_overlap_cost),
             ("max_lane_join", self.max_lane_join),
             ("way_out_passage", self.way_out_passage),
+            ("leftover_ratio", self.leftover_ratio),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PlanError::BadParam {
@@ -151,6 +162,12 @@ impl PlanParams {
                     "must be a finite number > 0, got {}",
                     self.explore_view_distance
                 ),
+            });
+        }
+        if !(self.coverage_goal > 0.0 && self.coverage_goal <= 1.0) {
+            return Err(PlanError::BadParam {
+                key: "coverage_goal",
+                message: format!("must be a share in (0, 1], got {}", self.coverage_goal),
             });
         }
         if self.lane_tour && self.tour_max_lanes == 0 {
@@ -198,6 +215,20 @@ mod tests {
         };
         let e = p.validate().unwrap_err().to_string();
         assert!(e.contains("min_lane_area"), "{e}");
+        for goal in [0.0, 1.5, f64::NAN] {
+            let p = PlanParams {
+                coverage_goal: goal,
+                ..PlanParams::default()
+            };
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.contains("coverage_goal"), "{goal}: {e}");
+        }
+        let p = PlanParams {
+            leftover_ratio: -1.0,
+            ..PlanParams::default()
+        };
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("leftover_ratio"), "{e}");
         let p = PlanParams {
             min_fixup_area: f64::NAN,
             ..PlanParams::default()

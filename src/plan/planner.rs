@@ -127,6 +127,10 @@ pub struct DoneReport {
     pub unreachable_area: f64,
     /// Floor it could reach but gave up on (lanes could not reach it) (m²).
     pub abandoned_area: f64,
+    /// Leftover floor it chose to leave: fetching it would have swept more
+    /// floor again than `plan.leftover_ratio` allows (m²; see
+    /// `plan.coverage_goal`).
+    pub declined_area: f64,
     /// Floor its own record shows as swept (m²).
     pub covered_area: f64,
 }
@@ -188,6 +192,11 @@ const MIN_TARGET_CLUSTER: usize = 4;
 /// the same pass when it comes back (jitter at the tool's edge).
 const SAME_PASS_RECORDS: u32 = 10;
 
+/// Floor left (m²) below which the end game may leave leftovers (see
+/// `CoveragePlanner::decline_leftovers`): while more is left, the travel
+/// from the robot to a region is no measure of what it adds to a tour.
+const LEFTOVER_AREA: f64 = 0.5;
+
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
 
@@ -217,6 +226,10 @@ pub struct CoveragePlanner {
     /// Summed-area table scratch for `fresh_share`: free cells, cells swept less than twice.
     sat: Vec<[u32; 2]>,
     abandoned: Vec<bool>,
+    /// Per cell: leftover floor left by the end game (also abandoned).
+    declined: Vec<bool>,
+    /// A lane tour has been taken: the room was explored once.
+    toured: bool,
     given_up: Vec<bool>,
     stamp: Vec<(i64, i64)>,
     reach_disk: Vec<(i64, i64)>,
@@ -347,6 +360,8 @@ impl CoveragePlanner {
             fresh: Vec::new(),
             sat: Vec::new(),
             abandoned: Vec::new(),
+            declined: Vec::new(),
+            toured: false,
             given_up: Vec::new(),
             stamp: Vec::new(),
             reach_disk: Vec::new(),
@@ -441,6 +456,7 @@ impl CoveragePlanner {
             self.passes = vec![0; n];
             self.last_under = vec![0; n];
             self.abandoned = vec![false; n];
+            self.declined = vec![false; n];
             self.given_up = vec![false; n];
             self.reachable_mask = vec![false; n];
             self.targets = vec![false; n];
@@ -840,6 +856,7 @@ impl CoveragePlanner {
             }
             cands = self.patch_candidates(decomp);
         }
+        self.decline_leftovers(&mut cands);
         // Nothing left where the robot can go with the full clearance, but
         // its body fits through to another part of the space with work.
         if cands.is_empty() {
@@ -962,6 +979,7 @@ impl CoveragePlanner {
     /// [`super::tour`]); `cands` sorted nearest first, not empty, and
     /// [`CSpace::dist`] holding the travel cost from the robot.
     fn take_lane_tour(&mut self, cands: &[Candidate]) -> PlanStatus {
+        self.toured = true;
         let mut pooled: Vec<Lane> = Vec::new();
         let mut region: Vec<usize> = Vec::new();
         let mut taken = 0;
@@ -1674,7 +1692,7 @@ impl CoveragePlanner {
         self.tries_generation += 1;
         let mut any = false;
         for i in 0..self.abandoned.len() {
-            if self.abandoned[i] && !self.covered[i] {
+            if self.abandoned[i] && !self.covered[i] && !self.declined[i] {
                 self.abandoned[i] = false;
                 self.tries[i] = 0;
                 any = true;
@@ -1823,6 +1841,53 @@ impl CoveragePlanner {
         None
     }
 
+    /// The end game: once the room has been toured and less than
+    /// [`LEFTOVER_AREA`] of floor is left, a leftover whose fetching sweeps
+    /// more floor again than `plan.leftover_ratio` times its own (travel
+    /// to it, priced as transits are, × tool width) is left, worst first,
+    /// while the planner's own record keeps `plan.coverage_goal` of the
+    /// reachable floor it has seen swept. Left floor is reported as
+    /// declined (a resumed run fetches it again).
+    fn decline_leftovers(&mut self, cands: &mut Vec<Candidate>) {
+        let goal = self.params.coverage_goal;
+        let f = self.cspace.frame;
+        let area = f.res * f.res;
+        let total: usize = cands.iter().map(|c| c.targets.len()).sum();
+        if goal >= 1.0 || !self.toured || total as f64 * area > LEFTOVER_AREA {
+            return;
+        }
+        let covered = self.covered.iter().filter(|&&c| c).count();
+        let mut left = (0..self.covered.len())
+            .filter(|&i| self.abandoned[i] && !self.covered[i])
+            .count();
+        let budget = (1.0 - goal) * (covered + left + total) as f64;
+        let tool = 2.0 * self.reach;
+        let ratio = |c: &Candidate| c.cost() * tool / (c.targets.len().max(1) as f64 * area);
+        let mut order: Vec<usize> = (0..cands.len()).collect();
+        order.sort_by(|&x, &y| ratio(&cands[y]).total_cmp(&ratio(&cands[x])));
+        let mut keep = vec![true; cands.len()];
+        for j in order {
+            let c = &cands[j];
+            let r = ratio(c);
+            if r <= self.params.leftover_ratio || (left + c.targets.len()) as f64 > budget {
+                continue;
+            }
+            left += c.targets.len();
+            keep[j] = false;
+            log::info!(
+                "leaving {:.3} m² of leftover floor: fetching it would sweep {r:.0}x as much again (plan.leftover_ratio {})",
+                c.targets.len() as f64 * area,
+                self.params.leftover_ratio
+            );
+            for &i in &c.targets {
+                self.abandoned[i] = true;
+                self.declined[i] = true;
+            }
+        }
+        let mut k = keep.iter();
+        cands.retain(|_| k.next().copied().unwrap_or(true));
+    }
+
     fn done_report(&self, robot: usize) -> DoneReport {
         let f = self.cspace.frame;
         let a = f.res * f.res;
@@ -1844,7 +1909,9 @@ impl CoveragePlanner {
             if self.cspace.state[i] == FREE && !t {
                 r.unreachable_area += a;
             }
-            if self.abandoned[i] && !self.covered[i] {
+            if self.declined[i] && !self.covered[i] {
+                r.declined_area += a;
+            } else if self.abandoned[i] && !self.covered[i] {
                 r.abandoned_area += a;
             }
             if self.covered[i] {
@@ -2530,6 +2597,53 @@ mod tests {
             assert_eq!(covers_floor(&st), covers, "share {share}: {st:?}");
             if !covers {
                 assert!(matches!(st, PlanStatus::Done(_)), "{st:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_end_game_leaves_a_far_leftover_within_the_coverage_goal() {
+        // The walled room (3 m x 2 m) swept but for a 4 x 5 cell patch
+        // (0.05 m²) near x = 2.6 m. From x = 0.5 m the travel to it sweeps
+        // far more than 10 times its floor again; from x = 2.3 m it does not.
+        let empty = Decomposition::default();
+        let far = crate::geom::pose(0.5, 1.0, 0.0);
+        let near = crate::geom::pose(2.3, 1.0, 0.0);
+        let cases = [
+            (1.0, true, &far, false),
+            (0.98, true, &far, true),
+            (0.98, false, &far, false),
+            (0.98, true, &near, false),
+            (0.995, true, &far, false),
+        ];
+        for (goal, toured, at, declined) in cases {
+            let params = PlanParams {
+                look_around: false,
+                coverage_goal: goal,
+                ..PlanParams::default()
+            };
+            let mut p = CoveragePlanner::new(&params, &RobotParams::default()).unwrap();
+            let g = crate::plan::test_support::walled_room();
+            p.update(&g, &empty, at, None).unwrap();
+            let f = p.cspace.frame;
+            for (i, c) in p.covered.iter_mut().enumerate() {
+                let (x, y) = (i % f.w, i / f.w);
+                *c = !((50..54).contains(&x) && (18..23).contains(&y));
+            }
+            p.toured = toured;
+            p.interrupt();
+            let st = p.update(&g, &empty, at, None).unwrap();
+            let case = format!("goal {goal}, toured {toured}, at x {:.1}", at.translation.x);
+            if declined {
+                match st {
+                    PlanStatus::Done(r) => {
+                        assert!((r.declined_area - 0.05).abs() < 0.011, "{case}: {r:?}");
+                        assert!(r.abandoned_area < 1e-9, "{case}: {r:?}");
+                    }
+                    _ => panic!("{case}: {st:?}"),
+                }
+            } else {
+                assert!(covers_floor(&st), "{case}: {st:?}");
             }
         }
     }
