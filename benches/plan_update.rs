@@ -15,6 +15,11 @@
 //! `unchanged/building` after none, and `whole/building` when every cell
 //! changed, which is what each update cost before the rebuild became
 //! incremental.
+//!
+//! `lane_tour/96` orders the largest tour the planner pools
+//! (`plan.tour_max_lanes` = 96 lanes: six blocks of 16 parallel 1.5 m
+//! lanes in a 9 m × 4 m room, straight-line costs): the tour search alone,
+//! its worst case per decision.
 
 #[path = "../tests/ros_map_support/mod.rs"]
 mod ros_map_support;
@@ -26,6 +31,7 @@ use sweepline::config::Config;
 use sweepline::decomp::{Decomposer, Decomposition};
 use sweepline::grid::Grid;
 use sweepline::plan::cspace::CSpace;
+use sweepline::plan::tour::{lane_tour, TourCosts};
 use sweepline::plan::{CoveragePlanner, PlanParams};
 use sweepline::sim::lockstep::{fill_from_truth, grid_for, scan_into};
 use sweepline::sim::ros_map;
@@ -155,5 +161,36 @@ fn bench_building(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench, bench_building);
+/// Lane ends and straight-line costs of 96 lanes in six blocks of 16.
+fn tour_costs() -> (Vec<f64>, Vec<f64>) {
+    let mut ends = Vec::new();
+    for block in 0..6 {
+        let (x0, y0) = (f64::from(block % 3) * 3.0, f64::from(block / 3) * 2.0);
+        for k in 0..16 {
+            let x = x0 + 0.1 + f64::from(k) * 0.18;
+            ends.push((x, y0 + 0.2));
+            ends.push((x, y0 + 1.7));
+        }
+    }
+    let d = |p: (f64, f64), q: (f64, f64)| ((p.0 - q.0).powi(2) + (p.1 - q.1).powi(2)).sqrt();
+    let start = ends.iter().map(|&e| d((4.5, 2.0), e)).collect();
+    let between = ends
+        .iter()
+        .flat_map(|&p| ends.iter().map(move |&q| d(p, q)))
+        .collect();
+    (start, between)
+}
+
+fn bench_tour(c: &mut Criterion) {
+    let (start, between) = tour_costs();
+    let costs = TourCosts {
+        start: &start,
+        between: &between,
+    };
+    c.bench_function("lane_tour/96", |b| {
+        b.iter(|| black_box(lane_tour(black_box(&costs)).len()))
+    });
+}
+
+criterion_group!(benches, bench, bench_building, bench_tour);
 criterion_main!(benches);
