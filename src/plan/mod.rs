@@ -93,9 +93,9 @@ pub struct PlanParams {
     /// Most lanes pooled into one tour (bounds the planner's update time:
     /// one travel search per lane end).
     pub tour_max_lanes: usize,
-    /// Share of the reachable floor the planner has seen that its own
-    /// record must keep swept when it leaves leftovers in the end game
-    /// (0..=1; 1 = fetch every leftover, the default).
+    /// Share of the places the bare body can reach (no safety margin)
+    /// that must stay swept or to be swept when the end game leaves
+    /// leftovers (0..=1; 1 = fetch every leftover).
     pub coverage_goal: f64,
     /// In the end game, a leftover is fetched only if the travel to it
     /// (priced as transits are) times the tool width is at most this many
@@ -124,7 +124,7 @@ impl Default for PlanParams {
             cover_settling_cells: true,
             lane_tour: true,
             tour_max_lanes: 96,
-            coverage_goal: 1.0,
+            coverage_goal: 0.995,
             leftover_ratio: 10.0,
         }
     }

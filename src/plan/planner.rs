@@ -856,7 +856,7 @@ impl CoveragePlanner {
             }
             cands = self.patch_candidates(decomp);
         }
-        self.decline_leftovers(&mut cands);
+        self.decline_leftovers(&mut cands, robot);
         // Nothing left where the robot can go with the full clearance, but
         // its body fits through to another part of the space with work.
         if cands.is_empty() {
@@ -1845,10 +1845,12 @@ impl CoveragePlanner {
     /// [`LEFTOVER_AREA`] of floor is left, a leftover whose fetching sweeps
     /// more floor again than `plan.leftover_ratio` times its own (travel
     /// to it, priced as transits are, × tool width) is left, worst first,
-    /// while the planner's own record keeps `plan.coverage_goal` of the
-    /// reachable floor it has seen swept. Left floor is reported as
-    /// declined (a resumed run fetches it again).
-    fn decline_leftovers(&mut self, cands: &mut Vec<Candidate>) {
+    /// while `plan.coverage_goal` of the places the bare body can reach
+    /// (no safety margin: floor behind passages narrower than the margin
+    /// counts as missed, as the ground truth counts it) stays swept or to
+    /// be swept. Left floor is reported as declined (a resumed run fetches
+    /// it again).
+    fn decline_leftovers(&mut self, cands: &mut Vec<Candidate>, robot: usize) {
         let goal = self.params.coverage_goal;
         let f = self.cspace.frame;
         let area = f.res * f.res;
@@ -1856,11 +1858,11 @@ impl CoveragePlanner {
         if goal >= 1.0 || !self.toured || total as f64 * area > LEFTOVER_AREA {
             return;
         }
-        let covered = self.covered.iter().filter(|&&c| c).count();
-        let mut left = (0..self.covered.len())
-            .filter(|&i| self.abandoned[i] && !self.covered[i])
-            .count();
-        let budget = (1.0 - goal) * (covered + left + total) as f64;
+        let bare = super::unbox::bare_body_reach(&self.cspace, robot);
+        let known = bare.iter().filter(|&&b| b).count();
+        let in_bare = |c: &Candidate| c.targets.iter().filter(|&&i| bare[i]).count();
+        let swept = (0..f.len()).filter(|&i| bare[i] && self.covered[i]).count();
+        let mut kept: usize = swept + cands.iter().map(in_bare).sum::<usize>();
         let tool = 2.0 * self.reach;
         let ratio = |c: &Candidate| c.cost() * tool / (c.targets.len().max(1) as f64 * area);
         let mut order: Vec<usize> = (0..cands.len()).collect();
@@ -1868,11 +1870,11 @@ impl CoveragePlanner {
         let mut keep = vec![true; cands.len()];
         for j in order {
             let c = &cands[j];
-            let r = ratio(c);
-            if r <= self.params.leftover_ratio || (left + c.targets.len()) as f64 > budget {
+            let (r, lost) = (ratio(c), in_bare(c));
+            if r <= self.params.leftover_ratio || ((kept - lost) as f64) < goal * known as f64 {
                 continue;
             }
-            left += c.targets.len();
+            kept -= lost;
             keep[j] = false;
             log::info!(
                 "leaving {:.3} m² of leftover floor: fetching it would sweep {r:.0}x as much again (plan.leftover_ratio {})",

@@ -209,6 +209,16 @@ pub fn way_out(
 /// passages where only the bare body fits (of any length): what it could
 /// reach with ways out, for the report of unreachable floor.
 pub fn reachable_with_ways_out(cs: &CSpace, robot: usize) -> Vec<bool> {
+    let mut seen = bare_body_reach(cs, robot);
+    for (s, t) in seen.iter_mut().zip(&cs.traversable) {
+        *s &= *t;
+    }
+    seen
+}
+
+/// Every place the bare body's centre can get to from `robot`, with no
+/// safety margin: the reachable floor as the ground truth counts it.
+pub fn bare_body_reach(cs: &CSpace, robot: usize) -> Vec<bool> {
     let n = cs.frame.len();
     let mut seen = vec![false; n];
     if robot >= n {
@@ -223,9 +233,6 @@ pub fn reachable_with_ways_out(cs: &CSpace, robot: usize) -> Vec<bool> {
                 stack.push(j);
             }
         }
-    }
-    for (s, t) in seen.iter_mut().zip(&cs.traversable) {
-        *s &= *t;
     }
     seen
 }
