@@ -192,61 +192,73 @@ mod tests {
         assert_eq!(cfg.control, crate::control::ControlParams::default());
     }
 
+    /// Asserts that `p` is refused with an error naming `key`.
+    fn refused(p: PlanParams, key: &str) {
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains(key), "{key}: {e}");
+    }
+
     #[test]
     fn bad_values_name_the_key() {
-        let p = PlanParams {
-            lane_overlap: -1.0,
-            ..PlanParams::default()
-        };
-        assert!(p
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("lane_overlap"));
-        let p = PlanParams {
-            swept_travel_cost: -0.5,
-            ..PlanParams::default()
-        };
-        let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("swept_travel_cost"), "{e}");
-        let p = PlanParams {
-            min_lane_area: -0.01,
-            ..PlanParams::default()
-        };
-        let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("min_lane_area"), "{e}");
+        let d = PlanParams::default;
+        refused(
+            PlanParams {
+                lane_overlap: -1.0,
+                ..d()
+            },
+            "lane_overlap",
+        );
+        refused(
+            PlanParams {
+                swept_travel_cost: -0.5,
+                ..d()
+            },
+            "swept_travel_cost",
+        );
+        refused(
+            PlanParams {
+                min_lane_area: -0.01,
+                ..d()
+            },
+            "min_lane_area",
+        );
         for goal in [0.0, 1.5, f64::NAN] {
-            let p = PlanParams {
-                coverage_goal: goal,
-                ..PlanParams::default()
-            };
-            let e = p.validate().unwrap_err().to_string();
-            assert!(e.contains("coverage_goal"), "{goal}: {e}");
+            refused(
+                PlanParams {
+                    coverage_goal: goal,
+                    ..d()
+                },
+                "coverage_goal",
+            );
         }
-        let p = PlanParams {
-            leftover_ratio: -1.0,
-            ..PlanParams::default()
-        };
-        let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("leftover_ratio"), "{e}");
-        let p = PlanParams {
-            min_fixup_area: f64::NAN,
-            ..PlanParams::default()
-        };
-        let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("min_fixup_area"), "{e}");
-        let p = PlanParams {
-            explore_view_distance: 0.0,
-            ..PlanParams::default()
-        };
-        let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("explore_view_distance"), "{e}");
-        let p = PlanParams {
-            tour_max_lanes: 0,
-            ..PlanParams::default()
-        };
-        let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("tour_max_lanes"), "{e}");
+        refused(
+            PlanParams {
+                leftover_ratio: -1.0,
+                ..d()
+            },
+            "leftover_ratio",
+        );
+        refused(
+            PlanParams {
+                min_fixup_area: f64::NAN,
+                ..d()
+            },
+            "min_fixup_area",
+        );
+        refused(
+            PlanParams {
+                explore_view_distance: 0.0,
+                ..d()
+            },
+            "explore_view_distance",
+        );
+        refused(
+            PlanParams {
+                tour_max_lanes: 0,
+                ..d()
+            },
+            "tour_max_lanes",
+        );
         // Without the lane tour the cap is not used, so 0 is accepted.
         let p = PlanParams {
             lane_tour: false,

@@ -305,15 +305,22 @@ impl<'a> Search<'a> {
         }
     }
 
+    /// Applies `mv` in place: the stretch is rotated to its new index (the
+    /// lanes between shift over it), then turned round if `rev`.
     fn apply(&mut self, mv: Move) {
-        let mut seg: Vec<Leg> = self.t.drain(mv.at..mv.at + mv.len).collect();
-        if mv.rev {
+        let Move { at, len, to, rev } = mv;
+        if to <= at {
+            self.t[to..at + len].rotate_right(len);
+        } else {
+            self.t[at..to + len].rotate_left(len);
+        }
+        if rev {
+            let seg = &mut self.t[to..to + len];
             seg.reverse();
-            for l in &mut seg {
+            for l in seg {
                 l.1 = !l.1;
             }
         }
-        self.t.splice(mv.to..mv.to, seg);
         self.reindex();
     }
 
