@@ -40,6 +40,22 @@ impl Frame {
         crate::grid::neighbours8_of(i, self.w, self.h)
     }
 
+    /// Linear indices of the cells at `offsets` (cells across, cells up)
+    /// from cell `i` that lie inside the frame, in the order given.
+    pub fn around<'a>(
+        &self,
+        i: usize,
+        offsets: &'a [(i64, i64)],
+    ) -> impl Iterator<Item = usize> + 'a {
+        let (w, h) = (self.w, self.h);
+        let (x, y) = ((i % w.max(1)) as i64, (i / w.max(1)) as i64);
+        offsets.iter().filter_map(move |&(dx, dy)| {
+            let (nx, ny) = (x + dx, y + dy);
+            (nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h)
+                .then(|| ny as usize * w + nx as usize)
+        })
+    }
+
     /// Linear index of the cell containing `p`, if inside.
     pub fn index_of(&self, p: &Point2<f64>) -> Option<usize> {
         let fx = (p.x - self.origin.x) / self.res;
@@ -929,6 +945,23 @@ impl CSpace {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn offsets_around_a_cell_stay_inside_the_frame() {
+        let f = Frame {
+            origin: Point2::origin(),
+            res: 0.05,
+            w: 4,
+            h: 3,
+        };
+        let offsets = [(0, 0), (-1, 0), (1, 1), (0, -1), (3, 0), (0, 2)];
+        // Cell (0, 0): left and below are outside; (3, 0) is the last column.
+        let got: Vec<usize> = f.around(0, &offsets).collect();
+        assert_eq!(got, vec![0, 5, 3, 8]);
+        // Cell (3, 2), the last: only itself, left and below.
+        let got: Vec<usize> = f.around(11, &offsets).collect();
+        assert_eq!(got, vec![11, 10, 7]);
+    }
 
     fn room_grid() -> Grid {
         // 4 m x 3 m room with a wall from (2, 0) to (2, 2): free except walls.

@@ -258,7 +258,8 @@ pub struct CoveragePlanner {
     /// The next decision takes a lane tour again for new floor near the
     /// robot: its regions were counted by the tour before.
     retour: bool,
-    /// Per cell: a target at the last decision (see [`Self::new_floor_near`]).
+    /// Per cell: a target as last computed, i.e. at the last decision (see
+    /// [`Self::new_floor_near`]).
     decided: Vec<bool>,
     /// Scratch of [`Self::new_floor_near`]: cells reached, cells counted.
     near_reached: Vec<bool>,
@@ -856,20 +857,9 @@ impl CoveragePlanner {
         let mut new = 0;
         for q in 0..reached {
             let i = queue[q];
-            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
             let mut from_final = None;
-            for &(dx, dy) in &self.reach_disk {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                    continue;
-                }
-                let j = ny as usize * f.w + nx as usize;
-                if self.near_counted[j]
-                    || self.decided[j]
-                    || self.cspace.state[j] != FREE
-                    || self.covered[j]
-                    || self.abandoned[j]
-                {
+            for j in f.around(i, &self.reach_disk) {
+                if self.near_counted[j] || self.decided[j] || !self.open_floor(j) {
                     continue;
                 }
                 if !*from_final.get_or_insert_with(|| in_final(f.centre(i))) {
@@ -996,7 +986,6 @@ impl CoveragePlanner {
             .set_extra_cost(|i| (if covered[i] { w } else { 0.0 }) + wo * f64::from(fresh[i]));
         self.cspace.distances_from(robot);
         self.compute_targets();
-        self.decided.clone_from(&self.targets);
         self.mark_cells(decomp);
         let mut cands = self.cell_candidates(decomp, CellStatus::Final);
         if cands.is_empty() && self.params.cover_settling_cells && !keep_exploring {
@@ -1404,17 +1393,19 @@ impl CoveragePlanner {
             if !self.reachable_mask[i] {
                 continue;
             }
-            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-            for &(dx, dy) in &self.reach_disk {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
-                    let j = ny as usize * f.w + nx as usize;
-                    if self.cspace.state[j] == FREE && !self.covered[j] && !self.abandoned[j] {
-                        self.targets[j] = true;
-                    }
+            for j in f.around(i, &self.reach_disk) {
+                if self.open_floor(j) {
+                    self.targets[j] = true;
                 }
             }
         }
+        self.decided.clone_from(&self.targets);
+    }
+
+    /// Seen-free floor not swept yet and not given up: a target wherever
+    /// the tool can reach it.
+    fn open_floor(&self, j: usize) -> bool {
+        self.cspace.state[j] == FREE && !self.covered[j] && !self.abandoned[j]
     }
 
     /// The phase of the lane lattice along `axis`, fixed for the whole run
@@ -1883,7 +1874,6 @@ impl CoveragePlanner {
         }
         if any {
             self.compute_targets();
-            self.decided.clone_from(&self.targets);
         }
         any
     }
@@ -2082,12 +2072,8 @@ impl CoveragePlanner {
         let mut touch = vec![false; f.len()];
         let reachable = super::unbox::reachable_with_ways_out(&self.cspace, robot);
         for i in (0..f.len()).filter(|&i| reachable[i]) {
-            let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-            for &(dx, dy) in &body {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
-                    touch[ny as usize * f.w + nx as usize] = true;
-                }
+            for j in f.around(i, &body) {
+                touch[j] = true;
             }
         }
         let mut r = DoneReport::default();
