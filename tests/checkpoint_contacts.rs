@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use nalgebra::Point2;
-use sweepline::daemon::contact::{ContactMark, ContactParams};
+use sweepline::daemon::contact::{ContactMark, ContactParams, Known};
 use sweepline::daemon::messages::MapMsg;
 use sweepline::daemon::resume::{heartbeat_store, load};
 use sweepline::daemon::stages::{contact_arcs, MapStage};
@@ -54,7 +54,7 @@ fn mark() -> ContactMark {
         WheelSpeeds::from_body(0.2, 0.0, 0.235),
         0.17,
         0.235,
-        None,
+        Known::default(),
     )
 }
 
@@ -154,4 +154,40 @@ fn a_checkpoint_without_marks_resumes_with_none() {
     store.save(&cp).unwrap();
     let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
     assert!(r.contacts.is_empty());
+}
+
+#[test]
+fn a_mark_taken_out_is_unknown_then_cleared_by_rays_and_left_out_of_the_checkpoint() {
+    let m = mark();
+    let other = ContactMark {
+        at: Point2::new(1.0, 3.0),
+        ..m
+    };
+    let mut stage = map_stage(free_room(), vec![m, other]);
+    assert!(occupied_at(&stage.grid, m.at));
+    // A request for a point a centimetre off the mark (within same_contact).
+    stage.merge(MapMsg::Retire(m.at + nalgebra::Vector2::new(0.01, 0.0)));
+    assert_eq!(stage.retired, 1);
+    assert_eq!(stage.contacts, vec![other]);
+    assert_eq!(
+        stage.grid.state(stage.grid.cell_of(&m.at).unwrap()),
+        CellState::Unknown
+    );
+    assert!(occupied_at(&stage.grid, other.at));
+    // What the checkpoint saves (the shared contact list) has only the other.
+    let saved = stage.shared.with_status(|s| s.contacts.clone()).unwrap();
+    assert_eq!(saved.arcs.len(), 1);
+    assert_eq!(ContactMark::from(saved.arcs[0]), other);
+    // Rays now clear the place: the planner may send the robot through it.
+    for _ in 0..3 {
+        stage.merge(scan_through_the_contact());
+    }
+    assert_eq!(
+        stage.grid.state(stage.grid.cell_of(&m.at).unwrap()),
+        CellState::Free
+    );
+    // A request far from every mark changes nothing but the count.
+    stage.merge(MapMsg::Retire(Point2::new(3.0, 0.5)));
+    assert_eq!(stage.retired, 2);
+    assert_eq!(stage.contacts, vec![other]);
 }

@@ -145,12 +145,13 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     let r = run_alone(&opts);
     let m = &r.metrics;
     eprintln!(
-        "{}: coverage {:.2} %, bumps {}, safety events {}, collisions {}",
+        "{}: coverage {:.2} %, bumps {}, safety events {}, collisions {}, marks taken out {}",
         r.reason,
         m.coverage * 100.0,
         r.base_emu.bumps,
         r.safety_events,
-        m.collisions
+        m.collisions,
+        r.marks_taken_out
     );
     // The stool was bumped: the base stopped and the daemon heard of it.
     assert!(r.base_emu.bumps >= 1, "{:?}", r.base_emu);

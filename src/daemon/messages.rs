@@ -58,6 +58,9 @@ pub enum MapMsg {
     },
     /// A bumper contact: an obstacle the scanner did not see.
     Contact(super::contact::ContactMark),
+    /// plan → map: the contact marked at this point (map frame, m) walls
+    /// off floor; it is taken out so the robot can try that floor once.
+    Retire(nalgebra::Point2<f64>),
 }
 
 /// map → plan: a map snapshot.
@@ -68,6 +71,9 @@ pub struct MapSnapshot {
     /// New bumper contacts marked in it so far (a planner that saw fewer
     /// must give up its current path: it ran into something).
     pub contacts: u64,
+    /// Requests to take a contact mark out handled so far (a planner that
+    /// sent more waits for the snapshot without the mark).
+    pub retired: u64,
 }
 
 /// plan → control: a path to follow.

@@ -360,6 +360,15 @@ impl Daemon {
                 contacts_seen: 0,
                 bump_handled: f64::NEG_INFINITY,
                 contact_settle: cfg.daemon.contact.settle,
+                probe: stages::MarkProbe {
+                    to_map: map_tx.clone(),
+                    on: cfg.daemon.contact.retry_walled_floor,
+                    least: cfg.plan.min_lane_area,
+                    spacing: 2.0 * robot.radius,
+                    probed: Vec::new(),
+                    sent: 0,
+                    sent_at: f64::NEG_INFINITY,
+                },
             },
         )?;
         let contacts = setup

@@ -217,6 +217,9 @@ pub struct Shared {
     pub stuck_paths: AtomicU64,
     /// Times the control stage held the wheels for lack of scans.
     pub scan_holds: AtomicU64,
+    /// Bumper contact marks the map stage took out because they walled off
+    /// floor (see [`super::stages::MarkProbe`]).
+    pub marks_taken_out: AtomicU64,
     /// Safety events seen (bumper, wheel drop, dead-man, link lost).
     pub safety_events: AtomicU64,
     /// The wheel-base link counters, copied by the motor stage.

@@ -11,7 +11,8 @@ use nalgebra::Point2;
 
 use super::align::{AlignStep, MAX_ALIGN_SCANS, MIN_AGREEMENT, MIN_WALL_EVIDENCE};
 use super::contact::{
-    mapped_touch, turn_in_place, BodyTrack, ContactMark, ContactParams, HeldContact, MotionMemory,
+    mapped_touch, turn_in_place, BodyTrack, ContactMark, ContactParams, HeldContact, Known,
+    MotionMemory,
 };
 use super::messages::{CmdMsg, MapMsg, MapSnapshot, PathMsg, PoseFix, ScanMsg};
 use super::offset_check::{OffsetFit, OFFSET_FIT_MAX, OFFSET_STOP_UNFITTED, OFFSET_TOLERANCE};
@@ -553,6 +554,8 @@ pub struct MapStage {
     pub new_contacts: u64,
     /// A contact this close to a marked one is a repeat of it (m).
     pub same_contact: f64,
+    /// Requests to take a mark out handled (see [`MapSnapshot::retired`]).
+    pub retired: u64,
 }
 
 /// The checkpoint section of contact `marks`.
@@ -583,6 +586,7 @@ impl MapStage {
             contacts,
             new_contacts: 0,
             same_contact,
+            retired: 0,
         };
         if !s.contacts.is_empty() {
             let arcs = Arc::new(contact_arcs(&s.contacts));
@@ -621,18 +625,46 @@ impl MapStage {
                     self.shared.with_status(|s| s.contacts = Some(arcs));
                 }
             }
+            MapMsg::Retire(at) => {
+                self.retired += 1;
+                let (gone, kept): (Vec<ContactMark>, Vec<ContactMark>) = self
+                    .contacts
+                    .iter()
+                    .partition(|c| (c.at - at).norm() <= self.same_contact);
+                if !gone.is_empty() {
+                    self.contacts = kept;
+                    self.shared.marks_taken_out.fetch_add(1, Ordering::Relaxed);
+                    // Unknown, not free: a mark beside a wall must not open
+                    // a hole in it; the next scan sees what is there.
+                    for c in &gone {
+                        set_arc(&mut self.grid, c, crate::grid::CellState::Unknown);
+                    }
+                    let arcs = Arc::new(contact_arcs(&self.contacts));
+                    self.shared.with_status(|s| s.contacts = Some(arcs));
+                    log::info!(
+                        "map: contact mark at ({:.2}, {:.2}) m taken out; {} mark(s) left",
+                        at.x,
+                        at.y,
+                        self.contacts.len()
+                    );
+                }
+            }
         }
         self.mark_contacts();
     }
 
     fn mark_contacts(&mut self) {
-        let res = self.grid.resolution();
         for c in &self.contacts {
-            for p in c.arc(res / 2.0) {
-                if let Some(cell) = self.grid.cell_of(&p) {
-                    self.grid.set_state(cell, crate::grid::CellState::Occupied);
-                }
-            }
+            set_arc(&mut self.grid, c, crate::grid::CellState::Occupied);
+        }
+    }
+}
+
+/// Sets every cell of `grid` the arc of `mark` lies in to `state`.
+fn set_arc(grid: &mut Grid, mark: &ContactMark, state: crate::grid::CellState) {
+    for p in mark.arc(grid.resolution() / 2.0) {
+        if let Some(cell) = grid.cell_of(&p) {
+            grid.set_state(cell, state);
         }
     }
 }
@@ -655,6 +687,7 @@ impl Stage for MapStage {
         let msg = MapSnapshot {
             grid: snap,
             contacts: self.new_contacts,
+            retired: self.retired,
         };
         self.tx
             .send(msg)
@@ -700,6 +733,29 @@ pub struct PlanStage {
     /// Longest a plan update waits for a bump's contact to reach the map
     /// (clock s).
     pub contact_settle: f64,
+    /// Contact marks that wall off floor, taken out once at the end.
+    pub probe: MarkProbe,
+}
+
+/// The plan stage's second look at bumper contact marks when coverage is
+/// otherwise done (see [`MarkProbe::walled_floor`]).
+pub struct MarkProbe {
+    /// Requests to take a contact mark out go to the map stage here.
+    pub to_map: Tx<MapMsg>,
+    /// Whether marks that wall off floor are taken out at all.
+    pub on: bool,
+    /// Least floor a mark must wall off to be taken out (m²): as much as
+    /// the planner sends a lane for (`plan.min_lane_area`).
+    pub least: f64,
+    /// A mark this close to one taken out before stays (m): the floor
+    /// behind it has had its try.
+    pub spacing: f64,
+    /// Where marks were taken out.
+    pub probed: Vec<Point2<f64>>,
+    /// Requests to take a mark out sent so far.
+    pub sent: u64,
+    /// Clock time of the last such request.
+    pub sent_at: f64,
 }
 
 impl Stage for PlanStage {
@@ -747,6 +803,12 @@ impl Stage for PlanStage {
             // A repeat of a marked contact: nothing new to plan around.
             self.bump_handled = bump;
         }
+        if snap.retired < self.probe.sent
+            && self.clock.now() - self.probe.sent_at < self.contact_settle
+        {
+            // A mark was taken out: plan on the map without it.
+            return Ok(());
+        }
         let decomp = self.decomposer.update(&grid, &[]);
         let progress = self.shared.progress();
         let progress = if progress.path_seq == self.seq {
@@ -793,6 +855,14 @@ impl Stage for PlanStage {
             }
         });
         match status {
+            PlanStatus::Done(_)
+                if self.probe.walled_floor(
+                    &mut self.planner,
+                    &self.shared,
+                    self.clock.now(),
+                    &grid,
+                    &here,
+                ) => {}
             PlanStatus::Done(r) => {
                 self.shared
                     .with_status(|s| s.decomposition = Some(Arc::new(decomp.clone())));
@@ -827,6 +897,73 @@ impl Stage for PlanStage {
             PlanStatus::Working { .. } => {}
         }
         Ok(())
+    }
+}
+
+impl MarkProbe {
+    /// At the end of coverage (the `planner` is done): takes out the
+    /// bumper contact mark that walls off the most unswept floor, if that is
+    /// at least `least` and no mark was taken out near it before; reopens the planner and returns true
+    /// (coverage goes on). A one-bit bumper cannot tell where on its arc it
+    /// closed; its mark is a guess that can stand in open floor and shut a
+    /// passage the robot fits through. Tried again, the floor is swept, or
+    /// the bumper closes again and marks the obstacle from a new bearing
+    /// (that mark stays). Marks on an unseen obstacle wall off floor too
+    /// (the obstacle's own, free in the map): one mark per end of coverage,
+    /// the one walling off the most, and none within `spacing` of a place
+    /// tried before, so an obstacle costs at most one more bump.
+    pub fn walled_floor(
+        &mut self,
+        planner: &mut CoveragePlanner,
+        shared: &Shared,
+        now: f64,
+        grid: &Grid,
+        here: &Pose,
+    ) -> bool {
+        if !self.on {
+            return false;
+        }
+        let Some(arcs) = shared.with_status(|s| s.contacts.clone()) else {
+            return false;
+        };
+        let robot: Point2<f64> = here.translation.vector.into();
+        let mut best: Option<(Point2<f64>, f64)> = None;
+        for m in arcs.arcs.iter().map(|&a| ContactMark::from(a)) {
+            if self
+                .probed
+                .iter()
+                .any(|p| (p - m.at).norm() <= self.spacing)
+            {
+                continue;
+            }
+            let cells: Vec<_> = m.cells(grid).collect();
+            let area = planner.floor_walled_off(grid, &cells, &robot);
+            log::debug!(
+                "plan: the contact mark at ({:.2}, {:.2}) m walls off {area:.3} m² of unswept floor",
+                m.at.x,
+                m.at.y
+            );
+            if area + 1e-9 >= self.least && best.is_none_or(|(_, a)| area > a) {
+                best = Some((m.at, area));
+            }
+        }
+        let Some((at, area)) = best else {
+            return false;
+        };
+        log::warn!(
+            "plan: the contact mark at ({:.2}, {:.2}) m walls off {:.3} m² of unswept floor; a bumper's mark is a guess at where it closed, so it is taken out and that floor tried once more",
+            at.x,
+            at.y,
+            area
+        );
+        if self.to_map.send(MapMsg::Retire(at)).is_err() {
+            return false;
+        }
+        self.probed.push(at);
+        self.sent += 1;
+        self.sent_at = now;
+        planner.reopen(&[at], self.spacing);
+        true
     }
 }
 
@@ -1127,6 +1264,14 @@ impl MotorStage {
             );
             return;
         }
+        let centre: Point2<f64> = at.translation.vector.into();
+        let near = known.as_deref().and_then(|k| {
+            k.arcs
+                .iter()
+                .map(|a| a.at)
+                .filter(|q| (q - centre).norm() <= self.contact.prior_reach(self.radius))
+                .min_by(|a, b| (a - centre).norm().total_cmp(&(b - centre).norm()))
+        });
         let mark = ContactMark::estimate(
             &self.contact,
             at,
@@ -1134,7 +1279,10 @@ impl MotorStage {
             wheels,
             self.radius,
             self.wheel_base,
-            Some(&self.track),
+            Known {
+                track: Some(&self.track),
+                near,
+            },
         );
         let _ = self.to_map.send(MapMsg::Contact(mark));
         log::warn!(

@@ -225,6 +225,8 @@ pub struct SimReport {
     pub safety_events: u64,
     /// Paths the daemon gave up because the robot made no headway on them.
     pub stuck_paths: u64,
+    /// Bumper contact marks taken out to try the floor they walled off.
+    pub marks_taken_out: u64,
     /// Times the daemon held the wheels because no scan came.
     pub scan_holds: u64,
     /// The bumper contacts marked in the map (robot centre and contact
@@ -758,6 +760,9 @@ fn drive(
                 .map(|c| c.arcs.clone())
                 .unwrap_or_default()
         }),
+        marks_taken_out: shared
+            .marks_taken_out
+            .load(std::sync::atomic::Ordering::Relaxed),
         stuck_paths: shared
             .stuck_paths
             .load(std::sync::atomic::Ordering::Relaxed),

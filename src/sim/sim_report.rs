@@ -269,7 +269,10 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             format!("{}", r.stuck_paths),
         ),
         ("wheels held for lack of scans", format!("{}", r.scan_holds)),
-        ("bumper contacts marked", format!("{}", r.contacts.len())),
+        (
+            "bumper contacts marked (marks taken out to try the floor they walled off)",
+            format!("{} ({})", r.contacts.len(), r.marks_taken_out),
+        ),
         (
             "process CPU",
             format!(
