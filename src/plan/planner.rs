@@ -140,7 +140,9 @@ pub struct DoneReport {
 pub struct PlanStats {
     /// Tasks planned.
     pub tasks: usize,
-    /// Final cells covered.
+    /// Final cells covered: distinct cells some cover task was planned for
+    /// (a region split over several tasks, or a lane tour taken again,
+    /// counts once).
     pub cells: usize,
     /// Exploration moves.
     pub explores: usize,
@@ -277,6 +279,8 @@ pub struct CoveragePlanner {
     updates_in_task: usize,
     started: bool,
     stats: PlanStats,
+    /// The cells counted in `stats.cells`.
+    counted: std::collections::BTreeSet<CellId>,
     frontier: Vec<usize>,
     reachable_mask: Vec<bool>,
     targets: Vec<bool>,
@@ -416,6 +420,7 @@ impl CoveragePlanner {
             updates_in_task: 0,
             started: !params.look_around,
             stats: PlanStats::default(),
+            counted: std::collections::BTreeSet::new(),
             frontier: Vec::new(),
             reachable_mask: Vec::new(),
             targets: Vec::new(),
@@ -738,6 +743,13 @@ impl CoveragePlanner {
             }
         }
         self.tries_generation += 1;
+    }
+
+    /// Counts cell `id` in `stats.cells` unless it was counted before.
+    fn count_cell(&mut self, id: CellId) {
+        if self.counted.insert(id) {
+            self.stats.cells += 1;
+        }
     }
 
     /// Whether an interruption may be forgiven (see [`MAX_FORGIVEN`]);
@@ -1179,7 +1191,7 @@ impl CoveragePlanner {
         let (path, motions) = self.cover_path(&lanes, &[]);
         self.motions = motions;
         match chosen.cell {
-            Some(_) => self.stats.cells += 1,
+            Some(id) => self.count_cell(id),
             None => self.stats.patches += 1,
         }
         self.stats.lanes += lanes.len();
@@ -1257,8 +1269,10 @@ impl CoveragePlanner {
         let (path, motions) = self.cover_path(&lanes, &new_region);
         self.motions = motions;
         let pooled_cands = &cands[..taken];
+        for id in pooled_cands.iter().filter_map(|c| c.cell) {
+            self.count_cell(id);
+        }
         if !self.retour {
-            self.stats.cells += pooled_cands.iter().filter(|c| c.cell.is_some()).count();
             self.stats.patches += pooled_cands.iter().filter(|c| c.cell.is_none()).count();
             self.stats.lanes += lanes.len();
         }
@@ -2870,8 +2884,10 @@ mod tests {
         // a drive back to the pillar once it is done.
         assert!(sweeps, "the new tour sweeps the pillar's floor");
         assert!(len < after_tour, "{len:.2} m against {after_tour:.2} m");
-        // The tour taken again counts no cell twice.
-        assert_eq!(after.cells, before.cells, "{before:?} -> {after:?}");
+        // The tour taken again counts no cell twice (3 counted before; the
+        // cell the pillar's floor opened is the only new one) and no lane.
+        assert_eq!(before.cells, 3, "{before:?}");
+        assert_eq!(after.cells, before.cells + 1, "{before:?} -> {after:?}");
         assert_eq!(after.lanes, before.lanes, "{before:?} -> {after:?}");
     }
 
