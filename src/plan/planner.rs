@@ -1609,12 +1609,7 @@ impl CoveragePlanner {
                 if !self.scratch_a[y * f.w + x] {
                     continue;
                 }
-                for &(dx, dy) in &self.reach_disk {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                        continue;
-                    }
-                    let j = ny as usize * f.w + nx as usize;
+                for j in f.around(y * f.w + x, &self.reach_disk) {
                     if !self.targets[j] || self.scratch_t[j] {
                         continue;
                     }
@@ -1754,19 +1749,14 @@ impl CoveragePlanner {
             // Admissible: reachable centres within reach of the patch.
             let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
             for &i in &comp {
-                let (x, y) = (i % f.w, i / f.w);
-                for &(dx, dy) in &self.reach_disk {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                        continue;
-                    }
-                    let j = ny as usize * f.w + nx as usize;
+                for j in f.around(i, &self.reach_disk) {
                     if self.reachable_mask[j] {
+                        let (nx, ny) = (j % f.w, j / f.w);
                         self.scratch_a[j] = true;
-                        x0 = x0.min(nx as usize);
-                        y0 = y0.min(ny as usize);
-                        x1 = x1.max(nx as usize);
-                        y1 = y1.max(ny as usize);
+                        x0 = x0.min(nx);
+                        y0 = y0.min(ny);
+                        x1 = x1.max(nx);
+                        y1 = y1.max(ny);
                     }
                 }
             }
@@ -1864,13 +1854,7 @@ impl CoveragePlanner {
             // not, in a patch the planner would cover (see `min_patch_area`).
             let mut floor = Vec::new();
             for &c in part {
-                let (x, y) = ((c % f.w) as i64, (c / f.w) as i64);
-                for &(dx, dy) in reach_disk {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
-                        continue;
-                    }
-                    let j = ny as usize * f.w + nx as usize;
+                for j in f.around(c, reach_disk) {
                     if state[j] == FREE && !covered[j] && !abandoned[j] && !own[j] && !counted[j] {
                         counted[j] = true;
                         floor.push(j);
