@@ -241,6 +241,11 @@ fn hostile_inputs_name_the_key_or_line() {
             &["daemon.contact.settle"],
         ),
         (
+            "retrying walled-off floor: a word, not a boolean",
+            "[daemon.contact]\nretry_walled_floor = \"yes\"\n".into(),
+            &["retry_walled_floor", "boolean"],
+        ),
+        (
             "unknown contact key",
             "[daemon.contact]\nbearing = 0.5\n".into(),
             &["bearing", "side_bearing"],

@@ -51,8 +51,8 @@ pub struct ContactParams {
     /// When coverage is otherwise done, take out (once per place) the mark
     /// that walls off the most unswept floor, if that is at least what the
     /// planner sends a lane for (`plan.min_lane_area`), so the robot tries
-    /// that floor: a one-bit
-    /// bumper's mark may stand up to 0.23 m from the contact, in open floor.
+    /// that floor: a one-bit bumper's mark may stand up to 0.23 m from the
+    /// contact, in open floor.
     pub retry_walled_floor: bool,
 }
 
@@ -233,11 +233,10 @@ impl ContactMark {
     /// commanded to `wheels` (wheel base `wheel_base`), with the bearings the
     /// body's track rules out removed (`known.track`). `known.near` is the
     /// nearest earlier mark within [`ContactParams::prior_reach`] of the
-    /// centre, if any: a
-    /// bumper that cannot tell where on its front arc it closed has most
-    /// likely met the obstacle it met there before, so the contact is taken
-    /// at the shell's point facing that mark (when the arc and the track
-    /// allow). Without it the middle of the open arc is up to 0.23 m off:
+    /// centre, if any: a bumper that cannot tell where on its front arc it
+    /// closed has most likely met the obstacle it met there before, so the
+    /// contact is taken at the shell's point facing that mark (when the arc
+    /// and the track allow). Without it the middle of the open arc is up to 0.23 m off:
     /// such guesses stood 0.10-0.17 m from an unseen stool, in open floor,
     /// and shut the passage beside it.
     ///
@@ -283,7 +282,7 @@ impl ContactMark {
             .and_then(|b| nearest_open(arc, b, ruled_out));
         let bearing = facing.unwrap_or_else(|| {
             track
-                .and_then(|t| open_bearing(arc, bearing, |b| t.covered(&point(b))))
+                .and_then(|_| open_bearing(arc, bearing, ruled_out))
                 .unwrap_or(bearing)
         });
         Self {
@@ -325,10 +324,14 @@ impl ContactMark {
         (self.at - other.at).norm() <= tolerance
     }
 
-    /// The cells of `grid` the marked arc lies in (a cell may repeat).
-    pub fn cells<'a>(&'a self, grid: &'a Grid) -> impl Iterator<Item = CellIndex> + 'a {
-        self.arc(grid.resolution() / 2.0)
-            .filter_map(move |p| grid.cell_of(&p))
+    /// The cells of `grid` the marked arc lies in (a cell may repeat). The
+    /// iterator holds the grid's geometry, not the grid: the caller may set
+    /// the cells' states as it goes.
+    pub fn cells<'a>(&'a self, grid: &Grid) -> impl Iterator<Item = CellIndex> + 'a {
+        let (origin, res) = (grid.origin(), grid.resolution());
+        let size = (grid.width(), grid.height());
+        self.arc(res / 2.0)
+            .filter_map(move |p| crate::grid::cell_containing(origin, res, size, &p))
     }
 
     /// Points along the marked arc, at most `step` apart (ends included).

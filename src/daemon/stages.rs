@@ -662,10 +662,8 @@ impl MapStage {
 
 /// Sets every cell of `grid` the arc of `mark` lies in to `state`.
 fn set_arc(grid: &mut Grid, mark: &ContactMark, state: crate::grid::CellState) {
-    for p in mark.arc(grid.resolution() / 2.0) {
-        if let Some(cell) = grid.cell_of(&p) {
-            grid.set_state(cell, state);
-        }
+    for cell in mark.cells(grid) {
+        grid.set_state(cell, state);
     }
 }
 
@@ -903,8 +901,8 @@ impl Stage for PlanStage {
 impl MarkProbe {
     /// At the end of coverage (the `planner` is done): takes out the
     /// bumper contact mark that walls off the most unswept floor, if that is
-    /// at least `least` and no mark was taken out near it before; reopens the planner and returns true
-    /// (coverage goes on). A one-bit bumper cannot tell where on its arc it
+    /// at least `least` and no mark was taken out near it before; reopens
+    /// the planner and returns true (coverage goes on). A one-bit bumper cannot tell where on its arc it
     /// closed; its mark is a guess that can stand in open floor and shut a
     /// passage the robot fits through. Tried again, the floor is swept, or
     /// the bumper closes again and marks the obstacle from a new bearing
