@@ -1,6 +1,8 @@
 //! Bumper contact marks survive a restart: they are checkpointed in the
 //! `daemon.contacts` section, the resume path loads them, and the map stage
-//! marks them again so that the rays of later scans cannot clear them.
+//! marks them again so that the rays of later scans cannot clear them. The
+//! places where marks were taken out (`daemon.contacts_tried`) are loaded
+//! too, so a resumed run does not try them again.
 
 use std::sync::Arc;
 
@@ -13,7 +15,7 @@ use sweepline::daemon::Shared;
 use sweepline::geom::pose;
 use sweepline::grid::{CellState, Grid};
 use sweepline::motor::{Sides, WheelSpeeds};
-use sweepline::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress};
+use sweepline::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress, TriedPlaces};
 use sweepline::pipeline::{latest, queue, Overflow};
 use sweepline::scan::{Beam, LaserScan};
 
@@ -114,10 +116,16 @@ fn contact_marks_are_restored_and_rays_cannot_clear_them() {
     cp.put(&pose(1.0, 2.0, 0.0)).unwrap();
     cp.put(&free_room()).unwrap();
     cp.put(&contact_arcs(&[m])).unwrap();
+    let tried = vec![Point2::new(1.1, 2.27)];
+    cp.put(&TriedPlaces {
+        places: tried.clone(),
+    })
+    .unwrap();
     store.save(&cp).unwrap();
 
     let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
     assert_eq!(r.contacts, vec![m]);
+    assert_eq!(r.tried, tried, "places where marks were tried");
     assert!(!occupied_at(&r.grid, m.at), "the saved grid had lost it");
 
     // The resumed map stage marks it at once and keeps it through rays.
@@ -154,6 +162,7 @@ fn a_checkpoint_without_marks_resumes_with_none() {
     store.save(&cp).unwrap();
     let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
     assert!(r.contacts.is_empty());
+    assert!(r.tried.is_empty());
 }
 
 #[test]

@@ -13,8 +13,8 @@ use sweepline::geom::{pose, IPoint, Pose};
 use sweepline::grid::Grid;
 use sweepline::icp::{KeyframeState, TrackerState};
 use sweepline::pipeline::checkpoint::{
-    crc32, Checkpoint, CheckpointError, ContactArc, ContactArcs, Encoder, RunProgress, WrittenAt,
-    FORMAT_VERSION, MAGIC,
+    crc32, Checkpoint, CheckpointError, ContactArc, ContactArcs, Encoder, MountRecord, RunProgress,
+    TriedPlaces, WrittenAt, FORMAT_VERSION, MAGIC,
 };
 use sweepline::plan::cspace::Frame;
 use sweepline::plan::{LatticePhase, PlanTries, SweptFloor, TriedCell};
@@ -107,6 +107,8 @@ fn read_all(bytes: &[u8]) -> Result<(), CheckpointError> {
     cp.get::<PlanTries>()?;
     cp.get::<TrackerState>()?;
     cp.get::<ContactArcs>()?;
+    cp.get::<TriedPlaces>()?;
+    cp.get::<MountRecord>()?;
     Ok(())
 }
 
@@ -196,6 +198,8 @@ fn random_payloads_with_valid_checksums_never_panic() {
             b"plan.tries",
             b"icp.keyframes",
             b"daemon.contacts",
+            b"daemon.contacts_tried",
+            b"robot.mount",
         ] {
             let b = craft(&[(name, 1, &payload, None)], None);
             let _ = read_all(&b); // Ok or Err, never a panic

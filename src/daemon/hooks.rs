@@ -116,6 +116,7 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
+        let tried = self.shared.with_status(|s| s.contacts_tried.clone());
         let (lattice, tries, refitted) = self
             .shared
             .with_status(|s| (s.lattice, s.tries.clone(), s.refitted_mount));
@@ -141,6 +142,9 @@ impl DaemonHooks {
         }
         if let Some(c) = contacts {
             r = r.and_then(|()| cp.put(&*c));
+        }
+        if let Some(t) = tried {
+            r = r.and_then(|()| cp.put(&*t));
         }
         if let (Some(refitted), Some(robot)) = (refitted, &self.robot) {
             let rec = crate::pipeline::checkpoint::MountRecord {

@@ -131,6 +131,9 @@ pub struct Resume {
     /// The bumper contact marks at the checkpoint, marked again in the map
     /// so that rays cannot clear them.
     pub contacts: Vec<contact::ContactMark>,
+    /// Where contact marks were taken out before the checkpoint to try the
+    /// floor behind them: marks near these stay.
+    pub tried: Vec<nalgebra::Point2<f64>>,
     /// The scanner mount refitted before the checkpoint (none: the run
     /// drove with the configured one).
     pub mount: Option<crate::pipeline::checkpoint::MountRecord>,
@@ -360,15 +363,18 @@ impl Daemon {
                 contacts_seen: 0,
                 bump_handled: f64::NEG_INFINITY,
                 contact_settle: cfg.daemon.contact.settle,
-                probe: stages::MarkProbe {
-                    to_map: map_tx.clone(),
-                    on: cfg.daemon.contact.retry_walled_floor,
-                    least: cfg.plan.min_lane_area,
-                    spacing: 2.0 * robot.radius,
-                    probed: Vec::new(),
-                    sent: 0,
-                    sent_at: f64::NEG_INFINITY,
-                },
+                probe: stages::MarkProbe::new(
+                    map_tx.clone(),
+                    cfg.daemon.contact.retry_walled_floor,
+                    cfg.plan.min_lane_area,
+                    2.0 * robot.radius,
+                    setup
+                        .resume
+                        .as_ref()
+                        .map(|r| r.tried.clone())
+                        .unwrap_or_default(),
+                    &shared,
+                ),
             },
         )?;
         let contacts = setup

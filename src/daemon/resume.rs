@@ -1,6 +1,6 @@
 //! Resuming a run: loads the newest intact checkpoint of the state folder
 //! (map, pose, progress, the planner's swept floor, the tracker's keyframes,
-//! the bumper contact marks) and the crashed daemon's
+//! the bumper contact marks and the places they were tried) and the crashed daemon's
 //! last heartbeat, and says what the restart lost ([`ResumeEntry`]).
 
 use super::Resume;
@@ -8,7 +8,7 @@ use crate::geom::{heading, pose_error, Pose};
 use crate::grid::Grid;
 use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointError, CheckpointStore, ContactArcs, MountRecord, ProgressMark,
-    ResumeEntry, RunProgress, Section, WrittenAt,
+    ResumeEntry, RunProgress, Section, TriedPlaces, WrittenAt,
 };
 
 /// File name of the heartbeat in the state folder: the run's progress and
@@ -115,6 +115,12 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
     )
     .map(|c| c.arcs.iter().map(|&a| a.into()).collect())
     .unwrap_or_default();
+    let tried = optional::<TriedPlaces>(
+        cp,
+        "places where contact marks were tried unreadable, a mark may be tried once more",
+    )
+    .map(|t| t.places)
+    .unwrap_or_default();
     let mount = optional(
         cp,
         "refitted scanner mount unreadable, the checks fit it again",
@@ -128,6 +134,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         tries,
         tracker,
         contacts,
+        tried,
         mount,
         entry,
     })

@@ -132,6 +132,9 @@ pub struct LiveStatus {
     /// The bumper contact marks (checkpointed: rays may clear them from a
     /// restored grid, a resumed run marks them again).
     pub contacts: Option<std::sync::Arc<crate::pipeline::checkpoint::ContactArcs>>,
+    /// Where contact marks were taken out to try the floor behind them
+    /// (checkpointed: a resumed run does not try one place again).
+    pub contacts_tried: Option<std::sync::Arc<crate::pipeline::checkpoint::TriedPlaces>>,
     /// Rotation (rad) the start heading was turned by to lay the map frame
     /// along the walls (see [`super::align`]); `None` until decided, and
     /// for a resumed run.
@@ -185,6 +188,7 @@ impl Default for LiveStatus {
             tries: None,
             keyframes: None,
             contacts: None,
+            contacts_tried: None,
             frame_turn: None,
             turn_ratio: None,
             travel_fit: None,

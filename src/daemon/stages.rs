@@ -27,7 +27,7 @@ use crate::geom::{carried, heading, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
 use crate::motor::{DiffDriveBase, SafetyEvent, Sides, WheelSpeeds};
-use crate::pipeline::checkpoint::{ContactArc, ContactArcs};
+use crate::pipeline::checkpoint::{ContactArc, ContactArcs, TriedPlaces};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::supervisor::Control;
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
@@ -899,6 +899,46 @@ impl Stage for PlanStage {
 }
 
 impl MarkProbe {
+    /// A probe sending its requests on `to_map`, with the places `tried`
+    /// before a restart (published at once for the next checkpoint).
+    pub fn new(
+        to_map: Tx<MapMsg>,
+        on: bool,
+        least: f64,
+        spacing: f64,
+        tried: Vec<Point2<f64>>,
+        shared: &Shared,
+    ) -> Self {
+        if !tried.is_empty() {
+            log::info!(
+                "resume: {} place(s) where contact marks were tried restored; marks near them stay",
+                tried.len()
+            );
+        }
+        let probe = Self {
+            to_map,
+            on,
+            least,
+            spacing,
+            probed: tried,
+            sent: 0,
+            sent_at: f64::NEG_INFINITY,
+        };
+        probe.publish(shared);
+        probe
+    }
+
+    /// Hands the tried places to the checkpoint (none yet: nothing).
+    fn publish(&self, shared: &Shared) {
+        if self.probed.is_empty() {
+            return;
+        }
+        let tried = Arc::new(TriedPlaces {
+            places: self.probed.clone(),
+        });
+        shared.with_status(|s| s.contacts_tried = Some(tried));
+    }
+
     /// At the end of coverage (the `planner` is done): takes out the
     /// bumper contact mark that walls off the most unswept floor, if that is
     /// at least `least` and no mark was taken out near it before; reopens
@@ -954,10 +994,13 @@ impl MarkProbe {
             at.y,
             area
         );
+        // Tried before the request goes: a checkpoint between the two keeps
+        // the mark and the place, and the resumed run leaves the mark.
+        self.probed.push(at);
+        self.publish(shared);
         if self.to_map.send(MapMsg::Retire(at)).is_err() {
             return false;
         }
-        self.probed.push(at);
         self.sent += 1;
         self.sent_at = now;
         planner.reopen(&[at], self.spacing);
@@ -1392,6 +1435,64 @@ impl Stage for MotorStage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::decomp::Decomposition;
+    use crate::grid::CellState;
+    use crate::pipeline::{queue, Overflow, Recv};
+
+    /// The walled room (3 m × 2 m) split at x = 1.5 m by a wall with a
+    /// 0.6 m passage at the top, a bumper's mark standing in the passage;
+    /// the planner has seen it once from (0.4, 0.4).
+    fn passage_shut_by_a_mark() -> (Grid, CoveragePlanner, Shared, Point2<f64>) {
+        let mut g = crate::plan::test_support::walled_room();
+        for y in 0..27 {
+            g.set_state((30, y), CellState::Occupied);
+        }
+        g.set_state((30, 33), CellState::Occupied);
+        let at = g.centre_of((30, 33));
+        let mut p = crate::plan::test_support::planner();
+        p.update(
+            &g,
+            &Decomposition::default(),
+            &crate::geom::pose(0.4, 0.4, 0.0),
+            None,
+        )
+        .unwrap();
+        let shared = Shared::default();
+        let arc = ContactArc {
+            centre: at - nalgebra::Vector2::new(0.18, 0.0),
+            at,
+            half_length: 0.02,
+        };
+        let arcs = Arc::new(ContactArcs { arcs: vec![arc] });
+        shared.with_status(|s| s.contacts = Some(arcs));
+        (g, p, shared, at)
+    }
+
+    #[test]
+    fn a_mark_is_taken_out_once_and_the_place_tried_outlives_a_restart() {
+        let (g, mut p, shared, at) = passage_shut_by_a_mark();
+        let here = crate::geom::pose(0.4, 0.4, 0.0);
+        let (tx, rx) = queue("map_msgs", 8, Overflow::DropOldest);
+        let mut probe = MarkProbe::new(tx.clone(), true, 0.05, 0.34, Vec::new(), &shared);
+        assert!(shared.with_status(|s| s.contacts_tried.is_none()));
+        assert!(probe.walled_floor(&mut p, &shared, 1.0, &g, &here));
+        assert!(matches!(rx.try_recv(), Recv::Msg(MapMsg::Retire(q)) if q == at));
+        // The place is handed to the checkpoint, and not tried again.
+        let saved = shared.with_status(|s| s.contacts_tried.clone()).unwrap();
+        assert_eq!(saved.places, vec![at]);
+        assert!(!probe.walled_floor(&mut p, &shared, 2.0, &g, &here));
+        assert_eq!(probe.sent, 1);
+
+        // A resumed run with the checkpoint's places leaves the mark, and
+        // its next checkpoint still holds them.
+        let (g, mut p, shared, _) = passage_shut_by_a_mark();
+        let mut resumed = MarkProbe::new(tx, true, 0.05, 0.34, saved.places.clone(), &shared);
+        let kept = shared.with_status(|s| s.contacts_tried.clone()).unwrap();
+        assert_eq!(kept.places, vec![at]);
+        assert!(!resumed.walled_floor(&mut p, &shared, 1.0, &g, &here));
+        assert_eq!(resumed.sent, 0);
+        assert!(matches!(rx.try_recv(), Recv::Empty));
+    }
 
     fn fit(deg: f64) -> TravelFit {
         TravelFit {

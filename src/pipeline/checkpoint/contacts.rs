@@ -7,6 +7,11 @@
 //! [`MAX_CONTACTS`]), then per mark the robot centre (x, y), the contact
 //! point (x, y) and the half length of the marked arc, all f64 in metres,
 //! map frame.
+//!
+//! Section `daemon.contacts_tried` ([`TriedPlaces`]), version 1: where marks
+//! were taken out to try the floor they walled off, so that a resumed run
+//! does not try one place again. Payload: the number of places (u32, at
+//! most [`MAX_CONTACTS`]), then per place (x, y), f64 in metres, map frame.
 
 use nalgebra::Point2;
 
@@ -20,6 +25,25 @@ pub const MAX_HALF_LENGTH: f64 = 0.5;
 pub const MAX_REACH: f64 = 2.0;
 /// Bytes one mark takes.
 const MARK_BYTES: usize = 5 * 8;
+/// Bytes one tried place takes.
+const PLACE_BYTES: usize = 2 * 8;
+
+/// Reads a record count: at most [`MAX_CONTACTS`] records of `each` bytes,
+/// all present (a count beyond the bytes allocates nothing).
+fn count(d: &mut Decoder<'_>, what: &str, each: usize) -> Result<u32, CheckpointError> {
+    let n = d.u32()?;
+    if n > MAX_CONTACTS {
+        return Err(d.error(format!("{n} {what}, more than {MAX_CONTACTS}")));
+    }
+    if d.remaining() < n as usize * each {
+        return Err(d.error(format!(
+            "{n} {what} need {} bytes, {} remain",
+            n as usize * each,
+            d.remaining()
+        )));
+    }
+    Ok(n)
+}
 
 /// One contact mark: an arc of the body shell around `at`, centred on the
 /// robot centre `centre`.
@@ -57,17 +81,7 @@ impl Section for ContactArcs {
     }
 
     fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let n = d.u32()?;
-        if n > MAX_CONTACTS {
-            return Err(d.error(format!("{n} contact marks, more than {MAX_CONTACTS}")));
-        }
-        if d.remaining() < n as usize * MARK_BYTES {
-            return Err(d.error(format!(
-                "{n} contact marks need {} bytes, {} remain",
-                n as usize * MARK_BYTES,
-                d.remaining()
-            )));
-        }
+        let n = count(d, "contact marks", MARK_BYTES)?;
         let mut arcs = Vec::with_capacity(n as usize);
         for i in 0..n {
             let centre = Point2::new(d.finite("centre x")?, d.finite("centre y")?);
@@ -91,6 +105,39 @@ impl Section for ContactArcs {
             });
         }
         Ok(Self { arcs })
+    }
+}
+
+/// Where contact marks were taken out to try the floor behind them (the
+/// plan stage's [`crate::daemon::stages::MarkProbe`]): a mark near one of
+/// these places stays, so an obstacle costs at most one more bump, across a
+/// restart too.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriedPlaces {
+    /// The places (map frame, m), oldest first.
+    pub places: Vec<Point2<f64>>,
+}
+
+impl Section for TriedPlaces {
+    const NAME: &'static str = "daemon.contacts_tried";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        let n = self.places.len().min(MAX_CONTACTS as usize);
+        e.u32(n as u32);
+        for p in &self.places[..n] {
+            e.f64(p.x);
+            e.f64(p.y);
+        }
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let n = count(d, "tried places", PLACE_BYTES)?;
+        let mut places = Vec::with_capacity(n as usize);
+        for _ in 0..n {
+            places.push(Point2::new(d.finite("place x")?, d.finite("place y")?));
+        }
+        Ok(Self { places })
     }
 }
 
@@ -126,6 +173,39 @@ mod tests {
         cp.put(&ContactArcs::default()).unwrap();
         let back = Checkpoint::from_bytes(&cp.to_bytes()).unwrap();
         assert!(back.require::<ContactArcs>().unwrap().arcs.is_empty());
+    }
+
+    #[test]
+    fn tried_places_survive_save_and_load_and_bad_ones_are_clear_errors() {
+        let tried = TriedPlaces {
+            places: vec![Point2::new(1.1, 2.27), Point2::new(-0.5, 3.0)],
+        };
+        let mut cp = Checkpoint::new();
+        cp.put(&marks()).unwrap();
+        cp.put(&tried).unwrap();
+        let back = Checkpoint::from_bytes(&cp.to_bytes()).unwrap();
+        assert_eq!(back.require::<TriedPlaces>().unwrap(), tried);
+        assert_eq!(back.require::<ContactArcs>().unwrap(), marks());
+        let mut e = Encoder::new();
+        tried.encode(&mut e);
+        let bytes = e.into_bytes();
+        for cut in [0, 3, 4, 12, bytes.len() - 1] {
+            let mut d = Decoder::new(TriedPlaces::NAME, &bytes[..cut]);
+            assert!(TriedPlaces::decode(&mut d).is_err(), "cut at {cut}");
+        }
+        let mut e = Encoder::new();
+        e.u32(MAX_CONTACTS + 1);
+        let b = e.into_bytes();
+        let err = TriedPlaces::decode(&mut Decoder::new(TriedPlaces::NAME, &b)).unwrap_err();
+        assert!(err.to_string().contains("more than"), "{err}");
+        let mut e = Encoder::new();
+        e.u32(1);
+        e.f64(f64::INFINITY);
+        e.f64(0.0);
+        let b = e.into_bytes();
+        let err = TriedPlaces::decode(&mut Decoder::new(TriedPlaces::NAME, &b)).unwrap_err();
+        assert!(err.to_string().contains("place x"), "{err}");
+        assert!(err.to_string().contains("daemon.contacts_tried"), "{err}");
     }
 
     #[test]

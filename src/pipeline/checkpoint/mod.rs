@@ -43,7 +43,7 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 pub use codec::{crc32, Decoder, Encoder, GridHeader};
-pub use contacts::{ContactArc, ContactArcs};
+pub use contacts::{ContactArc, ContactArcs, TriedPlaces};
 pub use mount::MountRecord;
 pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
 pub use sections::{RunProgress, WrittenAt};
