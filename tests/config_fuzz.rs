@@ -246,6 +246,11 @@ fn hostile_inputs_name_the_key_or_line() {
             &["retry_walled_floor", "boolean"],
         ),
         (
+            "a negative surface hold",
+            "[plan]\nsurface_hold = -1\n".into(),
+            &["surface_hold", "u32"],
+        ),
+        (
             "unknown contact key",
             "[daemon.contact]\nbearing = 0.5\n".into(),
             &["bearing", "side_bearing"],

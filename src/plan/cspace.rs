@@ -109,9 +109,17 @@ pub struct CSpace {
     pub state: Vec<u8>,
     /// Free cells a beam has ended in (see [`Grid::was_hit`]): not frontier.
     pub surface: Vec<bool>,
-    /// Free cells that hold a surface (see [`Grid::holds_surface`]): the
+    /// Free cells that hold a surface (see [`Grid::holds_surface`]), or
+    /// held one within the last [`CSpace::set_surface_hold`] rebuilds: the
     /// robot keeps its clearance from them as from obstacle cells.
     pub held: Vec<bool>,
+    /// Rebuilds a surface keeps blocking after the grid lets it go.
+    hold: u32,
+    /// Rebuilds so far (the clock of `held_until`).
+    rebuilds: u32,
+    /// Per cell: the rebuild at which a surface the grid let go stops
+    /// blocking (0: none pending).
+    held_until: Vec<u32>,
     /// Where the robot centre may be.
     pub traversable: Vec<bool>,
     /// Where the robot body touches no seen obstacle (clearance of the bare
@@ -336,6 +344,9 @@ impl CSpace {
             state: Vec::new(),
             surface: Vec::new(),
             held: Vec::new(),
+            hold: 0,
+            rebuilds: 0,
+            held_until: Vec::new(),
             traversable: Vec::new(),
             collision_free: Vec::new(),
             hard: Vec::new(),
@@ -359,6 +370,16 @@ impl CSpace {
         self.inflation
     }
 
+    /// Keeps a surface cell blocking for `rebuilds` more rebuilds after the
+    /// grid stops holding it (0, the default: as the grid says). A cell at
+    /// the edge of a chair or a table, hit by some scans and passed by
+    /// others, is held and let go by turns; a path planned while it is let
+    /// go is blocked when it is held again, and the plan starts over. The
+    /// hold makes the configuration space change once, not at every turn.
+    pub fn set_surface_hold(&mut self, rebuilds: u32) {
+        self.hold = rebuilds;
+    }
+
     /// Brings states and the traversable mask up to date with `grid`.
     ///
     /// Incremental: only cells whose state or held surface changed since the
@@ -379,6 +400,7 @@ impl CSpace {
             self.state = vec![UNKNOWN; n];
             self.surface = vec![false; n];
             self.held = vec![false; n];
+            self.held_until = vec![0; n];
             self.traversable = vec![false; n];
             self.collision_free = vec![true; n];
             self.dist = vec![f64::INFINITY; n];
@@ -396,6 +418,7 @@ impl CSpace {
                 .max()
                 .unwrap_or(0) as usize;
         }
+        self.rebuilds = self.rebuilds.wrapping_add(1).max(1);
         let changed = self.copy_states(grid);
         let whole = (frame.w > 0 && frame.h > 0).then(|| Rect {
             x0: 0,
@@ -432,31 +455,53 @@ impl CSpace {
             CellState::Free => FREE,
             CellState::Occupied => OCCUPIED,
         });
+        let (now, hold) = (self.rebuilds, self.hold);
         let mut changed: Option<Rect> = None;
         for y in read.y0..=read.y1 {
             let (a, b) = (y * w + read.x0, y * w + read.x1 + 1);
             self.surface[a..b].copy_from_slice(&hit[a..b]);
             let (ev, cr) = (&evidence[a..b], &credit[a..b]);
             let (st, hd) = (&mut self.state[a..b], &mut self.held[a..b]);
-            // Most rows hold no change: one branch-free pass to tell.
+            let until = &mut self.held_until[a..b];
+            // Most rows hold no change: one branch-free pass to tell (a
+            // surface let go but still kept, or held again while its
+            // release was pending, counts as a change to look at).
             let differs = ev
                 .iter()
                 .zip(cr)
                 .zip(st.iter().zip(hd.iter()))
-                .fold(false, |d, ((&e, &c), (&s, &h))| {
-                    d | (lut[e as usize] != s) | ((c > 0) != h)
+                .zip(until.iter())
+                .fold(false, |d, (((&e, &c), (&s, &h)), &u)| {
+                    d | (lut[e as usize] != s) | ((c > 0) != h) | ((c > 0) & (u != 0))
                 });
             if !differs {
                 continue;
             }
             let (mut lo, mut hi) = (usize::MAX, 0);
-            for (j, ((&e, &c), (s, h))) in ev
+            for (j, (((&e, &c), (s, h)), u)) in ev
                 .iter()
                 .zip(cr)
                 .zip(st.iter_mut().zip(hd.iter_mut()))
+                .zip(until.iter_mut())
                 .enumerate()
             {
-                let (state, held) = (lut[e as usize], c > 0);
+                let state = lut[e as usize];
+                let held = if c > 0 {
+                    *u = 0;
+                    true
+                } else if *h && hold > 0 {
+                    if *u == 0 {
+                        *u = now.saturating_add(hold);
+                    }
+                    if now >= *u {
+                        *u = 0;
+                        false
+                    } else {
+                        true
+                    }
+                } else {
+                    false
+                };
                 if state != *s || held != *h {
                     (*s, *h) = (state, held);
                     lo = lo.min(j);
@@ -1041,6 +1086,62 @@ mod tests {
         }
         c.rebuild(&g);
         assert!(c.traversable[near] && c.collision_free[near]);
+    }
+
+    #[test]
+    fn a_surface_let_go_keeps_blocking_for_the_hold_and_held_again_starts_it_over() {
+        // The chair-leg cell of the test above, held and let go by turns.
+        let (mut g, y) = hit_then_passed(40, 1.02);
+        let let_go = |g: &mut Grid| {
+            for _ in 0..crate::grid::HIT_CREDIT {
+                g.integrate_ray(&Point2::new(1.02, 0.1), &Point2::new(1.02, 0.9), false);
+            }
+        };
+        let mut c = CSpace::new(0.2, 0.17);
+        c.set_surface_hold(3);
+        c.rebuild(&g);
+        let near = c.frame.index_of(&Point2::new(1.02 - 0.12, y)).unwrap();
+        assert!(!c.collision_free[near]);
+        let_go(&mut g);
+        assert!(!g.holds_surface((20, 10)));
+        // Still blocking for three rebuilds, then gone.
+        for k in 0..3 {
+            c.rebuild(&g);
+            assert!(
+                !c.traversable[near] && !c.collision_free[near],
+                "rebuild {k}"
+            );
+        }
+        c.rebuild(&g);
+        assert!(c.traversable[near] && c.collision_free[near]);
+        // Hit again, let go, hit again before the release: the hold counts
+        // from the last letting go.
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(1.02, y), true);
+        c.rebuild(&g);
+        assert!(!c.collision_free[near]);
+        let_go(&mut g);
+        c.rebuild(&g);
+        c.rebuild(&g);
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(1.02, y), true);
+        c.rebuild(&g);
+        let_go(&mut g);
+        for k in 0..3 {
+            c.rebuild(&g);
+            assert!(
+                !c.collision_free[near],
+                "rebuild {k} after the second letting go"
+            );
+        }
+        c.rebuild(&g);
+        assert!(c.collision_free[near]);
+        // Without a hold (the default) the cell clears at once.
+        let mut plain = CSpace::new(0.2, 0.17);
+        g.integrate_ray(&Point2::new(0.1, y), &Point2::new(1.02, y), true);
+        plain.rebuild(&g);
+        assert!(!plain.collision_free[near]);
+        let_go(&mut g);
+        plain.rebuild(&g);
+        assert!(plain.collision_free[near]);
     }
 
     #[test]

@@ -391,7 +391,11 @@ impl CoveragePlanner {
             params: params.clone(),
             spacing,
             reach,
-            cspace: CSpace::new(robot.radius + params.safety_margin, robot.radius),
+            cspace: {
+                let mut c = CSpace::new(robot.radius + params.safety_margin, robot.radius);
+                c.set_surface_hold(params.surface_hold);
+                c
+            },
             covered: Vec::new(),
             passes: Vec::new(),
             last_under: Vec::new(),
@@ -821,10 +825,38 @@ impl CoveragePlanner {
         if let Some(next) = progress {
             // Blocked by something seen since?
             let from = next.min(self.path.len());
-            if self.path[from..]
+            if let Some(k) = self.path[from..]
                 .windows(2)
-                .any(|s| !self.cspace.segment_safe(&s[0], &s[1]))
+                .position(|s| !self.cspace.segment_safe(&s[0], &s[1]))
             {
+                let (a, b) = (self.path[from + k], self.path[from + k + 1]);
+                if log::log_enabled!(log::Level::Debug) {
+                    let n = (((b - a).norm() / (f.res * 0.25)).ceil() as usize).max(1);
+                    let by = (0..=n)
+                        .map(|j| a + (b - a) * (j as f64 / n as f64))
+                        .find(|q| {
+                            f.index_of(q)
+                                .is_some_and(|i| !self.cspace.collision_free[i])
+                        })
+                        .and_then(|q| self.cspace.blocker(&q));
+                    let by = by.map_or("nothing found".to_string(), |bl| {
+                        format!(
+                            "{} at ({:.3}, {:.3}), {:.3} m from the path",
+                            bl.kind.describe(),
+                            bl.at.x,
+                            bl.at.y,
+                            bl.distance
+                        )
+                    });
+                    log::debug!(
+                        "plan: path blocked between ({:.2}, {:.2}) and ({:.2}, {:.2}) m, {} waypoints ahead, by {by}; planning again",
+                        a.x,
+                        a.y,
+                        b.x,
+                        b.y,
+                        k
+                    );
+                }
                 replan = true;
                 // Still on the way to the task's first lane: the region is
                 // not at fault (the transit ran into something seen on the
