@@ -508,6 +508,10 @@ impl CSpace {
                     hi = j;
                 }
             }
+            if lo == usize::MAX {
+                // Only surfaces let go and still kept: nothing changed.
+                continue;
+            }
             let row = Rect {
                 x0: read.x0 + lo,
                 y0: y,
