@@ -121,6 +121,13 @@ fn daemon_covers_a_small_world_through_the_ptys() {
         summary.contains("| connection between lanes |"),
         "{summary}"
     );
+    // The daemon's planner counters reach the report.
+    assert!(r.plan_stats.tasks > 0, "{:?}", r.plan_stats);
+    let row = format!(
+        "| tasks planned (started over: path blocked / new floor near the robot) | {} ({} / {}) |",
+        r.plan_stats.tasks, r.plan_stats.blocked, r.plan_stats.retours
+    );
+    assert!(summary.contains(&row), "{row}\n{summary}");
     // The daemon left a checkpoint a restart could resume from.
     assert!(dir.join("state").read_dir().unwrap().next().is_some());
 }

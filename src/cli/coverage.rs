@@ -307,6 +307,16 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
     );
     let _ = writeln!(
         s,
+        "| tasks planned (started over: path blocked / new floor near the robot) | {} ({} / {}) | {} |",
+        online.stats.tasks,
+        online.stats.blocked,
+        online.stats.retours,
+        offline
+            .map(|o| format!("{} ({} / {})", o.stats.tasks, o.stats.blocked, o.stats.retours))
+            .unwrap_or_default()
+    );
+    let _ = writeln!(
+        s,
         "| decomposition update p99 (wall clock) | {:.2} ms | |",
         p99(&online.decomp_seconds) * 1e3
     );

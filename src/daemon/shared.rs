@@ -156,6 +156,8 @@ pub struct LiveStatus {
     /// with [`Progress`], what the robot is doing now, for the simulator's
     /// overlap breakdown.
     pub path_motions: Option<PathMotions>,
+    /// The planner's counters as of its newest path.
+    pub plan_stats: crate::plan::planner::PlanStats,
 }
 
 /// The motions of one planned path (see [`LiveStatus::path_motions`]).
@@ -195,6 +197,7 @@ impl Default for LiveStatus {
             offset_fit: None,
             refitted_mount: None,
             path_motions: None,
+            plan_stats: crate::plan::planner::PlanStats::default(),
         }
     }
 }

@@ -882,7 +882,11 @@ impl Stage for PlanStage {
                     task: u32::try_from(self.planner.stats().tasks).unwrap_or(u32::MAX),
                     motions: self.planner.motions().into(),
                 };
-                self.shared.with_status(|s| s.path_motions = Some(motions));
+                let stats = self.planner.stats();
+                self.shared.with_status(|s| {
+                    s.path_motions = Some(motions);
+                    s.plan_stats = stats;
+                });
                 let msg = PathMsg {
                     seq: self.seq,
                     points: points.to_vec(),

@@ -155,6 +155,10 @@ pub struct PlanStats {
     /// Moves out of a part of the space with nothing left to do, through a
     /// passage only the bare body fits (see [`super::unbox`]).
     pub ways_out: usize,
+    /// Plans started over because something seen since blocked the path.
+    pub blocked: usize,
+    /// Lane tours taken again for floor that appeared near the robot.
+    pub retours: usize,
 }
 
 /// One planned task, for reports and pictures.
@@ -858,6 +862,7 @@ impl CoveragePlanner {
                     );
                 }
                 replan = true;
+                self.stats.blocked += 1;
                 // Still on the way to the task's first lane: the region is
                 // not at fault (the transit ran into something seen on the
                 // way, typically at a gap between furniture seen closer);
@@ -890,6 +895,7 @@ impl CoveragePlanner {
                 p.y
             );
             replan = true;
+            self.stats.retours += 1;
             // The task is not at fault: its floor is in the new tour.
             self.forgive_task();
             self.retour = true;
@@ -2905,6 +2911,38 @@ mod tests {
         assert_eq!(before.cells, 3, "{before:?}");
         assert_eq!(after.cells, before.cells + 1, "{before:?} -> {after:?}");
         assert_eq!(after.lanes, before.lanes, "{before:?} -> {after:?}");
+        // Counted as a tour taken again, not as a blocked path.
+        assert_eq!(after.retours, before.retours + 1, "{before:?} -> {after:?}");
+        assert_eq!(after.blocked, before.blocked, "{before:?} -> {after:?}");
+    }
+
+    #[test]
+    fn a_path_blocked_by_something_seen_since_is_planned_again_and_counted() {
+        let mut g = crate::plan::test_support::walled_room();
+        let mut p = crate::plan::test_support::planner();
+        let empty = Decomposition::default();
+        let at = crate::geom::pose(0.4, 0.4, 0.0);
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        assert!(covers_floor(&st), "{st:?}");
+        assert_eq!(p.stats().blocked, 0);
+        // An obstacle in the middle of the path's second segment.
+        let path = p.path().0.to_vec();
+        let (a, b) = (path[1], path[2]);
+        let mid = a + (b - a) * 0.5;
+        g.set_state(g.cell_of(&mid).unwrap(), CellState::Occupied);
+        // Blocked by what is seen now: planned again around it, and counted.
+        let st = p.update(&g, &empty, &at, Some(1)).unwrap();
+        assert!(
+            matches!(st, PlanStatus::Working { new_path: true, .. }),
+            "{st:?}"
+        );
+        assert_eq!(p.stats().blocked, 1);
+        assert_eq!(p.stats().retours, 0);
+        assert!(p
+            .path()
+            .0
+            .windows(2)
+            .all(|s| p.cspace.segment_safe(&s[0], &s[1])));
     }
 
     #[test]

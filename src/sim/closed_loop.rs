@@ -227,6 +227,8 @@ pub struct SimReport {
     pub stuck_paths: u64,
     /// Bumper contact marks taken out to try the floor they walled off.
     pub marks_taken_out: u64,
+    /// The daemon's planner counters at the end (tasks, plans started over).
+    pub plan_stats: crate::plan::planner::PlanStats,
     /// Times the daemon held the wheels because no scan came.
     pub scan_holds: u64,
     /// The bumper contacts marked in the map (robot centre and contact
@@ -763,6 +765,7 @@ fn drive(
         marks_taken_out: shared
             .marks_taken_out
             .load(std::sync::atomic::Ordering::Relaxed),
+        plan_stats: shared.with_status(|s| s.plan_stats),
         stuck_paths: shared
             .stuck_paths
             .load(std::sync::atomic::Ordering::Relaxed),

@@ -270,6 +270,13 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
         ),
         ("wheels held for lack of scans", format!("{}", r.scan_holds)),
         (
+            "tasks planned (started over: path blocked / new floor near the robot)",
+            format!(
+                "{} ({} / {})",
+                r.plan_stats.tasks, r.plan_stats.blocked, r.plan_stats.retours
+            ),
+        ),
+        (
             "bumper contacts marked (marks taken out to try the floor they walled off)",
             format!("{} ({})", r.contacts.len(), r.marks_taken_out),
         ),
