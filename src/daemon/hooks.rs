@@ -116,10 +116,14 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
-        let tried = self.shared.with_status(|s| s.contacts_tried.clone());
-        let (lattice, tries, refitted) = self
-            .shared
-            .with_status(|s| (s.lattice, s.tries.clone(), s.refitted_mount));
+        let (lattice, tries, refitted, tried) = self.shared.with_status(|s| {
+            (
+                s.lattice,
+                s.tries.clone(),
+                s.refitted_mount,
+                s.contacts_tried.clone(),
+            )
+        });
         let mut cp = Checkpoint::new();
         let mut r = cp
             .put(&progress)

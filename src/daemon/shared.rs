@@ -156,7 +156,7 @@ pub struct LiveStatus {
     /// with [`Progress`], what the robot is doing now, for the simulator's
     /// overlap breakdown.
     pub path_motions: Option<PathMotions>,
-    /// The planner's counters as of its newest path.
+    /// The planner's counters as of its newest path, or its end.
     pub plan_stats: crate::plan::planner::PlanStats,
 }
 

@@ -862,8 +862,11 @@ impl Stage for PlanStage {
                     &here,
                 ) => {}
             PlanStatus::Done(r) => {
-                self.shared
-                    .with_status(|s| s.decomposition = Some(Arc::new(decomp.clone())));
+                let stats = self.planner.stats();
+                self.shared.with_status(|s| {
+                    s.decomposition = Some(Arc::new(decomp.clone()));
+                    s.plan_stats = stats;
+                });
                 self.shared.done.store(true, Ordering::Relaxed);
                 log::info!(
                     "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned, {:.2} m² of leftovers declined",

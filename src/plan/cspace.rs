@@ -895,12 +895,19 @@ impl CSpace {
     /// Whether the straight segment `a`–`b` keeps the robot body off every
     /// seen obstacle (sampled every quarter cell).
     pub fn segment_safe(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
+        self.first_unsafe(a, b).is_none()
+    }
+
+    /// The first sample of the straight segment `a`–`b` (every quarter
+    /// cell, from `a`) where the bare body would touch a seen obstacle or
+    /// leave the map; `None` when the whole segment is safe.
+    pub fn first_unsafe(&self, a: &Point2<f64>, b: &Point2<f64>) -> Option<Point2<f64>> {
         let d = b - a;
         let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
-        (0..=n).all(|k| {
-            let p = a + d * (k as f64 / n as f64);
-            self.frame
-                .index_of(&p)
+        (0..=n).map(|k| a + d * (k as f64 / n as f64)).find(|p| {
+            !self
+                .frame
+                .index_of(p)
                 .is_some_and(|i| self.collision_free[i])
         })
     }

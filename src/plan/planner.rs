@@ -829,29 +829,25 @@ impl CoveragePlanner {
         if let Some(next) = progress {
             // Blocked by something seen since?
             let from = next.min(self.path.len());
-            if let Some(k) = self.path[from..]
+            if let Some((k, q)) = self.path[from..]
                 .windows(2)
-                .position(|s| !self.cspace.segment_safe(&s[0], &s[1]))
+                .enumerate()
+                .find_map(|(k, s)| self.cspace.first_unsafe(&s[0], &s[1]).map(|q| (k, q)))
             {
                 let (a, b) = (self.path[from + k], self.path[from + k + 1]);
                 if log::log_enabled!(log::Level::Debug) {
-                    let n = (((b - a).norm() / (f.res * 0.25)).ceil() as usize).max(1);
-                    let by = (0..=n)
-                        .map(|j| a + (b - a) * (j as f64 / n as f64))
-                        .find(|q| {
-                            f.index_of(q)
-                                .is_some_and(|i| !self.cspace.collision_free[i])
-                        })
-                        .and_then(|q| self.cspace.blocker(&q));
-                    let by = by.map_or("nothing found".to_string(), |bl| {
-                        format!(
-                            "{} at ({:.3}, {:.3}), {:.3} m from the path",
-                            bl.kind.describe(),
-                            bl.at.x,
-                            bl.at.y,
-                            bl.distance
-                        )
-                    });
+                    let by = self
+                        .cspace
+                        .blocker(&q)
+                        .map_or("nothing found".to_string(), |bl| {
+                            format!(
+                                "{} at ({:.3}, {:.3}), {:.3} m from the path",
+                                bl.kind.describe(),
+                                bl.at.x,
+                                bl.at.y,
+                                bl.distance
+                            )
+                        });
                     log::debug!(
                         "plan: path blocked between ({:.2}, {:.2}) and ({:.2}, {:.2}) m, {} waypoints ahead, by {by}; planning again",
                         a.x,
