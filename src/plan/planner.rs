@@ -1367,11 +1367,8 @@ impl CoveragePlanner {
             return (path, motions);
         };
         if let Some(entry) = f.index_of(&first.a) {
-            if let Some(mut t) = self.cspace.path_to(entry) {
-                if !t.is_empty() {
-                    t.remove(0);
-                }
-                t.pop();
+            if let Some(t) = self.cspace.path_to(entry) {
+                let t = splice(&self.cspace, None, t, &first.a);
                 motions.resize(t.len(), Motion::Transit);
                 path.extend(t);
             }
@@ -1386,13 +1383,10 @@ impl CoveragePlanner {
             if let Some(q) = prev {
                 if !self.cspace.segment_clear(&q, &l.a) {
                     if let (Some(a), Some(b)) = (f.index_of(&q), f.index_of(&l.a)) {
-                        if let Some(mut t) = self.cspace.astar(a, b) {
-                            if t.len() >= 2 {
-                                t.remove(0);
-                                t.pop();
-                                motions.resize(motions.len() + t.len(), join);
-                                path.extend(t);
-                            }
+                        if let Some(t) = self.cspace.astar(a, b) {
+                            let t = splice(&self.cspace, Some(&q), t, &l.a);
+                            motions.resize(motions.len() + t.len(), join);
+                            path.extend(t);
                         }
                     }
                 }
@@ -2548,9 +2542,88 @@ fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
     out
 }
 
+/// The waypoints between `from` (`None`: the robot, where the path starts)
+/// and `to` of a searched path `t` (cell centres from `from`'s cell to
+/// `to`'s): `t` without its first and last centre where the straight
+/// segment from `from`, or to `to`, stays on traversable cells. Lane ends
+/// lie off the cell centres: a segment cut short past a centre may come
+/// closer to a wall than the search did.
+fn splice(
+    cs: &CSpace,
+    from: Option<&Point2<f64>>,
+    mut t: Vec<Point2<f64>>,
+    to: &Point2<f64>,
+) -> Vec<Point2<f64>> {
+    if t.len() < 2 {
+        return Vec::new();
+    }
+    if from.is_none_or(|q| cs.segment_clear(q, &t[1])) {
+        t.remove(0);
+    }
+    let before_last = if t.len() >= 2 {
+        Some(t[t.len() - 2])
+    } else {
+        from.copied()
+    };
+    if before_last.is_none_or(|p| cs.segment_clear(&p, to)) {
+        t.pop();
+    }
+    t
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_searched_path_spliced_to_points_off_the_cell_centres_keeps_its_clearance() {
+        // A pillar in the walled room; paths searched around it from
+        // points off the cell centres (lane ends lie anywhere in a cell)
+        // to a goal on its far side. Every segment of the spliced path
+        // must pass the check that blocks paths: cut short past the first
+        // or last centre, the segment from a point beside the pillar's
+        // clearance would clip it.
+        let g = crate::plan::test_support::room_with(60, 40, |x, y| {
+            (26..34).contains(&x) && (14..26).contains(&y)
+        });
+        let mut cs = CSpace::new(0.18, 0.17);
+        cs.rebuild(&g);
+        let f = cs.frame;
+        let goal = Point2::new(2.2, 1.0);
+        let gi = f.index_of(&goal).unwrap();
+        assert!(cs.traversable[gi]);
+        let (mut tried, mut blocked) = (0, 0);
+        for ky in 0..=120 {
+            for kx in 0..=60 {
+                let q = Point2::new(0.6 + kx as f64 * 0.01, 0.4 + ky as f64 * 0.01);
+                let Some(qi) = f.index_of(&q) else { continue };
+                if !cs.traversable[qi] || cs.segment_clear(&q, &goal) {
+                    continue;
+                }
+                let t = cs.astar(qi, gi).unwrap();
+                // Both end centres dropped whatever the segments (as the
+                // planner did): some such paths fail the blocked check.
+                let mut bare = vec![q];
+                bare.extend_from_slice(&t[1..t.len() - 1]);
+                bare.push(goal);
+                blocked += usize::from(!bare.windows(2).all(|s| cs.segment_safe(&s[0], &s[1])));
+                let way = splice(&cs, Some(&q), t, &goal);
+                let mut pts = vec![q];
+                pts.extend(way);
+                pts.push(goal);
+                tried += 1;
+                for s in pts.windows(2) {
+                    assert!(
+                        cs.segment_clear(&s[0], &s[1]),
+                        "from {q}: {} -> {} leaves the clearance",
+                        s[0],
+                        s[1]
+                    );
+                }
+            }
+        }
+        assert!(tried > 1000 && blocked > 0, "{blocked} of {tried}");
+    }
 
     /// One region per x: a single lane from (x, 0) to (x, 1), drivable
     /// either way, entered from the robot at `robot`.
