@@ -380,6 +380,37 @@ impl CSpace {
         self.hold = rebuilds;
     }
 
+    /// Lets go at once every surface the grid no longer holds and only the
+    /// hold ([`CSpace::set_surface_hold`]) keeps blocking; returns their
+    /// cells. The hold steadies the plan while the robot works; when
+    /// nothing is left to do, floor beside such a cell is not to be lost to
+    /// it.
+    pub fn release_held(&mut self) -> Vec<usize> {
+        let w = self.frame.w;
+        let mut released: Option<Rect> = None;
+        let mut cells = Vec::new();
+        for (i, u) in self.held_until.iter_mut().enumerate() {
+            if *u == 0 {
+                continue;
+            }
+            *u = 0;
+            self.held[i] = false;
+            cells.push(i);
+            let (x, y) = (i % w, i / w);
+            let cell = Rect {
+                x0: x,
+                y0: y,
+                x1: x,
+                y1: y,
+            };
+            released = Some(released.map_or(cell, |r| r.union(&cell)));
+        }
+        if let Some(r) = released {
+            self.reinflate(r);
+        }
+        cells
+    }
+
     /// Brings states and the traversable mask up to date with `grid`.
     ///
     /// Incremental: only cells whose state or held surface changed since the
@@ -1153,6 +1184,36 @@ mod tests {
         let_go(&mut g);
         plain.rebuild(&g);
         assert!(plain.collision_free[near]);
+    }
+
+    #[test]
+    fn a_surface_kept_only_by_the_hold_is_let_go_on_request_and_one_still_held_is_not() {
+        let (mut g, y) = hit_then_passed(40, 1.02);
+        let mut c = CSpace::new(0.2, 0.17);
+        c.set_surface_hold(100);
+        c.rebuild(&g);
+        let near = c.frame.index_of(&Point2::new(1.02 - 0.12, y)).unwrap();
+        // Held by the grid: nothing to let go.
+        assert!(c.release_held().is_empty());
+        assert!(!c.collision_free[near]);
+        for _ in 0..crate::grid::HIT_CREDIT {
+            g.integrate_ray(&Point2::new(1.02, 0.1), &Point2::new(1.02, 0.9), false);
+        }
+        c.rebuild(&g);
+        assert!(!c.traversable[near] && !c.collision_free[near]);
+        // Kept only by the hold: let go at once, and the clearance with it.
+        let cell = c.frame.index_of(&Point2::new(1.02, y)).unwrap();
+        assert_eq!(c.release_held(), vec![cell]);
+        assert!(c.traversable[near] && c.collision_free[near]);
+        // As a fresh configuration space of the same grid says.
+        let mut fresh = CSpace::new(0.2, 0.17);
+        fresh.rebuild(&g);
+        assert_eq!(fresh.traversable, c.traversable);
+        assert_eq!(fresh.collision_free, c.collision_free);
+        // Nothing pending any more; the next rebuild keeps it let go.
+        assert!(c.release_held().is_empty());
+        c.rebuild(&g);
+        assert!(c.collision_free[near]);
     }
 
     #[test]

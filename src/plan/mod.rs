@@ -106,7 +106,9 @@ pub struct PlanParams {
     /// [`cspace::CSpace::set_surface_hold`]); 0 = as the map says. In the
     /// closed loop on office_f:0 (×5, 4 and 6 runs) 100 took the tasks
     /// planned from 33-55 to 15-20 a run and the overlap from 39.9 to
-    /// 34.2 % (coverage 98.96 against 99.04 %).
+    /// 34.2 % (coverage 98.96 against 99.04 %). The hold ends the first
+    /// time nothing is left to do, and the surfaces it kept are let go (the
+    /// floor beside them is looked at again).
     pub surface_hold: u32,
 }
 

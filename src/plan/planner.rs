@@ -322,6 +322,9 @@ pub struct CoveragePlanner {
     forgiven: usize,
     /// Floor given up has had its second round (see `retry_given_up`).
     retried: bool,
+    /// The surface hold ([`PlanParams::surface_hold`]) ended: nothing was
+    /// left to do once.
+    hold_ended: bool,
     /// Travel costs between lane ends of the last lane tour (reused buffer).
     tour_costs: Vec<f64>,
 }
@@ -451,6 +454,7 @@ impl CoveragePlanner {
             forgiven_at: 0,
             forgiven: 0,
             retried: false,
+            hold_ended: false,
             tour_costs: Vec::new(),
             in_cell: Vec::new(),
             split_task: false,
@@ -1177,6 +1181,26 @@ impl CoveragePlanner {
             }
         } else {
             self.boxed_in = 0;
+        }
+        // The hold steadies the plan while there is work; with none left it
+        // ends for the run. Surfaces kept blocking only by it are let go:
+        // floor beside them given up gets its tries back, and is looked at
+        // again from the next update.
+        if cands.is_empty() && !self.hold_ended {
+            self.hold_ended = true;
+            self.cspace.set_surface_hold(0);
+            let cells = self.cspace.release_held();
+            if !cells.is_empty() {
+                log::debug!(
+                    "nothing left to do: {} surfaces kept only by the hold let go, the floor beside them looked at again",
+                    cells.len()
+                );
+                let f = self.cspace.frame;
+                let around: Vec<Point2<f64>> = cells.iter().map(|&i| f.centre(i)).collect();
+                self.set_task(Task::Idle, Vec::new(), None);
+                self.reopen(&around, self.cspace.inflation() + self.reach + f.res);
+                return working(Task::Idle);
+            }
         }
         // Floor given up while the map was still changing (tasks interrupted
         // again and again at furniture seen from closer) gets one more
@@ -3175,6 +3199,67 @@ mod tests {
             assert_eq!(covers_floor(&st), covers, "share {share}: {st:?}");
             if !covers {
                 assert!(matches!(st, PlanStatus::Done(_)), "{st:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn with_nothing_left_the_hold_ends_and_floor_beside_the_surfaces_it_kept_is_covered() {
+        // The walled room swept but for a strip along a row of chair-leg
+        // cells from (1.02, 1.02) to (2.02, 1.02) m. The grid held surfaces
+        // there and let them go; the hold keeps them blocking, so the strip
+        // is out of reach. With nothing else to do the hold ends: the cells
+        // are let go, and the strip is covered from the next update (not
+        // declared done).
+        let empty = Decomposition::default();
+        let at = crate::geom::pose(0.5, 0.5, 0.0);
+        let legs: Vec<f64> = (0..=20).map(|k| 1.02 + 0.05 * k as f64).collect();
+        let y = 1.02;
+        for (hold, let_go) in [(100, true), (100, false), (0, true)] {
+            let params = PlanParams {
+                look_around: false,
+                surface_hold: hold,
+                ..PlanParams::default()
+            };
+            let mut p = CoveragePlanner::new(&params, &RobotParams::default()).unwrap();
+            let mut g = crate::plan::test_support::walled_room();
+            for &x in &legs {
+                g.integrate_ray(&Point2::new(x, 0.5), &Point2::new(x, y), true);
+            }
+            p.update(&g, &empty, &at, None).unwrap();
+            if let_go {
+                for &x in &legs {
+                    for _ in 0..crate::grid::HIT_CREDIT {
+                        g.integrate_ray(&Point2::new(x, 0.1), &Point2::new(x, 1.9), false);
+                    }
+                }
+            }
+            let f = p.cspace.frame;
+            for (i, c) in p.covered.iter_mut().enumerate() {
+                let q = f.centre(i);
+                *c = (q.y - y).abs() > 0.06 || q.x < 0.95 || q.x > 2.1;
+            }
+            p.interrupt();
+            let case = format!("hold {hold}, let go {let_go}");
+            let st = p.update(&g, &empty, &at, None).unwrap();
+            match (hold, let_go) {
+                (0, _) => assert!(covers_floor(&st), "{case}: {st:?}"),
+                (_, true) => {
+                    assert!(
+                        matches!(
+                            st,
+                            PlanStatus::Working {
+                                task: Task::Idle,
+                                ..
+                            }
+                        ),
+                        "{case}: {st:?}"
+                    );
+                    let st = p.update(&g, &empty, &at, None).unwrap();
+                    assert!(covers_floor(&st), "{case}: {st:?}");
+                }
+                // Still held by the grid: the strip is out of reach.
+                _ => assert!(matches!(st, PlanStatus::Done(_)), "{case}: {st:?}"),
             }
         }
     }
