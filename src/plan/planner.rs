@@ -303,8 +303,13 @@ pub struct CoveragePlanner {
     tries_generation: u64,
     /// The current cover task drives only part of its region's lanes.
     split_task: bool,
-    /// Reachable centres inside some cell of the decomposition.
-    in_cell: Vec<bool>,
+    /// Per reachable centre, the region holding it: the index (in the
+    /// current decomposition) of its cell, or of the cell that sliver is lent
+    /// to (see [`Self::mark_cells`]); `u32::MAX` outside every cell.
+    region_of: Vec<u32>,
+    /// Per cell of the current decomposition (by index), the index of the
+    /// neighbour it is lent to when it is a sliver.
+    lent_to: Vec<Option<usize>>,
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
     phase: [Option<f64>; 2],
     /// Consecutive updates that found the robot boxed in (see [`BOXED_IN_UPDATES`]).
@@ -456,7 +461,8 @@ impl CoveragePlanner {
             retried: false,
             hold_ended: false,
             tour_costs: Vec::new(),
-            in_cell: Vec::new(),
+            region_of: Vec::new(),
+            lent_to: Vec::new(),
             split_task: false,
         })
     }
@@ -526,7 +532,7 @@ impl CoveragePlanner {
             self.scratch_a = vec![false; n];
             self.scratch_t = vec![false; n];
             self.owner = vec![u32::MAX; n];
-            self.in_cell = vec![false; n];
+            self.region_of = vec![u32::MAX; n];
             self.tries = vec![0; n];
             self.tries_generation += 1;
             let res = self.cspace.frame.res;
@@ -1585,24 +1591,73 @@ impl CoveragePlanner {
             Axis::X => row * f.w + j % f.w,
             Axis::Y => (j / f.w) * f.w + row,
         };
-        self.in_cell[k].then_some(k)
+        (self.region_of[k] != u32::MAX).then_some(k)
     }
 
-    /// Marks the reachable centres that lie inside a cell (any status).
+    /// Marks the reachable centres that lie inside a cell (any status), and
+    /// lends each sliver to a neighbour.
+    ///
+    /// A sliver is a cell with fewer reachable centres than the smallest
+    /// patch worth a drive: it can never be a region of its own, yet floor
+    /// beside it whose nearest lattice lane lies in it belongs to it (see
+    /// [`Self::region_candidate`]), so that floor would be left to neither
+    /// neighbour. A sliver is lent to the neighbour of the same status that
+    /// is no sliver and shares the longest boundary with it; that neighbour
+    /// covers it as part of itself.
     fn mark_cells(&mut self, decomp: &Decomposition) {
         let f = self.cspace.frame;
-        self.in_cell.fill(false);
-        for cell in decomp.cells.iter().filter(|c| c.polygon.len() >= 3) {
+        self.region_of.fill(u32::MAX);
+        let mut centres = vec![0usize; decomp.cells.len()];
+        for (n, cell) in decomp.cells.iter().enumerate() {
+            if cell.polygon.len() < 3 {
+                continue;
+            }
             let Some((x0, y0, x1, y1)) = cell_bbox(cell, &f) else {
                 continue;
             };
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let i = y * f.w + x;
-                    if self.reachable_mask[i] && !self.in_cell[i] {
-                        self.in_cell[i] = cell.contains(&f.centre(i));
+                    if self.reachable_mask[i]
+                        && self.region_of[i] == u32::MAX
+                        && cell.contains(&f.centre(i))
+                    {
+                        self.region_of[i] = n as u32;
+                        centres[n] += 1;
                     }
                 }
+            }
+        }
+        let min = self.min_patch_cells();
+        let index = |id: CellId| decomp.cells.iter().position(|c| c.id == id);
+        self.lent_to.clear();
+        for (n, cell) in decomp.cells.iter().enumerate() {
+            let sliver = cell.status != CellStatus::Open && (1..min).contains(&centres[n]);
+            let mut best: Option<(f64, usize)> = None;
+            for adj in decomp.adjacency.iter().filter(|_| sliver) {
+                let other = if adj.a == cell.id {
+                    adj.b
+                } else if adj.b == cell.id {
+                    adj.a
+                } else {
+                    continue;
+                };
+                let Some(m) = index(other) else {
+                    continue;
+                };
+                let shared = adj.boundary.length();
+                if decomp.cells[m].status == cell.status
+                    && centres[m] >= min
+                    && best.is_none_or(|(l, _)| shared > l)
+                {
+                    best = Some((shared, m));
+                }
+            }
+            self.lent_to.push(best.map(|(_, m)| m));
+        }
+        for r in self.region_of.iter_mut().filter(|r| **r != u32::MAX) {
+            if let Some(host) = self.lent_to[*r as usize] {
+                *r = host as u32;
             }
         }
     }
@@ -1738,18 +1793,27 @@ impl CoveragePlanner {
         let f = self.cspace.frame;
         let min = self.min_patch_cells();
         let mut out = Vec::new();
-        for cell in decomp.cells.iter().filter(|c| c.status == status) {
-            if cell.polygon.len() < 3 {
+        for (n, cell) in decomp.cells.iter().enumerate() {
+            if cell.status != status || cell.polygon.len() < 3 || self.lent_to[n].is_some() {
                 continue;
             }
-            let Some(bbox) = cell_bbox(cell, &f) else {
+            // The cell and the slivers lent to it.
+            let Some(bbox) = std::iter::once(cell)
+                .chain(
+                    (0..decomp.cells.len())
+                        .filter(|&m| self.lent_to[m] == Some(n))
+                        .map(|m| &decomp.cells[m]),
+                )
+                .filter_map(|c| cell_bbox(c, &f))
+                .reduce(|a, b| (a.0.min(b.0), a.1.min(b.1), a.2.max(b.2), a.3.max(b.3)))
+            else {
                 continue;
             };
             let mut any = false;
             for y in bbox.1..=bbox.3 {
                 for x in bbox.0..=bbox.2 {
                     let i = y * f.w + x;
-                    let inside = self.reachable_mask[i] && cell.contains(&f.centre(i));
+                    let inside = self.region_of[i] == n as u32;
                     self.scratch_a[i] = inside;
                     any |= inside;
                 }
@@ -3199,6 +3263,99 @@ mod tests {
             assert_eq!(covers_floor(&st), covers, "share {share}: {st:?}");
             if !covers {
                 assert!(matches!(st, PlanStatus::Done(_)), "{st:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn floor_whose_nearest_lattice_lane_lies_in_a_sliver_cell_is_still_some_regions() {
+        // The bumper tests' room: 3.2 m x 2.6 m, a box over (1.8..2.3,
+        // 1.0..1.5) m, decomposed as the lock-step run decomposes it there:
+        // a cell below the box, one each side of it, one above, and a sliver
+        // below the box's south-east corner (y 0.81..0.91 m) with 20
+        // reachable centres, too few to be a region of its own. The sliver
+        // holds the lattice lane (0.855 m) nearest to the floor at y =
+        // 0.925-0.975 m east of the box. The lane tour takes the cells in
+        // turn, each leaving to the next what its lanes do not reach: what
+        // no lane reaches and no region claims is floor left out.
+        let grid = crate::plan::test_support::room_with(64, 52, |x, y| {
+            (36..46).contains(&x) && (20..30).contains(&y)
+        });
+        let rect = |id: u32, x0: f64, y0: f64, x1: f64, y1: f64| crate::decomp::Cell {
+            id: CellId(id),
+            polygon: vec![
+                Point2::new(x0, y0),
+                Point2::new(x1, y0),
+                Point2::new(x1, y1),
+                Point2::new(x0, y1),
+            ],
+            status: CellStatus::Final,
+            sweep_angle: 0.0,
+            width: y1 - y0,
+            length: x1 - x0,
+        };
+        let edge = |a: u32, b: u32, x0: f64, x1: f64, y: f64| crate::decomp::Adjacency {
+            a: CellId(a),
+            b: CellId(b),
+            boundary: Segment::new(Point2::new(x0, y), Point2::new(x1, y)),
+        };
+        let decomp = Decomposition {
+            cells: vec![
+                rect(0, 0.05, 0.05, 3.15, 0.81),
+                rect(1, 0.05, 0.81, 1.8, 1.69),
+                rect(2, 2.3, 0.91, 3.15, 1.69),
+                rect(3, 0.05, 1.69, 3.15, 2.55),
+                rect(4, 1.9, 0.81, 3.15, 0.91),
+            ],
+            adjacency: vec![
+                edge(0, 1, 0.05, 1.8, 0.81),
+                edge(0, 4, 1.9, 3.15, 0.81),
+                edge(4, 2, 2.3, 3.15, 0.91),
+                edge(1, 3, 0.05, 1.8, 1.69),
+                edge(2, 3, 2.3, 3.15, 1.69),
+            ],
+            ..Decomposition::default()
+        };
+        let params = PlanParams {
+            look_around: false,
+            ..PlanParams::default()
+        };
+        let robot = RobotParams::default();
+        let mut p = CoveragePlanner::new(&params, &robot).unwrap();
+        p.update(&grid, &decomp, &crate::geom::pose(0.5, 0.5, 0.0), None)
+            .unwrap();
+        let f = p.cspace.frame;
+        let east = |c: Point2<f64>| (0.9..1.0).contains(&c.y) && c.x > 2.25;
+        for lend in [false, true] {
+            p.compute_targets();
+            p.mark_cells(&decomp);
+            if !lend {
+                p.lent_to.iter_mut().for_each(|l| *l = None);
+                for (i, r) in p.region_of.iter_mut().enumerate() {
+                    if p.reachable_mask[i] && decomp.cells[4].contains(&f.centre(i)) {
+                        *r = 4;
+                    }
+                }
+            }
+            assert_eq!(p.lent_to[4], lend.then_some(0), "lend {lend}");
+            let cands = p.cell_candidates(&decomp, CellStatus::Final);
+            let mut claimed = vec![false; f.len()];
+            for c in &cands {
+                for &i in &c.targets {
+                    claimed[i] = true;
+                }
+            }
+            let orphans: Vec<_> = (0..f.len())
+                .filter(|&i| p.targets[i] && !claimed[i])
+                .map(|i| f.centre(i))
+                .collect();
+            assert_eq!(
+                orphans.iter().any(|&c| east(c)),
+                !lend,
+                "lend {lend}: {orphans:?}"
+            );
+            if lend {
+                assert!(orphans.is_empty(), "{orphans:?}");
             }
         }
     }
