@@ -219,6 +219,10 @@ struct Move {
     rev: bool,
 }
 
+/// Where a stretch goes back in: the exit end before, the entry end after,
+/// and the cost of the link between them (see [`Search::gap`]).
+type Gap = (Option<usize>, Option<usize>, f64);
+
 /// The local search's state: the tour, each lane's place in it, and the
 /// lanes whose links are still to be tried (don't-look bits).
 struct Search<'a> {
@@ -228,6 +232,8 @@ struct Search<'a> {
     queue: std::collections::VecDeque<usize>,
     queued: Vec<bool>,
     places: Vec<usize>,
+    /// Scratch: the indices an or-opt stretch may go to.
+    tos: Vec<usize>,
 }
 
 impl<'a> Search<'a> {
@@ -240,6 +246,7 @@ impl<'a> Search<'a> {
             queue: std::collections::VecDeque::with_capacity(n),
             queued: vec![false; n],
             places: Vec::with_capacity(4 + 2 * NEAR),
+            tos: Vec::with_capacity(2 * (4 + 2 * NEAR)),
         };
         s.reindex();
         s
@@ -337,20 +344,28 @@ impl<'a> Search<'a> {
     /// What putting the stretch of `mv` back costs: its two new links less
     /// the one it opens.
     fn added(&self, mv: Move) -> f64 {
+        self.added_at(mv, self.gap(mv.at, mv.len, mv.to))
+    }
+
+    /// The link the stretch `t[at..at + len]` would open when put back at
+    /// index `to` of the tour without it: the exit end before and the entry
+    /// end after that index (`None` at the tour's start and end), and the
+    /// cost of the link between them.
+    fn gap(&self, at: usize, len: usize, to: usize) -> Gap {
         let (t, c) = (&self.t, self.c);
-        let Move {
-            at: i,
-            len,
-            to: p,
-            rev,
-        } = mv;
-        // The tour without the stretch: its index q is t[q] before i, t[q + len] after.
-        let rest = |q: usize| if q < i { t[q] } else { t[q + len] };
-        let before = (p > 0).then(|| exit(rest(p - 1)));
-        let after = (p < t.len() - len).then(|| entry(rest(p)));
+        // The tour without the stretch: its index q is t[q] before at, t[q + len] after.
+        let rest = |q: usize| if q < at { t[q] } else { t[q + len] };
+        let before = (to > 0).then(|| exit(rest(to - 1)));
+        let after = (to < t.len() - len).then(|| entry(rest(to)));
         let base = after.map_or(0.0, |b| c.link(before, b));
-        let (se, sx) = (entry(t[i]), exit(t[i + len - 1]));
-        let (e, x) = if rev { (sx, se) } else { (se, sx) };
+        (before, after, base)
+    }
+
+    /// [`Self::added`] with the gap of `mv` already found.
+    fn added_at(&self, mv: Move, (before, after, base): Gap) -> f64 {
+        let (t, c) = (&self.t, self.c);
+        let (se, sx) = (entry(t[mv.at]), exit(t[mv.at + mv.len - 1]));
+        let (e, x) = if mv.rev { (sx, se) } else { (se, sx) };
         c.link(before, e) + c.tail(x, after) - base
     }
 
@@ -360,6 +375,7 @@ impl<'a> Search<'a> {
     fn best_at(&mut self, i: usize) -> Option<Move> {
         let n = self.t.len();
         let mut places = std::mem::take(&mut self.places);
+        let mut tos = std::mem::take(&mut self.tos);
         places.clear();
         places.extend([0, n - 1, i.saturating_sub(1), (i + 1).min(n - 1)]);
         // An improving move makes a link shorter than one it breaks: from
@@ -424,18 +440,28 @@ impl<'a> Search<'a> {
                 if removed <= 1e-9 {
                     continue;
                 }
+                // Each index the stretch may go to, once (neighbouring
+                // places share one), in the order the places give them.
+                tos.clear();
                 for &p in places.iter().filter(|&&p| !(at..at + len).contains(&p)) {
                     let r = if p < at { p } else { p - len };
                     for to in [r, r + 1] {
-                        for rev in [false, true] {
-                            let mv = Move { at, len, to, rev };
-                            consider(mv, removed - self.added(mv));
+                        if !tos.contains(&to) {
+                            tos.push(to);
                         }
+                    }
+                }
+                for &to in &tos {
+                    let gaps = self.gap(at, len, to);
+                    for rev in [false, true] {
+                        let mv = Move { at, len, to, rev };
+                        consider(mv, removed - self.added_at(mv, gaps));
                     }
                 }
             }
         }
         self.places = places;
+        self.tos = tos;
         best.map(|(_, mv)| mv)
     }
 }
