@@ -1197,11 +1197,16 @@ impl CoveragePlanner {
             self.cspace.set_surface_hold(0);
             let cells = self.cspace.release_held();
             if !cells.is_empty() {
-                log::debug!(
-                    "nothing left to do: {} surfaces kept only by the hold let go, the floor beside them looked at again",
-                    cells.len()
-                );
                 let f = self.cspace.frame;
+                log::debug!(
+                    "nothing left to do: {} surfaces kept only by the hold let go, the floor beside them looked at again: {}",
+                    cells.len(),
+                    cells
+                        .iter()
+                        .map(|&i| format!("({:.2}, {:.2})", f.centre(i).x, f.centre(i).y))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
                 let around: Vec<Point2<f64>> = cells.iter().map(|&i| f.centre(i)).collect();
                 self.set_task(Task::Idle, Vec::new(), None);
                 self.reopen(&around, self.cspace.inflation() + self.reach + f.res);
