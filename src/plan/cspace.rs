@@ -100,6 +100,11 @@ pub fn disk(radius: f64, res: f64) -> Vec<(i64, i64)> {
     v
 }
 
+/// Length of a straight run of occupied cells (odd, cells) beside a surface
+/// cell that makes it a face cell, which the surface hold does not keep
+/// (see [`CSpace::set_surface_hold`]): 5 cells, 25 cm on a 5 cm grid.
+const WALL_FACE_CELLS: usize = 5;
+
 /// Configuration space and travel distances over the explored grid.
 #[derive(Clone, Debug)]
 pub struct CSpace {
@@ -376,6 +381,10 @@ impl CSpace {
     /// others, is held and let go by turns; a path planned while it is let
     /// go is blocked when it is held again, and the plan starts over. The
     /// hold makes the configuration space change once, not at every turn.
+    /// A cell just inside a straight face of [`WALL_FACE_CELLS`] occupied
+    /// cells is not held: on a wall, ranges ending in the first floor cell
+    /// now and then are noise, and holding such cells cuts the lane that
+    /// hugs the wall into pieces.
     pub fn set_surface_hold(&mut self, rebuilds: u32) {
         self.hold = rebuilds;
     }
@@ -487,6 +496,25 @@ impl CSpace {
             CellState::Occupied => OCCUPIED,
         });
         let (now, hold) = (self.rebuilds, self.hold);
+        // A cell just inside a straight face of at least WALL_FACE_CELLS
+        // occupied cells (a wall, a long piece of furniture) is not held:
+        // ranges ending in it now and then are noise on the face, and
+        // holding it would cut the lane that hugs the face.
+        let fh = self.frame.h;
+        let occupied = |x: i64, y: i64| {
+            x >= 0
+                && y >= 0
+                && (x as usize) < w
+                && (y as usize) < fh
+                && lut[evidence[y as usize * w + x as usize] as usize] == OCCUPIED
+        };
+        let wall_face = |i: usize| {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            let half = (WALL_FACE_CELLS / 2) as i64;
+            [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)]
+                .iter()
+                .any(|&(dx, dy)| (-half..=half).all(|k| occupied(x + dx - dy * k, y + dy + dx * k)))
+        };
         let mut changed: Option<Rect> = None;
         for y in read.y0..=read.y1 {
             let (a, b) = (y * w + read.x0, y * w + read.x1 + 1);
@@ -520,7 +548,7 @@ impl CSpace {
                 let held = if c > 0 {
                     *u = 0;
                     true
-                } else if *h && hold > 0 {
+                } else if *h && hold > 0 && (*u != 0 || !wall_face(a + j)) {
                     if *u == 0 {
                         *u = now.saturating_add(hold);
                     }
@@ -1184,6 +1212,41 @@ mod tests {
         let_go(&mut g);
         plain.rebuild(&g);
         assert!(plain.collision_free[near]);
+    }
+
+    #[test]
+    fn a_surface_just_inside_a_long_face_is_not_held_and_one_beside_a_short_one_is() {
+        // Cell (20, 10) at x = 1.00..1.05 m, a beam once ended in it and
+        // later beams passed: a wall face at x = 1.05 m (column 21
+        // occupied) over 5 rows or more makes it noise on the face, let go
+        // at once; beside 3 rows (a post) it is held like a chair leg.
+        for (rows, held) in [
+            (0..20, false),
+            (6..15, false),
+            (8..13, false),
+            (9..12, true),
+        ] {
+            let (mut g, _) = hit_then_passed(21, 1.02);
+            for y in rows.clone() {
+                g.set_state((21, y), CellState::Occupied);
+            }
+            g.integrate_ray(
+                &Point2::new(0.1, 10.5 * 0.05),
+                &Point2::new(1.02, 10.5 * 0.05),
+                true,
+            );
+            let mut c = CSpace::new(0.2, 0.17);
+            c.set_surface_hold(100);
+            c.rebuild(&g);
+            let cell = 10 * c.frame.w + 20;
+            assert!(c.held[cell], "rows {rows:?}: held while the grid holds it");
+            for _ in 0..crate::grid::HIT_CREDIT {
+                g.integrate_ray(&Point2::new(1.02, 0.1), &Point2::new(1.02, 0.9), false);
+            }
+            assert!(!g.holds_surface((20, 10)));
+            c.rebuild(&g);
+            assert_eq!(c.held[cell], held, "rows {rows:?}");
+        }
     }
 
     #[test]

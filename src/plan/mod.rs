@@ -108,7 +108,9 @@ pub struct PlanParams {
     /// planned from 33-55 to 15-20 a run and the overlap from 39.9 to
     /// 34.2 % (coverage 98.96 against 99.04 %). The hold ends the first
     /// time nothing is left to do, and the surfaces it kept are let go (the
-    /// floor beside them is looked at again).
+    /// floor beside them is looked at again). A cell just inside a straight
+    /// face of 5 cells or more (a wall) is not held: ranges ending in it now
+    /// and then are noise, and holding it cut the lane hugging the wall.
     pub surface_hold: u32,
 }
 
