@@ -1198,16 +1198,16 @@ impl CoveragePlanner {
             let cells = self.cspace.release_held();
             if !cells.is_empty() {
                 let f = self.cspace.frame;
+                let around: Vec<Point2<f64>> = cells.iter().map(|&i| f.centre(i)).collect();
                 log::debug!(
                     "nothing left to do: {} surfaces kept only by the hold let go, the floor beside them looked at again: {}",
-                    cells.len(),
-                    cells
+                    around.len(),
+                    around
                         .iter()
-                        .map(|&i| format!("({:.2}, {:.2})", f.centre(i).x, f.centre(i).y))
+                        .map(|c| format!("({:.2}, {:.2})", c.x, c.y))
                         .collect::<Vec<_>>()
                         .join(", ")
                 );
-                let around: Vec<Point2<f64>> = cells.iter().map(|&i| f.centre(i)).collect();
                 self.set_task(Task::Idle, Vec::new(), None);
                 self.reopen(&around, self.cspace.inflation() + self.reach + f.res);
                 return working(Task::Idle);
@@ -1638,8 +1638,12 @@ impl CoveragePlanner {
         self.lent_to.clear();
         for (n, cell) in decomp.cells.iter().enumerate() {
             let sliver = cell.status != CellStatus::Open && (1..min).contains(&centres[n]);
+            if !sliver {
+                self.lent_to.push(None);
+                continue;
+            }
             let mut best: Option<(f64, usize)> = None;
-            for adj in decomp.adjacency.iter().filter(|_| sliver) {
+            for adj in &decomp.adjacency {
                 let other = if adj.a == cell.id {
                     adj.b
                 } else if adj.b == cell.id {
