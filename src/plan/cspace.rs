@@ -222,20 +222,29 @@ impl Rect {
     }
 }
 
+/// A search frontier entry; the heap pops the least cost first, the least
+/// index among equal costs (so searches are deterministic).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Entry {
     cost: f64,
     idx: u32,
 }
 
+impl Entry {
+    /// The cost's bit pattern: for the non-negative costs of these searches
+    /// (0, finite sums of positive steps, +∞) it orders as the cost does, and
+    /// an integer comparison is cheaper than a float one in the heap.
+    fn key(&self) -> (u64, u32) {
+        debug_assert!(self.cost >= 0.0, "negative search cost {}", self.cost);
+        (self.cost.to_bits(), self.idx)
+    }
+}
+
 impl Eq for Entry {}
 
 impl Ord for Entry {
     fn cmp(&self, o: &Self) -> Ordering {
-        o.cost
-            .partial_cmp(&self.cost)
-            .unwrap_or(Ordering::Equal)
-            .then_with(|| o.idx.cmp(&self.idx))
+        o.key().cmp(&self.key())
     }
 }
 

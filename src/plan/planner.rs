@@ -213,6 +213,9 @@ const NEW_FLOOR_MIN_CELLS: usize = 8;
 /// connection passes, are not worth a lane of their own.
 const MIN_TARGET_CLUSTER: usize = 4;
 
+/// [`CoveragePlanner::floor_owner`]: floor not asked about yet.
+const OWNER_UNSET: u32 = u32::MAX - 1;
+
 /// Pose records a cell may be out from under the tool and still count as
 /// the same pass when it comes back (jitter at the tool's edge).
 const SAME_PASS_RECORDS: u32 = 10;
@@ -310,6 +313,11 @@ pub struct CoveragePlanner {
     /// Per cell of the current decomposition (by index), the index of the
     /// neighbour it is lent to when it is a sliver.
     lent_to: Vec<Option<usize>>,
+    /// Per axis and floor cell, the reachable centre whose region the floor
+    /// belongs to (see [`Self::floor_owner`]), `u32::MAX` for none, or
+    /// [`OWNER_UNSET`] until asked; cleared at every
+    /// [`Self::cell_candidates`], since it follows the regions.
+    floor_owner: [Vec<u32>; 2],
     /// Lane lattice phase per axis (see [`Self::lattice_phase`]).
     phase: [Option<f64>; 2],
     /// Consecutive updates that found the robot boxed in (see [`BOXED_IN_UPDATES`]).
@@ -463,6 +471,7 @@ impl CoveragePlanner {
             tour_costs: Vec::new(),
             region_of: Vec::new(),
             lent_to: Vec::new(),
+            floor_owner: [Vec::new(), Vec::new()],
             split_task: false,
         })
     }
@@ -1599,6 +1608,21 @@ impl CoveragePlanner {
         (self.region_of[k] != u32::MAX).then_some(k)
     }
 
+    /// The reachable centre whose region floor cell `j` belongs to: the one
+    /// on its nearest lattice lane (across a virtual edge: the neighbour's);
+    /// where that lane lies in a wall, its nearest reachable centre (that
+    /// region hugs the wall). As an index, `u32::MAX` for none; remembered in
+    /// `owners` (this axis's [`Self::floor_owner`] table).
+    fn floor_owner(&self, owners: &mut [u32], j: usize, axis: Axis, phase: f64) -> usize {
+        if owners[j] == OWNER_UNSET {
+            owners[j] = match self.lattice_owner(j, axis, phase) {
+                Some(k) => k as u32,
+                None => self.owner[j],
+            };
+        }
+        owners[j] as usize
+    }
+
     /// Marks the reachable centres that lie inside a cell (any status), and
     /// lends each sliver to a neighbour.
     ///
@@ -1720,6 +1744,11 @@ impl CoveragePlanner {
             }
         }
         let mut targets = Vec::new();
+        let mut owners = std::mem::take(&mut self.floor_owner[axis as usize]);
+        if owners.len() != f.len() {
+            owners.clear();
+            owners.resize(f.len(), OWNER_UNSET);
+        }
         for y in bbox.1..=bbox.3 {
             for x in bbox.0..=bbox.2 {
                 if !self.scratch_a[y * f.w + x] {
@@ -1729,18 +1758,11 @@ impl CoveragePlanner {
                     if !self.targets[j] || self.scratch_t[j] {
                         continue;
                     }
-                    // Floor belongs to the region holding its nearest
-                    // lattice lane (across a virtual edge: the neighbour's);
-                    // where that lane lies in a wall, to the region whose
-                    // reachable centre is nearest (that region hugs the wall).
-                    let own = cell.is_none()
-                        || match self.lattice_owner(j, axis, phase) {
-                            Some(k) => self.scratch_a[k],
-                            None => {
-                                let o = self.owner[j] as usize;
-                                o < f.len() && self.scratch_a[o]
-                            }
-                        };
+                    // Floor belongs to one region: see `floor_owner`.
+                    let own = cell.is_none() || {
+                        let k = self.floor_owner(&mut owners, j, axis, phase);
+                        k < f.len() && self.scratch_a[k]
+                    };
                     if own {
                         self.scratch_t[j] = true;
                         targets.push(j);
@@ -1748,6 +1770,7 @@ impl CoveragePlanner {
                 }
             }
         }
+        self.floor_owner[axis as usize] = owners;
         // Scattered leftovers (single cells at lane ends along a wall, where
         // no connection passes) are not worth a drive: a region needs one
         // patch of at least the smallest patch worth covering.
@@ -1800,6 +1823,9 @@ impl CoveragePlanner {
 
     fn cell_candidates(&mut self, decomp: &Decomposition, status: CellStatus) -> Vec<Candidate> {
         let f = self.cspace.frame;
+        for owners in &mut self.floor_owner {
+            owners.clear();
+        }
         let min = self.min_patch_cells();
         let mut out = Vec::new();
         for (n, cell) in decomp.cells.iter().enumerate() {

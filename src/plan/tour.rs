@@ -234,6 +234,11 @@ struct Search<'a> {
     places: Vec<usize>,
     /// Scratch: the indices an or-opt stretch may go to.
     tos: Vec<usize>,
+    /// Per index of the tour, the `stamp` of the last stretch that listed
+    /// it in `tos` (a list without duplicates, in linear time).
+    to_listed: Vec<u32>,
+    /// Counts the stretches whose `tos` are listed.
+    stamp: u32,
 }
 
 impl<'a> Search<'a> {
@@ -247,6 +252,8 @@ impl<'a> Search<'a> {
             queued: vec![false; n],
             places: Vec::with_capacity(4 + 2 * NEAR),
             tos: Vec::with_capacity(2 * (4 + 2 * NEAR)),
+            to_listed: vec![0; n + 1],
+            stamp: 0,
         };
         s.reindex();
         s
@@ -443,10 +450,16 @@ impl<'a> Search<'a> {
                 // Each index the stretch may go to, once (neighbouring
                 // places share one), in the order the places give them.
                 tos.clear();
+                self.stamp = self.stamp.wrapping_add(1);
+                if self.stamp == 0 {
+                    self.to_listed.fill(0);
+                    self.stamp = 1;
+                }
                 for &p in places.iter().filter(|&&p| !(at..at + len).contains(&p)) {
                     let r = if p < at { p } else { p - len };
                     for to in [r, r + 1] {
-                        if !tos.contains(&to) {
+                        if self.to_listed[to] != self.stamp {
+                            self.to_listed[to] = self.stamp;
                             tos.push(to);
                         }
                     }
