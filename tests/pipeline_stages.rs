@@ -196,6 +196,15 @@ fn drop_oldest_queue_between_threads_keeps_order_and_counts() {
     assert!(e.max_depth <= 4 && e.max_depth >= 1);
 }
 
+/// One more work item while `ticks` last, then done.
+fn tick(ticks: &mut u64) -> Poll<()> {
+    if *ticks == 0 {
+        return Poll::Done;
+    }
+    *ticks -= 1;
+    Poll::Work(())
+}
+
 /// A stage that is too slow at full quality and fast once degraded.
 struct Heavy {
     ticks: u64,
@@ -205,11 +214,7 @@ struct Heavy {
 impl Stage for Heavy {
     type Work = ();
     fn wait(&mut self, _timeout: Duration) -> Poll<()> {
-        if self.ticks == 0 {
-            return Poll::Done;
-        }
-        self.ticks -= 1;
-        Poll::Work(())
+        tick(&mut self.ticks)
     }
     fn process(&mut self, _: (), ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         self.levels.lock().unwrap().push(ctx.degrade());
@@ -261,6 +266,54 @@ fn slow_stage_overruns_degrades_and_is_counted() {
     assert_eq!(s.degrade_level, 2);
     assert!(s.latency_q.max >= 0.004);
     assert!(s.cpu >= 0.0 && s.busy >= 0.016);
+}
+
+/// A stage whose own work is quick and whose hand-over to the next stage
+/// takes 4 ms (as when the send wakes a thread that takes the core).
+struct QuickThenHandOver {
+    ticks: u64,
+    mark: bool,
+}
+
+impl Stage for QuickThenHandOver {
+    type Work = ();
+    fn wait(&mut self, _timeout: Duration) -> Poll<()> {
+        tick(&mut self.ticks)
+    }
+    fn process(&mut self, _w: (), ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        if self.mark {
+            ctx.hand_off();
+        }
+        sleep(Duration::from_millis(4));
+        Ok(())
+    }
+}
+
+#[test]
+fn time_after_the_hand_off_is_not_the_stages_latency() {
+    let mut counts = Vec::new();
+    for mark in [false, true] {
+        let mut p = Pipeline::new(&params());
+        let h = p
+            .spawn_with_budget(
+                "scanner",
+                Duration::from_millis(1),
+                QuickThenHandOver { ticks: 20, mark },
+            )
+            .unwrap();
+        assert!(eventually(Duration::from_secs(60), || h.state() == RunState::Stopped));
+        let snap = p.stop();
+        let s = &snap.stages[0];
+        assert_eq!(s.iterations, 20);
+        counts.push((s.overruns, s.latency_q.max));
+    }
+    let ((unmarked, unmarked_max), (marked, marked_max)) = (counts[0], counts[1]);
+    assert_eq!(unmarked, 20, "every unmarked item sleeps past its budget");
+    assert!(unmarked_max >= 0.004, "{unmarked_max}");
+    // The marked items' own work is nothing; a busy machine may still
+    // stretch one or two past 1 ms.
+    assert!(marked <= 2, "marked items over budget: {marked}");
+    assert!(marked_max < 0.004, "{marked_max}");
 }
 
 #[test]

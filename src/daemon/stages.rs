@@ -77,7 +77,7 @@ impl Stage for ScannerStage {
         }
     }
 
-    fn process(&mut self, mut work: Self::Work, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, mut work: Self::Work, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         let t0 = Stamp::now();
         if self.upside_down {
             work.scan.mirror();
@@ -90,6 +90,7 @@ impl Stage for ScannerStage {
             interval: work.interval,
             scan: work.scan,
         };
+        ctx.hand_off();
         self.tx
             .send(msg)
             .map_or_else(|_| gone(&self.shared, "localise"), |_| Ok(()))
@@ -371,6 +372,7 @@ impl Stage for LocaliseStage {
             odom: robot_odom,
             matched,
         };
+        ctx.hand_off();
         if self.to_control.send(fix).is_err() {
             return gone(&self.shared, "control");
         }
@@ -678,7 +680,7 @@ impl Stage for MapStage {
         }
     }
 
-    fn process(&mut self, msg: MapMsg, _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, msg: MapMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         self.merge(msg);
         let snap = Arc::new(self.grid.clone());
         self.shared.with_status(|s| s.grid = Some(snap.clone()));
@@ -687,6 +689,7 @@ impl Stage for MapStage {
             contacts: self.new_contacts,
             retired: self.retired,
         };
+        ctx.hand_off();
         self.tx
             .send(msg)
             .map_or_else(|_| gone(&self.shared, "plan"), |_| Ok(()))
@@ -895,6 +898,7 @@ impl Stage for PlanStage {
                     points: points.to_vec(),
                     final_heading,
                 };
+                ctx.hand_off();
                 if self.tx.send(msg).is_err() {
                     return gone(&self.shared, "control");
                 }
@@ -1136,7 +1140,9 @@ impl ControlStage {
         blind
     }
 
-    fn command(&mut self, t0: Option<Stamp>) -> Result<(), StageFault> {
+    /// Computes and sends the wheel command for the newest estimate; `t0`
+    /// is the scan's last byte when a pose fix triggered it.
+    fn command(&mut self, t0: Option<Stamp>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         let now = self.clock.now();
         let dt = (now - self.last_cmd).clamp(1e-3, 4.0 * self.period);
         self.last_cmd = now;
@@ -1184,6 +1190,7 @@ impl ControlStage {
             path_seq: self.path_seq,
             next: (!self.follower.is_done()).then(|| self.follower.next_index()),
         });
+        ctx.hand_off();
         let _ = self.poses.send(est);
         match self.tx.send(CmdMsg { wheels, t0 }) {
             Ok(_) => Ok(()),
@@ -1230,9 +1237,9 @@ impl Stage for ControlStage {
                 ctx.note_age(f.t0);
                 let t0 = f.t0;
                 self.fix = Some(f);
-                self.command(Some(t0))
+                self.command(Some(t0), ctx)
             }
-            ControlWork::Tick => self.command(None),
+            ControlWork::Tick => self.command(None, ctx),
         }
     }
 }

@@ -219,6 +219,7 @@ pub struct StageCtx<'a> {
     late_after: Duration,
     late: u32,
     end_to_end: &'a mut LatencyHistogram,
+    handed_off: Option<Stamp>,
 }
 
 impl StageCtx<'_> {
@@ -242,6 +243,15 @@ impl StageCtx<'_> {
             self.late += 1;
         }
         late
+    }
+
+    /// Marks the end of this item's own work, just before its results are
+    /// handed to the next stages: the item's latency (against the budget)
+    /// ends here. A send wakes the receiving thread, which may take this
+    /// core at once; the time until this thread runs again is the next
+    /// stage's work, not this one's. The first mark counts.
+    pub fn hand_off(&mut self) {
+        self.handed_off.get_or_insert_with(Stamp::now);
     }
 
     /// Records the end-to-end latency from `t0` (a scan's last byte) to now:
@@ -293,11 +303,12 @@ pub(crate) fn run_stage<S: Stage>(
             late_after: budget.late_after,
             late: 0,
             end_to_end: &mut end_to_end,
+            handed_off: None,
         };
         let result = stage.process(work, &mut ctx);
         let late = ctx.late;
         let finished = Stamp::now();
-        let took = finished.since(started);
+        let took = ctx.handed_off.unwrap_or(finished).since(started);
         latency.record(took);
         let cpu = thread_cpu_time().saturating_sub(cpu0);
 

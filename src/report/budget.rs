@@ -171,7 +171,9 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
     }
     let _ = writeln!(
         md,
-        "\nLatency is the wall time of one work item (waiting excluded); an overrun is an item \
+        "\nLatency is the wall time of one work item, from taking it to handing the results \
+         on to the next stages (waiting excluded; so is the wake-up of the next stage, which \
+         may take the core during the send); an overrun is an item \
          over the stage budget; repeated overruns raise the stage's degradation level (the \
          stage does less work per item) and good runs lower it again. CPU is the thread's own \
          CPU time (`CLOCK_THREAD_CPUTIME_ID`), waiting included.\n"
