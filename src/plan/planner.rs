@@ -200,13 +200,17 @@ const NEW_FLOOR_NEAR: f64 = 1.0;
 /// flicker of a cell, and a bounded cost.
 const NEW_FLOOR_SETTLE: usize = 5;
 
-/// Least new floor (grid cells, 0.02 m² at 5 cm) that takes the lane tour
-/// again: twice the smallest cluster the planner lays a lane for, since
-/// single cells at the edges of a map built from noisy scans come and go
-/// (measured, 24 rooms against no look: 4 cells gave 1.5 points less
-/// overlap on ideal maps but 0.08-0.09 % less coverage on noisy ones, up
-/// to 8 rooms under 99 %; 8 cells 1.2 points and 0.01-0.03 %).
-const NEW_FLOOR_MIN_CELLS: usize = 8;
+/// Least new floor (grid cells, 0.04 m² at 5 cm) that takes the lane tour
+/// again: four times the smallest cluster the planner lays a lane for,
+/// since cells at the edges of furniture in a map built from noisy scans
+/// come and go. Measured (session 29, the debug log gives the count): the
+/// closed loop in office_f:0 at ×5 took the tour again 8-19 times a run,
+/// nearly always for 8-11 cells; with 8 cells, 9 runs gave overlap 37.3 %,
+/// coverage 99.08 %, path 74.4 m (means), with 16 cells 8 runs 33.9 %,
+/// 99.21 %, 69.1 m; the 24 lock-step rooms' means are the same both ways
+/// (session 24 chose 8 on them: 4 cells gave 1.5 points less overlap on
+/// ideal maps but lost coverage on noisy ones).
+const NEW_FLOOR_MIN_CELLS: usize = 16;
 
 /// Uncovered floor in clusters smaller than this (grid cells) is left to
 /// lanes passing anyway: single cells at lane ends along a wall, where no
@@ -899,13 +903,13 @@ impl CoveragePlanner {
         }
         // Floor seen (or made reachable) near the robot during a lane tour
         // joins the tour now, not in a drive back once the tour is done.
-        if !replan
-            && progress.is_some_and(|next| {
-                self.new_floor_near(decomp, robot, &p, next) >= NEW_FLOOR_MIN_CELLS
-            })
-        {
+        let new_floor = match progress {
+            Some(next) if !replan => self.new_floor_near(decomp, robot, &p, next),
+            _ => 0,
+        };
+        if new_floor >= NEW_FLOOR_MIN_CELLS {
             log::debug!(
-                "new floor near ({:.2}, {:.2}) m: the lane tour is taken again from here",
+                "new floor near ({:.2}, {:.2}) m, {new_floor} cells: the lane tour is taken again from here",
                 p.x,
                 p.y
             );
@@ -2998,12 +3002,16 @@ mod tests {
     /// The walled 3 m x 2 m room with a 0.2 m x 0.4 m pillar at
     /// x 0.5-0.7 m, y 0.8-1.2 m, or without it (its floor seen since).
     fn pillar_room(pillar: bool) -> Grid {
+        pillar_rows(if pillar { 16..24 } else { 0..0 })
+    }
+
+    /// The walled room with the pillar's cells on grid rows `rows` (the
+    /// whole pillar: 16..24).
+    fn pillar_rows(rows: std::ops::Range<usize>) -> Grid {
         let mut g = crate::plan::test_support::walled_room();
-        if pillar {
-            for y in 16..24 {
-                for x in 10..14 {
-                    g.set_state((x, y), crate::grid::CellState::Occupied);
-                }
+        for y in rows {
+            for x in 10..14 {
+                g.set_state((x, y), crate::grid::CellState::Occupied);
             }
         }
         g
@@ -3038,6 +3046,15 @@ mod tests {
     /// pillar's floor, with the length of the rest of the old one plus the
     /// drive from its end to the pillar (fetching the floor after the tour).
     fn pillar_seen_free(near: bool) -> (Option<(f64, bool, f64)>, PlanStats, PlanStats) {
+        pillar_part_seen_free(near, 0..0)
+    }
+
+    /// [`pillar_seen_free`] with the pillar's rows `left` still occupied
+    /// after (the rest is seen free).
+    fn pillar_part_seen_free(
+        near: bool,
+        left: std::ops::Range<usize>,
+    ) -> (Option<(f64, bool, f64)>, PlanStats, PlanStats) {
         let cfg = crate::config::Config::default();
         let mut d = crate::decomp::Decomposer::new(&cfg.decomp, cfg.robot.radius).unwrap();
         let before = pillar_room(true);
@@ -3074,7 +3091,7 @@ mod tests {
         let (rest, _) = run_to(path[k], &path[k + 1..], pillar, 0.0);
         let after_tour = rest + (path[path.len() - 1] - pillar).norm();
         let at = crate::geom::pose(path[k].x, path[k].y, 0.0);
-        let after = pillar_room(false);
+        let after = pillar_rows(left);
         for _ in 0..40 {
             d.update(&after, &[]);
             let st = p
@@ -3135,6 +3152,17 @@ mod tests {
             .0
             .windows(2)
             .all(|s| p.cspace.segment_safe(&s[0], &s[1])));
+    }
+
+    #[test]
+    fn a_speck_of_floor_seen_near_the_robot_does_not_take_the_tour_again() {
+        // The pillar's top three rows (12 cells) seen free: 15 cells of new
+        // floor the rest of the tour does not sweep, as much as a noisy
+        // map's cells at the edges of furniture come and go (8-11 cells at
+        // most looks in a closed-loop run, session 29).
+        let (new, before, after) = pillar_part_seen_free(true, 16..21);
+        assert_eq!(new, None, "{before:?} -> {after:?}");
+        assert_eq!(after.retours, before.retours);
     }
 
     #[test]
