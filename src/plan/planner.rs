@@ -1748,8 +1748,9 @@ impl CoveragePlanner {
             }
         }
         let mut targets = Vec::new();
+        // A patch (no cell) takes all its floor and asks no owner.
         let mut owners = std::mem::take(&mut self.floor_owner[axis as usize]);
-        if owners.len() != f.len() {
+        if cell.is_some() && owners.len() != f.len() {
             owners.clear();
             owners.resize(f.len(), OWNER_UNSET);
         }
