@@ -872,11 +872,12 @@ impl Stage for PlanStage {
                 });
                 self.shared.done.store(true, Ordering::Relaxed);
                 log::info!(
-                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned, {:.2} m² of leftovers declined",
+                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned, {:.2} m² of leftovers declined, {:.2} m of frontier left unexplored",
                     r.covered_area,
                     r.unreachable_area,
                     r.abandoned_area,
-                    r.declined_area
+                    r.declined_area,
+                    r.unexplored_frontier
                 );
                 self.control.stop("coverage finished");
             }

@@ -1044,6 +1044,40 @@ impl CSpace {
         out
     }
 
+    /// Whether a scan from cell `from` would reach the unexplored space
+    /// beside the frontier cell `fi`: on the straight line from `from`'s
+    /// centre to one of `fi`'s unknown neighbours, the first cell that is
+    /// not seen-free is unknown and touches `fi` (the line enters the
+    /// unexplored space there, not through a gap between the corners of
+    /// two occupied cells somewhere else). A frontier
+    /// no reachable place sees this way (the far side of a table in a
+    /// corner, seen only past its edge) is not worth a drive: it would stay
+    /// unexplored.
+    pub fn sees_unknown_beside(&self, from: usize, fi: usize) -> bool {
+        let w = self.frame.w;
+        let (fx, fy) = ((from % w) as f64, (from / w) as f64);
+        [fi - 1, fi + 1, fi - w, fi + w]
+            .into_iter()
+            .filter(|&u| self.state[u] == UNKNOWN)
+            .any(|u| {
+                let (ux, uy) = ((u % w) as f64, (u / w) as f64);
+                // Four samples per cell crossed: no cell the line passes
+                // through by more than a corner is skipped.
+                let steps = ((ux - fx).abs().max((uy - fy).abs()) * 4.0).ceil() as usize;
+                (0..steps)
+                    .map(|k| {
+                        let t = k as f64 / steps as f64;
+                        let (x, y) = (fx + (ux - fx) * t, fy + (uy - fy) * t);
+                        (y.round() as usize) * w + x.round() as usize
+                    })
+                    .find(|&c| self.state[c] != FREE || self.surface[c])
+                    .is_none_or(|c| {
+                        let near = (c % w).abs_diff(fi % w) <= 1 && (c / w).abs_diff(fi / w) <= 1;
+                        near && self.state[c] == UNKNOWN && !self.surface[c]
+                    })
+            })
+    }
+
     /// Known-free cells with at least one unexplored 4-neighbour, except
     /// cells a beam has ended in (a surface lies there: what is unknown
     /// behind it is behind that surface, not a way into unexplored floor).
@@ -1141,6 +1175,36 @@ mod tests {
         assert!(!list.contains(&(10 * f.w + 19)), "the hit cell");
         assert!(list.contains(&(9 * f.w + 19)) && list.contains(&(11 * f.w + 19)));
         assert_eq!(list.len(), 17, "{list:?}");
+    }
+
+    #[test]
+    fn unexplored_space_is_seen_only_along_a_clear_line() {
+        // Room of `room_grid`; unknown cells (30..33, 50..53) behind a wall
+        // piece (x = 29, y 45..58), with free floor all round the rest.
+        let mut g = room_grid();
+        for y in 45..58 {
+            g.set_state((29, y), CellState::Occupied);
+        }
+        for y in 50..53 {
+            for x in 30..33 {
+                g.set_state((x, y), CellState::Unknown);
+            }
+        }
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&g);
+        let w = c.frame.w;
+        let at = |x: usize, y: usize| y * w + x;
+        // Frontier cell (33, 51), right of the pocket: seen from the right
+        // and from above, not from the left through the wall piece.
+        assert!(c.sees_unknown_beside(at(45, 51), at(33, 51)));
+        assert!(c.sees_unknown_beside(at(40, 60), at(33, 51)));
+        assert!(!c.sees_unknown_beside(at(20, 51), at(33, 51)));
+        // Frontier cell (31, 53), above it: seen from above, and past the
+        // wall piece's top end from the upper left.
+        assert!(c.sees_unknown_beside(at(31, 60), at(31, 53)));
+        assert!(c.sees_unknown_beside(at(28, 68), at(31, 53)));
+        // A cell with no unknown neighbour has nothing to see.
+        assert!(!c.sees_unknown_beside(at(45, 51), at(40, 51)));
     }
 
     #[test]

@@ -69,8 +69,9 @@ pub struct PlanParams {
     /// still covered where that is less than `min_patch_area` (a small room
     /// would otherwise lose a whole percent to one corner); 0 = off.
     pub min_patch_share: f64,
-    /// A frontier within this distance of a reachable place counts as
-    /// explorable from there (m).
+    /// A frontier within this distance of a reachable place, in sight of
+    /// it (a clear line to the unknown beyond), counts as explorable from
+    /// there (m).
     pub explore_view_distance: f64,
     /// Frontier clusters with fewer cells than this are ignored (ray speckle).
     pub min_frontier_cells: usize,

@@ -133,6 +133,11 @@ pub struct DoneReport {
     pub declined_area: f64,
     /// Floor its own record shows as swept (m²).
     pub covered_area: f64,
+    /// Boundary left between seen floor and unexplored space (m, frontier
+    /// cells times the grid cell): space no reachable place sees into
+    /// (the far side of furniture in a corner), or given up after
+    /// exploration moves that showed nothing new.
+    pub unexplored_frontier: f64,
 }
 
 /// Counters of what the planner did.
@@ -1940,10 +1945,12 @@ impl CoveragePlanner {
         out
     }
 
-    /// The nearest reachable place with unexplored space in view, and the
-    /// frontier point to face there. A frontier no reachable place has in
-    /// view now is kept: it may come into reach later (through a way out,
-    /// or once a passage is seen from closer).
+    /// The nearest reachable place with unexplored space in view (within
+    /// `explore_view_distance`, along a line a scan would pass: see
+    /// [`CSpace::sees_unknown_beside`]), and the frontier point to face
+    /// there. A frontier no reachable place sees now is kept: it may come
+    /// into reach later (through a way out, or once a passage is seen from
+    /// closer); at the end it is reported (`unexplored_frontier`).
     fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
         let f = self.cspace.frame;
         let mut list = std::mem::take(&mut self.frontier);
@@ -1971,7 +1978,10 @@ impl CoveragePlanner {
                     if ((dx * dx + dy * dy) as f64).sqrt() * f.res > view {
                         continue;
                     }
-                    if best.is_none_or(|(b, _, _)| d < b) {
+                    // Only a place a scan would see the unexplored space
+                    // from (checked for the nearest so far only).
+                    if best.is_none_or(|(b, _, _)| d < b) && self.cspace.sees_unknown_beside(j, fi)
+                    {
                         best = Some((d, j, fp));
                     }
                 }
@@ -2002,7 +2012,8 @@ impl CoveragePlanner {
         // Floor the robot's own part reaches is left to it (it found nothing
         // it could plan there): only what the other part alone reaches counts.
         let own = &self.targets;
-        let state = &self.cspace.state;
+        let cs = &self.cspace;
+        let state = &cs.state;
         let mut counted = vec![false; f.len()];
         let mut in_part = vec![false; f.len()];
         let has_work = |part: &[usize]| {
@@ -2021,8 +2032,8 @@ impl CoveragePlanner {
             if big {
                 return true;
             }
-            // Unexplored space in view of one of its centres (sampled as
-            // the exploration goal is).
+            // Unexplored space in view of one of its centres, along a
+            // clear line (sampled as the exploration goal is).
             for &c in part {
                 in_part[c] = true;
             }
@@ -2037,6 +2048,7 @@ impl CoveragePlanner {
                             && (ny as usize) < f.h
                             && ((dx * dx + dy * dy) as f64).sqrt() * f.res <= view
                             && in_part[ny as usize * f.w + nx as usize]
+                            && cs.sees_unknown_beside(ny as usize * f.w + nx as usize, fi)
                     })
                 })
             });
@@ -2304,6 +2316,9 @@ impl CoveragePlanner {
                 r.covered_area += a;
             }
         }
+        let mut frontier = Vec::new();
+        self.cspace.frontier(&mut frontier);
+        r.unexplored_frontier = frontier.len() as f64 * f.res;
         r
     }
 }
@@ -3572,6 +3587,45 @@ mod tests {
         p.update(&grid, &Decomposition::default(), &start, None)
             .unwrap();
         (p, grid)
+    }
+
+    /// The 3 m x 2 m room with unexplored space: with `corner`, inside a
+    /// table in the top-left corner whose outline faces the room, seen only
+    /// past its edge along a one-cell strip under the top wall (so the
+    /// frontier lies on the table's far side); otherwise a 0.15 m pocket in
+    /// open floor. The planner's first decision with no cells: its task.
+    fn task_with_unexplored(corner: bool) -> Task {
+        use crate::grid::CellState;
+        let table =
+            |x: usize, y: usize| (x == 12 && (28..=37).contains(&y)) || (y == 28 && x <= 12);
+        let mut grid = crate::plan::test_support::room_with(60, 40, table);
+        let unknown: Vec<(usize, usize)> = if corner {
+            (29..=37)
+                .flat_map(|y| (1..12).map(move |x| (x, y)))
+                .collect()
+        } else {
+            (10..13)
+                .flat_map(|y| (40..43).map(move |x| (x, y)))
+                .collect()
+        };
+        for c in unknown {
+            grid.set_state(c, CellState::Unknown);
+        }
+        let mut p = crate::plan::test_support::planner();
+        let start = crate::geom::pose(1.5, 1.0, 0.0);
+        p.update(&grid, &Decomposition::default(), &start, None)
+            .unwrap();
+        p.task
+    }
+
+    #[test]
+    fn no_drive_to_unexplored_space_no_reachable_place_sees() {
+        // The pocket in open floor is worth a look from nearby.
+        assert_eq!(task_with_unexplored(false), Task::Explore);
+        // Every line from a reachable place to the space behind the table
+        // crosses its outline: a drive there would show nothing.
+        let task = task_with_unexplored(true);
+        assert!(!matches!(task, Task::Explore), "{task:?}");
     }
 
     /// Records the robot driving from x = `x0` to `x1` along y = 1.0 m.
