@@ -1527,17 +1527,25 @@ impl CoveragePlanner {
     /// covers it).
     fn compute_targets(&mut self) {
         let f = self.cspace.frame;
-        let mut queue = std::collections::VecDeque::new();
         for i in 0..f.len() {
             self.reachable_mask[i] = self.cspace.traversable[i] && self.cspace.dist[i].is_finite();
             self.targets[i] = false;
             self.owner[i] = if self.reachable_mask[i] {
-                queue.push_back(i);
                 i as u32
             } else {
                 u32::MAX
             };
         }
+        // The flood starts from the reachable centres beside seen-free
+        // floor they do not cover themselves (the others have nothing to
+        // pass on), in index order as before.
+        let mut queue: std::collections::VecDeque<usize> = (0..f.len())
+            .filter(|&i| {
+                self.reachable_mask[i]
+                    && f.neighbours8(i)
+                        .any(|j| !self.reachable_mask[j] && self.cspace.state[j] == FREE)
+            })
+            .collect();
         let limit = self.reach + f.res;
         while let Some(i) = queue.pop_front() {
             let o = self.owner[i] as usize;
@@ -1552,8 +1560,16 @@ impl CoveragePlanner {
                 }
             }
         }
+        // Floor within reach of a reachable centre (a centre inside the
+        // reachable space adds only itself: see `four_neighbours_in`).
         for i in 0..f.len() {
             if !self.reachable_mask[i] {
+                continue;
+            }
+            if four_neighbours_in(&self.reachable_mask, f, i) {
+                if self.open_floor(i) {
+                    self.targets[i] = true;
+                }
                 continue;
             }
             for j in f.around(i, &self.reach_disk) {
@@ -1759,12 +1775,18 @@ impl CoveragePlanner {
             owners.clear();
             owners.resize(f.len(), OWNER_UNSET);
         }
+        // A centre inside the region reaches nothing its neighbours do
+        // not, but itself (see `four_neighbours_in`).
+        let (inner, ring) = ([(0, 0)], &self.reach_disk);
         for y in bbox.1..=bbox.3 {
             for x in bbox.0..=bbox.2 {
-                if !self.scratch_a[y * f.w + x] {
+                let i = y * f.w + x;
+                if !self.scratch_a[i] {
                     continue;
                 }
-                for j in f.around(y * f.w + x, &self.reach_disk) {
+                let within = four_neighbours_in(&self.scratch_a, f, i);
+                let disk: &[(i64, i64)] = if within { &inner } else { ring };
+                for j in f.around(i, disk) {
                     if !self.targets[j] || self.scratch_t[j] {
                         continue;
                     }
@@ -2374,6 +2396,23 @@ fn describe_lanes(lanes: &[Lane]) -> String {
         })
         .collect();
     list.join(", ")
+}
+
+/// Whether the four neighbours of cell `i` lie inside the frame and in
+/// `mask`. The reach disk of such a centre of `mask` adds only the centre
+/// itself to the disks of the others: each other cell of it lies in the
+/// disk of the neighbour one step toward it, which is nearer, and so on to
+/// a centre on the edge of `mask`.
+fn four_neighbours_in(mask: &[bool], f: Frame, i: usize) -> bool {
+    let (x, y, w) = (i % f.w, i / f.w, f.w);
+    x > 0
+        && y > 0
+        && x + 1 < w
+        && y + 1 < f.h
+        && mask[i - 1]
+        && mask[i + 1]
+        && mask[i - w]
+        && mask[i + w]
 }
 
 /// Keeps of `cells` (marked in `mark`) the 8-connected clusters of at
@@ -3587,6 +3626,47 @@ mod tests {
         p.update(&grid, &Decomposition::default(), &start, None)
             .unwrap();
         (p, grid)
+    }
+
+    #[test]
+    fn the_reach_of_a_set_is_its_inner_cells_and_the_reach_of_its_edge() {
+        // Random blobs on a 40 x 30 frame: the union of the reach disks of
+        // all cells equals the inner cells plus the disks of the others.
+        let f = Frame {
+            origin: Point2::origin(),
+            res: 0.05,
+            w: 40,
+            h: 30,
+        };
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 33) as usize
+        };
+        for radius in [0.03, 0.05, 0.145, 0.3] {
+            let d = disk(radius, f.res);
+            for _ in 0..20 {
+                let mut mask = vec![false; f.len()];
+                for _ in 0..6 {
+                    let (cx, cy, r) = (rnd() % 40, rnd() % 30, 1 + rnd() % 8);
+                    for y in cy.saturating_sub(r)..(cy + r).min(30) {
+                        for x in cx.saturating_sub(r)..(cx + r).min(40) {
+                            mask[y * 40 + x] = rnd() % 10 != 0;
+                        }
+                    }
+                }
+                let (mut all, mut short) = (vec![false; f.len()], vec![false; f.len()]);
+                for i in (0..f.len()).filter(|&i| mask[i]) {
+                    f.around(i, &d).for_each(|j| all[j] = true);
+                    if four_neighbours_in(&mask, f, i) {
+                        short[i] = true;
+                    } else {
+                        f.around(i, &d).for_each(|j| short[j] = true);
+                    }
+                }
+                assert_eq!(all, short, "radius {radius}");
+            }
+        }
     }
 
     /// The 3 m x 2 m room with unexplored space: with `corner`, inside a

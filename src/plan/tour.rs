@@ -187,6 +187,26 @@ fn search_tour(costs: &TourCosts, kicks: usize) -> Vec<Leg> {
     best
 }
 
+/// Sorts `v` (values below `n`) and drops repeats: through a bit set when
+/// `n` fits one (no comparisons: this runs for every lane the local search
+/// looks at), else by sorting.
+fn sort_unique(v: &mut Vec<usize>, n: usize) {
+    if n <= 128 {
+        let mut bits = 0u128;
+        for &p in v.iter() {
+            bits |= 1 << p;
+        }
+        v.clear();
+        while bits != 0 {
+            v.push(bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+        }
+    } else {
+        v.sort_unstable();
+        v.dedup();
+    }
+}
+
 /// A linear congruential generator: the kicks' fixed-seed source, so that
 /// the same costs always give the same tour.
 struct Lcg(u64);
@@ -348,10 +368,17 @@ impl<'a> Search<'a> {
         c.link(prev, se) + c.tail(sx, next) - next.map_or(0.0, |b| c.link(prev, b))
     }
 
-    /// What putting the stretch of `mv` back costs: its two new links less
-    /// the one it opens.
-    fn added(&self, mv: Move) -> f64 {
-        self.added_at(mv, self.gap(mv.at, mv.len, mv.to))
+    /// What driving the stretch `t[at..at + len]` backwards in place (a
+    /// 2-opt move) saves: [`Self::removed`] less what putting it back
+    /// turned round costs, in the same operations (the same value to the
+    /// bit), without looking up the link it opens and closes twice.
+    fn reversal_gain(&self, at: usize, len: usize) -> f64 {
+        let (t, c) = (&self.t, self.c);
+        let prev = (at > 0).then(|| exit(t[at - 1]));
+        let next = t.get(at + len).map(|&l| entry(l));
+        let (se, sx) = (entry(t[at]), exit(t[at + len - 1]));
+        let base = next.map_or(0.0, |b| c.link(prev, b));
+        (c.link(prev, se) + c.tail(sx, next) - base) - (c.link(prev, sx) + c.tail(se, next) - base)
     }
 
     /// The link the stretch `t[at..at + len]` would open when put back at
@@ -368,7 +395,8 @@ impl<'a> Search<'a> {
         (before, after, base)
     }
 
-    /// [`Self::added`] with the gap of `mv` already found.
+    /// What putting the stretch of `mv` back costs, its gap already found:
+    /// its two new links less the one it opens.
     fn added_at(&self, mv: Move, (before, after, base): Gap) -> f64 {
         let (t, c) = (&self.t, self.c);
         let (se, sx) = (entry(t[mv.at]), exit(t[mv.at + mv.len - 1]));
@@ -408,8 +436,7 @@ impl<'a> Search<'a> {
                     .map(|&e| self.pos[e / 2]),
             );
         }
-        places.sort_unstable();
-        places.dedup();
+        sort_unique(&mut places, n);
         let mut best: Option<(f64, Move)> = None;
         let mut consider = |mv: Move, g: f64| {
             if g > 1e-9 && best.is_none_or(|(b, _)| g > b) {
@@ -427,7 +454,7 @@ impl<'a> Search<'a> {
                         to: lo,
                         rev: true,
                     };
-                    consider(mv, self.removed(lo, len) - self.added(mv));
+                    consider(mv, self.reversal_gain(lo, len));
                 }
             }
         }
@@ -526,6 +553,20 @@ mod tests {
             }
         }
         best
+    }
+
+    #[test]
+    fn places_come_out_sorted_once_each_by_bit_set_and_by_sort() {
+        for n in [5, 128, 129, 300] {
+            let mut lcg = Lcg(n as u64);
+            let mut v: Vec<usize> = (0..40).map(|_| lcg.next() as usize % n).collect();
+            v.extend([0, n - 1, n - 1]);
+            let mut want = v.clone();
+            want.sort_unstable();
+            want.dedup();
+            sort_unique(&mut v, n);
+            assert_eq!(v, want, "n = {n}");
+        }
     }
 
     #[test]
