@@ -33,7 +33,7 @@ pub struct WorldArgs {
     /// X0,Y0,X1,Y1 in metres (one room of a building's map).
     #[arg(long, requires = "map", allow_hyphen_values = true)]
     pub region: Option<Region>,
-    /// With --map: start pose X,Y[,HEADING] in the map frame (m, rad;
+    /// With --map: start pose `X,Y[,HEADING]` in the map frame (m, rad;
     /// default: the free point farthest from obstacles).
     #[arg(long, requires = "map", allow_hyphen_values = true, value_parser = ros_map::parse_start)]
     pub start: Option<crate::geom::Pose>,

@@ -6,9 +6,10 @@
 //! the robot with its heading off by δ. Over the first [`CHECK_DISTANCE`]
 //! of straight wheel travel the pose steps are summed in the robot's frame;
 //! the direction of the sum is the mount's yaw error, its length over the
-//! wheels' distance the odometry's scale. The localise stage warns above
-//! [`YAW_WARN`] and stops the daemon above [`YAW_STOP`], naming the value
-//! that fits. The turn of the scans ([`super::turn_check`]) does not show
+//! wheels' distance the odometry's scale. Above [`YAW_TOLERANCE`] the
+//! localise stage refits the mount (`daemon.fit_scanner_mount`) up to
+//! [`YAW_FIT_MAX`]; with the fit off it warns up to [`YAW_STOP_UNFITTED`].
+//! Beyond its limit it stops the daemon, naming the value that fits. The turn of the scans ([`super::turn_check`]) does not show
 //! a yaw error; this check does not show a mirrored scanner (its steps go
 //! forward too). Pure: fed one localised scan at a time.
 

@@ -390,7 +390,7 @@ impl CSpace {
     /// others, is held and let go by turns; a path planned while it is let
     /// go is blocked when it is held again, and the plan starts over. The
     /// hold makes the configuration space change once, not at every turn.
-    /// A cell just inside a straight face of [`WALL_FACE_CELLS`] occupied
+    /// A cell just inside a straight face of `WALL_FACE_CELLS` (5) occupied
     /// cells is not held: on a wall, ranges ending in the first floor cell
     /// now and then are noise, and holding such cells cuts the lane that
     /// hugs the wall into pieces.

@@ -141,7 +141,7 @@ fn shorten(cs: &CSpace, cells: &[usize]) -> Vec<Point2<f64>> {
 /// cell outside `reachable` whose part of the traversable space passes
 /// `has_work` (called once per part, with its cells), with at most
 /// `max_tight` metres of the way off the traversable space (steps there
-/// count [`TIGHT_STEP_COST`] times in the choice of the way). `None` when
+/// count `TIGHT_STEP_COST` times in the choice of the way). `None` when
 /// there is no such place.
 pub fn way_out(
     cs: &CSpace,
