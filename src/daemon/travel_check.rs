@@ -9,9 +9,10 @@
 //! wheels' distance the odometry's scale. Above [`YAW_TOLERANCE`] the
 //! localise stage refits the mount (`daemon.fit_scanner_mount`) up to
 //! [`YAW_FIT_MAX`]; with the fit off it warns up to [`YAW_STOP_UNFITTED`].
-//! Beyond its limit it stops the daemon, naming the value that fits. The turn of the scans ([`super::turn_check`]) does not show
-//! a yaw error; this check does not show a mirrored scanner (its steps go
-//! forward too). Pure: fed one localised scan at a time.
+//! Beyond its limit it stops the daemon, naming the value that fits. The
+//! turn of the scans ([`super::turn_check`]) does not show a yaw error;
+//! this check does not show a mirrored scanner (its steps go forward too).
+//! Pure: fed one localised scan at a time.
 
 use nalgebra::Vector2;
 

@@ -970,9 +970,7 @@ impl CSpace {
     /// cell, from `a`) where the bare body would touch a seen obstacle or
     /// leave the map; `None` when the whole segment is safe.
     pub fn first_unsafe(&self, a: &Point2<f64>, b: &Point2<f64>) -> Option<Point2<f64>> {
-        let d = b - a;
-        let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
-        (0..=n).map(|k| a + d * (k as f64 / n as f64)).find(|p| {
+        self.samples(a, b).find(|p| {
             !self
                 .frame
                 .index_of(p)
@@ -983,12 +981,17 @@ impl CSpace {
     /// Whether the straight segment `a`–`b` stays on traversable cells
     /// (sampled every quarter cell).
     pub fn segment_clear(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
-        let d = b - a;
+        self.samples(a, b)
+            .all(|p| self.frame.index_of(&p).is_some_and(|i| self.traversable[i]))
+    }
+
+    /// Points along the straight segment `a`–`b`, from `a` to `b` both
+    /// included, a quarter cell or less apart: no cell the segment crosses
+    /// by more than a corner is missed.
+    fn samples(&self, a: &Point2<f64>, b: &Point2<f64>) -> impl Iterator<Item = Point2<f64>> {
+        let (a, d) = (*a, b - a);
         let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
-        (0..=n).all(|k| {
-            let p = a + d * (k as f64 / n as f64);
-            self.frame.index_of(&p).is_some_and(|i| self.traversable[i])
-        })
+        (0..=n).map(move |k| a + d * (k as f64 / n as f64))
     }
 
     /// [`grid_steps`] over this configuration space.
@@ -1062,7 +1065,10 @@ impl CSpace {
             .any(|u| {
                 let (ux, uy) = ((u % w) as f64, (u / w) as f64);
                 // Four samples per cell crossed: no cell the line passes
-                // through by more than a corner is skipped.
+                // through by more than a corner is skipped. `samples`
+                // spaces its points by length, not by cells crossed: it
+                // meets other cells on grazing lines, and changed the
+                // plans of lab_c_scan:0 and of the lab_ipa map.
                 let steps = ((ux - fx).abs().max((uy - fy).abs()) * 4.0).ceil() as usize;
                 (0..steps)
                     .map(|k| {

@@ -361,11 +361,19 @@ impl<'a> Search<'a> {
     /// What taking the stretch `t[at..at + len]` out saves: its two links
     /// less the one that closes the gap.
     fn removed(&self, at: usize, len: usize) -> f64 {
-        let (t, c) = (&self.t, self.c);
+        let c = self.c;
+        let (prev, next, se, sx) = self.stretch_ends(at, len);
+        c.link(prev, se) + c.tail(sx, next) - next.map_or(0.0, |b| c.link(prev, b))
+    }
+
+    /// The ends around and of the stretch `t[at..at + len]`: the exit end
+    /// before it and the entry end after it (`None` at the tour's start and
+    /// end), its entry end and its exit end.
+    fn stretch_ends(&self, at: usize, len: usize) -> (Option<usize>, Option<usize>, usize, usize) {
+        let t = &self.t;
         let prev = (at > 0).then(|| exit(t[at - 1]));
         let next = t.get(at + len).map(|&l| entry(l));
-        let (se, sx) = (entry(t[at]), exit(t[at + len - 1]));
-        c.link(prev, se) + c.tail(sx, next) - next.map_or(0.0, |b| c.link(prev, b))
+        (prev, next, entry(t[at]), exit(t[at + len - 1]))
     }
 
     /// What driving the stretch `t[at..at + len]` backwards in place (a
@@ -373,10 +381,8 @@ impl<'a> Search<'a> {
     /// turned round costs, in the same operations (the same value to the
     /// bit), without looking up the link it opens and closes twice.
     fn reversal_gain(&self, at: usize, len: usize) -> f64 {
-        let (t, c) = (&self.t, self.c);
-        let prev = (at > 0).then(|| exit(t[at - 1]));
-        let next = t.get(at + len).map(|&l| entry(l));
-        let (se, sx) = (entry(t[at]), exit(t[at + len - 1]));
+        let c = self.c;
+        let (prev, next, se, sx) = self.stretch_ends(at, len);
         let base = next.map_or(0.0, |b| c.link(prev, b));
         (c.link(prev, se) + c.tail(sx, next) - base) - (c.link(prev, sx) + c.tail(se, next) - base)
     }
