@@ -52,8 +52,10 @@ fn paper_workspace_online_against_offline() {
     // the bound leaves room for changes in the decomposition).
     let ratio = m.path_length / o.path_length;
     assert!(ratio <= 1.3, "online/offline path {ratio}");
-    // Target: overlap <= 15 %; not reached (measured 0.180 offline, 0.264
-    // online since the lanes left once the room is explored are driven in
+    // Target: overlap <= 15 %; not reached (measured 0.167 offline, 0.182
+    // online since open cells whose unexplored space no reachable place
+    // sees no longer hold the lane tour back, 0.197 online before; 0.180
+    // offline, 0.264 online since the lanes left once the room is explored are driven in
     // one tour lane by lane; 0.187 / 0.303 since the grid keeps faces seen at a grazing angle out of the
     // frontier (no end-of-run explorations); 0.187 / 0.328 with travel
     // priced by the overlap it adds; 0.225 / 0.328
@@ -64,7 +66,7 @@ fn paper_workspace_online_against_offline() {
     // hugging the far wall. The online run moves by ±3 points with any
     // change of the cell order. See the README's coverage section.
     assert!(o.overlap <= 0.22, "offline overlap {}", o.overlap);
-    assert!(m.overlap <= 0.35, "online overlap {}", m.overlap);
+    assert!(m.overlap <= 0.25, "online overlap {}", m.overlap);
     // The breakdown by cause adds up to the overlap.
     let sum: f64 = m.overlap_by.iter().sum();
     assert!((sum - m.overlap).abs() < 1e-9, "{sum} vs {}", m.overlap);
