@@ -1252,8 +1252,8 @@ impl CoveragePlanner {
         // past floor that is seen later; measured worse, 36 % against 32 %).
         // An open cell whose unexplored space no reachable place sees (a
         // corner behind furniture) will not change: it does not hold the
-        // tour back (the paper world kept four such cells open to the end
-        // and fetched two regions passed by in 6 m of transit).
+        // tour back (the paper world kept such cells open to the end and
+        // fetched two regions passed by in 6 m of transit).
         let explored = !decomp.cells.iter().any(|c| c.status == CellStatus::Open)
             || self.explore_goal_from(robot).is_none();
         if self.params.lane_tour && explored {
