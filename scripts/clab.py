@@ -8,7 +8,9 @@ alternating A and B seed by seed and one run at a time (the closed loop
 runs on real threads and ptys, and a second run would disturb its timing).
 Prints each pair's coverage, overlap and path, then per binary the mean
 and standard deviation, and the paired differences (B - A) with their
-mean, standard error and t. ROOM "paper" runs the default world.
+mean, standard error and t. ROOM "paper" runs the default world. A binary
+built in another checkout looks for the floor plans beside that checkout:
+set SWEEPLINE_SHARED to the shared data folder if that one is gone.
 
 Why interleaved: the closed loop does not repeat itself. Runs of one binary
 with one seed spread by several points of overlap, and batches run at
