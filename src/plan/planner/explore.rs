@@ -1,0 +1,268 @@
+//! Exploration and its bookkeeping: where to look from next, ways out of a
+//! pocket, and frontiers or floor given up after fruitless tries.
+
+use super::*;
+
+impl CoveragePlanner {
+    /// The nearest reachable place with unexplored space in view (within
+    /// `explore_view_distance`, along a line a scan would pass: see
+    /// [`CSpace::sees_unknown_beside`]), and the frontier point to face
+    /// there. A frontier no reachable place sees now is kept: it may come
+    /// into reach later (through a way out, or once a passage is seen from
+    /// closer); at the end it is reported (`unexplored_frontier`).
+    pub(super) fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
+        let f = self.cspace.frame;
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        list.retain(|&i| !self.given_up[i]);
+        // Drop speckle: frontier clusters smaller than the minimum.
+        let keep = cluster_filter(&list, f, self.params.min_frontier_cells);
+        let view = self.params.explore_view_distance;
+        let vr = (view / f.res).ceil() as i64;
+        let mut best: Option<(f64, usize, Point2<f64>)> = None;
+        for &fi in &keep {
+            let (x, y) = ((fi % f.w) as i64, (fi / f.w) as i64);
+            let fp = f.centre(fi);
+            for dy in (-vr..=vr).step_by(2) {
+                for dx in (-vr..=vr).step_by(2) {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx as usize >= f.w || ny as usize >= f.h {
+                        continue;
+                    }
+                    let j = ny as usize * f.w + nx as usize;
+                    let d = self.cspace.dist[j];
+                    if !self.reachable_mask[j] || !d.is_finite() {
+                        continue;
+                    }
+                    if ((dx * dx + dy * dy) as f64).sqrt() * f.res > view {
+                        continue;
+                    }
+                    // Only a place a scan would see the unexplored space
+                    // from (checked for the nearest so far only).
+                    if best.is_none_or(|(b, _, _)| d < b) && self.cspace.sees_unknown_beside(j, fi)
+                    {
+                        best = Some((d, j, fp));
+                    }
+                }
+            }
+        }
+        self.frontier = list;
+        best.map(|(_, j, fp)| (j, fp))
+    }
+
+    /// The way out of the robot's part of the space to another part with
+    /// work left (uncovered floor the lanes could reach, or unexplored space
+    /// in view), through a passage only the bare body fits; `None` when
+    /// there is none, or after [`MAX_WAYS_OUT`] in a row.
+    pub(super) fn way_out(&mut self, robot: usize, max_tight: f64) -> Option<Vec<Point2<f64>>> {
+        if self.ways_out_in_a_row >= MAX_WAYS_OUT || max_tight <= 0.0 {
+            return None;
+        }
+        let f = self.cspace.frame;
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        list.retain(|&i| !self.given_up[i]);
+        let frontier = cluster_filter(&list, f, self.params.min_frontier_cells);
+        self.frontier = list;
+        let min_floor = self.min_patch_cells();
+        let view = self.params.explore_view_distance;
+        let vr = (view / f.res).ceil() as i64;
+        let (covered, abandoned, reach_disk) = (&self.covered, &self.abandoned, &self.reach_disk);
+        // Floor the robot's own part reaches is left to it (it found nothing
+        // it could plan there): only what the other part alone reaches counts.
+        let own = &self.targets;
+        let cs = &self.cspace;
+        let state = &cs.state;
+        let mut counted = vec![false; f.len()];
+        let mut in_part = vec![false; f.len()];
+        let has_work = |part: &[usize]| {
+            // Uncovered floor its centres reach, and the robot's part does
+            // not, in a patch the planner would cover (see `min_patch_area`).
+            let mut floor = Vec::new();
+            for &c in part {
+                for j in f.around(c, reach_disk) {
+                    if state[j] == FREE && !covered[j] && !abandoned[j] && !own[j] && !counted[j] {
+                        counted[j] = true;
+                        floor.push(j);
+                    }
+                }
+            }
+            let big = drop_specks(&mut floor, &mut counted, f, usize::MAX) >= min_floor;
+            if big {
+                return true;
+            }
+            // Unexplored space in view of one of its centres, along a
+            // clear line (sampled as the exploration goal is).
+            for &c in part {
+                in_part[c] = true;
+            }
+            let seen = frontier.iter().any(|&fi| {
+                let (x, y) = ((fi % f.w) as i64, (fi / f.w) as i64);
+                (-vr..=vr).step_by(2).any(|dy| {
+                    (-vr..=vr).step_by(2).any(|dx| {
+                        let (nx, ny) = (x + dx, y + dy);
+                        nx >= 0
+                            && ny >= 0
+                            && (nx as usize) < f.w
+                            && (ny as usize) < f.h
+                            && ((dx * dx + dy * dy) as f64).sqrt() * f.res <= view
+                            && in_part[ny as usize * f.w + nx as usize]
+                            && cs.sees_unknown_beside(ny as usize * f.w + nx as usize, fi)
+                    })
+                })
+            });
+            for &c in part {
+                in_part[c] = false;
+            }
+            seen
+        };
+        crate::plan::unbox::way_out(
+            &self.cspace,
+            robot,
+            &self.reachable_mask,
+            max_tight,
+            has_work,
+        )
+    }
+
+    /// Starts driving a way out (see [`Self::way_out`]): the task it leaves
+    /// is not charged a try, and ways out in a row are counted.
+    pub(super) fn take_way_out(&mut self, path: Vec<Point2<f64>>) {
+        self.forgive_task();
+        self.stats.ways_out += 1;
+        self.ways_out_in_a_row += 1;
+        self.set_task(Task::Escape, path, None);
+    }
+
+    /// Whether the space reachable from the robot is smaller than its own
+    /// footprint (see [`BOXED_IN_UPDATES`]).
+    pub(super) fn boxed_in_now(&self) -> bool {
+        self.reachable_mask.iter().filter(|r| **r).count() < self.stamp.len()
+    }
+
+    pub(super) fn frontier_in_view(&mut self, g: &Point2<f64>) -> bool {
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        let f = self.cspace.frame;
+        let view = self.params.explore_view_distance;
+        let any = list
+            .iter()
+            .any(|&i| !self.given_up[i] && (f.centre(i) - g).norm() <= view);
+        self.frontier = list;
+        any
+    }
+
+    /// Takes back every give-up of floor not swept yet (see [`Self::choose`]);
+    /// false when there is none.
+    pub(super) fn retry_given_up(&mut self) -> bool {
+        self.retried = true;
+        self.tries_generation += 1;
+        let mut any = false;
+        for i in 0..self.abandoned.len() {
+            if self.abandoned[i] && !self.covered[i] && !self.declined[i] {
+                self.abandoned[i] = false;
+                self.tries[i] = 0;
+                any = true;
+            }
+        }
+        if any {
+            self.compute_targets();
+        }
+        any
+    }
+
+    /// Seen-free cells of the map.
+    pub(super) fn known_free(&self) -> usize {
+        self.cspace.state.iter().filter(|&&s| s == FREE).count()
+    }
+
+    /// Counts an exploration move (just ended) that showed less new floor
+    /// than [`FRUITFUL_EXPLORE_CELLS`]; after [`MAX_FRUITLESS_EXPLORES`] in a
+    /// row, gives up every frontier cell there is now (a wall seen at a
+    /// grazing angle keeps showing new frontier cells as its cells flip
+    /// between free and occupied: an endless walk along it otherwise).
+    pub(super) fn count_fruitless_explore(&mut self) {
+        if self.known_free() >= self.free_at_explore + FRUITFUL_EXPLORE_CELLS {
+            self.fruitless_explores = 0;
+            return;
+        }
+        self.fruitless_explores += 1;
+        if self.fruitless_explores < MAX_FRUITLESS_EXPLORES {
+            return;
+        }
+        self.fruitless_explores = 0;
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        for &i in &list {
+            self.give_up_around(i);
+        }
+        self.frontier = list;
+    }
+
+    /// Gives up frontier cell `i` and the cells within [`FRONTIER_SPREAD`].
+    fn give_up_around(&mut self, i: usize) {
+        let f = self.cspace.frame;
+        let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+        for dy in -FRONTIER_SPREAD..=FRONTIER_SPREAD {
+            for dx in -FRONTIER_SPREAD..=FRONTIER_SPREAD {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
+                    self.given_up[ny as usize * f.w + nx as usize] = true;
+                }
+            }
+        }
+        self.tries_generation += 1;
+    }
+
+    /// Frontier cells in view of `g` get one more try; at `limit` tries (0:
+    /// at once) they are given up.
+    pub(super) fn give_up_frontier_near(&mut self, g: &Point2<f64>, limit: u8) {
+        let mut list = std::mem::take(&mut self.frontier);
+        self.cspace.frontier(&mut list);
+        let f = self.cspace.frame;
+        let view = self.params.explore_view_distance;
+        for &i in &list {
+            if (f.centre(i) - g).norm() <= view + f.res {
+                self.tries[i] = self.tries[i].saturating_add(1);
+                self.tries_generation += 1;
+                if self.tries[i] >= limit {
+                    // With the cells beside it: the frontier along a wall
+                    // seen at a grazing angle shifts by a cell or two as
+                    // rays go on clearing and marking it, and must not come
+                    // back as new frontier.
+                    self.give_up_around(i);
+                }
+            }
+        }
+        self.frontier = list;
+    }
+}
+
+/// Frontier cells in 8-connected clusters of at least `min` cells.
+fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
+    let mut in_list = std::collections::HashSet::with_capacity(list.len());
+    in_list.extend(list.iter().copied());
+    let mut seen = std::collections::HashSet::with_capacity(list.len());
+    let mut out = Vec::new();
+    for &s in list {
+        if seen.contains(&s) {
+            continue;
+        }
+        let mut comp = vec![s];
+        seen.insert(s);
+        let mut k = 0;
+        while k < comp.len() {
+            let i = comp[k];
+            k += 1;
+            for j in f.neighbours8(i) {
+                if in_list.contains(&j) && seen.insert(j) {
+                    comp.push(j);
+                }
+            }
+        }
+        if comp.len() >= min {
+            out.extend(comp);
+        }
+    }
+    out
+}
