@@ -1,7 +1,14 @@
 //! Exploration and its bookkeeping: where to look from next, ways out of a
 //! pocket, and frontiers or floor given up after fruitless tries.
 
-use super::*;
+use nalgebra::Point2;
+
+use super::regions::drop_specks;
+use super::{
+    CoveragePlanner, Task, FRONTIER_SPREAD, FRUITFUL_EXPLORE_CELLS, MAX_FRUITLESS_EXPLORES,
+    MAX_WAYS_OUT,
+};
+use crate::plan::cspace::{Frame, FREE};
 
 impl CoveragePlanner {
     /// The nearest reachable place with unexplored space in view (within

@@ -38,7 +38,7 @@
 use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
-use super::lanes::{lanes, lattice_position, turn_join, variants, Axis, Lane, LaneInput, Variant};
+use super::lanes::{Axis, Lane, Variant};
 use super::swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
 use super::tour::{lane_tour, TourCosts};
 use super::PlanParams;
@@ -54,7 +54,6 @@ mod regions;
 mod tests;
 
 use order::tour_start;
-use regions::drop_specks;
 
 /// Why the planner cannot work.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -1,7 +1,9 @@
 //! The order of the next regions (the look-ahead of one region at a time):
 //! exhaustive over a few candidates, a bounded local search beyond.
 
-use super::*;
+use nalgebra::Point2;
+
+use super::Candidate;
 
 /// Up to this many candidates the tour is searched exhaustively; beyond,
 /// a greedy tour over all of them is improved by or-opt and 2-opt moves.
@@ -234,6 +236,7 @@ fn best_tour_start(cands: &[Candidate], weight: f64) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plan::lanes::{variants, Lane};
 
     /// One region per x: a single lane from (x, 0) to (x, 1), drivable
     /// either way, entered from the robot at `robot`.

@@ -2,7 +2,12 @@
 //! owns which floor, and each final cell (or leftover patch) as a candidate
 //! with its lanes and their cost from the robot.
 
-use super::*;
+use nalgebra::Point2;
+
+use super::{Candidate, CoveragePlanner};
+use crate::decomp::{CellId, CellStatus, Decomposition};
+use crate::plan::cspace::{Frame, FREE};
+use crate::plan::lanes::{lanes, lattice_position, turn_join, variants, Axis, LaneInput};
 
 /// Uncovered floor in clusters smaller than this (grid cells) is left to
 /// lanes passing anyway: single cells at lane ends along a wall, where no

@@ -1,6 +1,6 @@
 //! Unit tests of the planner.
 
-use super::regions::four_neighbours_in;
+use super::regions::{drop_specks, four_neighbours_in};
 use super::*;
 
 #[test]
