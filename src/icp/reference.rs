@@ -1,5 +1,6 @@
 //! The reference point set a scan is matched against ("the map"): points with
-//! intensities, their surface normals, and a k-d tree over (x, y, √w·l).
+//! intensities, their surface normals, and a k-d tree over (x, y, √w·l), or
+//! over (x, y) alone when the intensity weight w is zero.
 //!
 //! Building the tree allocates (kiddo's `ImmutableKdTree` owns its storage), so
 //! a reference is rebuilt only when the reference changes (a new keyframe, a
@@ -14,13 +15,24 @@ use nalgebra::{Matrix2, Vector2};
 use super::{IcpError, IcpParams};
 use crate::geom::{IPoint, Pose};
 
+/// The k-d tree over the reference points. With no intensity weight the
+/// third axis would be zero everywhere: a plane tree then spends no levels
+/// splitting on it, which makes both its build and its queries cheaper.
+enum Tree {
+    /// Over (x, y): the intensity weight is zero.
+    Plane(ImmutableKdTree<f64, 2>),
+    /// Over (x, y, √w·l).
+    WithIntensity(ImmutableKdTree<f64, 3>),
+}
+
 /// A reference point set prepared for matching.
 pub struct Reference {
     points: Vec<IPoint>,
     normals: Vec<Vector2<f64>>,
     edges: Vec<bool>,
     coords: Vec<[f64; 3]>,
-    tree: Option<ImmutableKdTree<f64, 3>>,
+    coords2: Vec<[f64; 2]>,
+    tree: Option<Tree>,
     intensity_scale: f64,
     /// Bearing index of a single scan: sensor pose and the sorted bearing of
     /// every point in the sensor frame. Used instead of the tree when set.
@@ -51,6 +63,7 @@ impl Reference {
             normals: Vec::new(),
             edges: Vec::new(),
             coords: Vec::new(),
+            coords2: Vec::new(),
             tree: None,
             intensity_scale: 0.0,
             fan: None,
@@ -237,11 +250,13 @@ impl Reference {
     }
 
     fn nearest_in_tree(&self, q: &[f64; 3]) -> Option<(usize, f64)> {
-        let tree = self.tree.as_ref()?;
-        let r = tree
-            .query(q)
-            .nearest_one::<SquaredEuclidean<f64>>()
-            .execute();
+        let r = match self.tree.as_ref()? {
+            Tree::Plane(t) => t
+                .query(&[q[0], q[1]])
+                .nearest_one::<SquaredEuclidean<f64>>()
+                .execute(),
+            Tree::WithIntensity(t) => t.query(q).nearest_one::<SquaredEuclidean<f64>>().execute(),
+        };
         Some((r.item as usize, r.distance))
     }
 
@@ -326,10 +341,17 @@ impl Reference {
         self.fan = None;
         self.intensity_scale = params.intensity_weight.max(0.0).sqrt();
         let s = self.intensity_scale;
-        self.coords.clear();
-        self.coords
-            .extend(self.points.iter().map(|p| [p.x, p.y, s * p.intensity]));
-        match ImmutableKdTree::new_from_slice(&self.coords) {
+        let built = if s > 0.0 {
+            self.coords.clear();
+            self.coords
+                .extend(self.points.iter().map(|p| [p.x, p.y, s * p.intensity]));
+            ImmutableKdTree::new_from_slice(&self.coords).map(Tree::WithIntensity)
+        } else {
+            self.coords2.clear();
+            self.coords2.extend(self.points.iter().map(|p| [p.x, p.y]));
+            ImmutableKdTree::new_from_slice(&self.coords2).map(Tree::Plane)
+        };
+        match built {
             Ok(t) => {
                 self.tree = Some(t);
                 Ok(())
@@ -438,6 +460,8 @@ impl Accum {
 mod tests {
     use super::*;
     use crate::geom::pose;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     /// The bearing search finds exactly what an exhaustive search finds.
     #[test]
@@ -459,13 +483,8 @@ mod tests {
         fan.rebuild_scan(&scan, &at, &params).unwrap();
         assert!(fan.fan.is_some());
         let s = fan.intensity_scale();
-        let mut state = 3u64;
-        let mut u = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut u = || rng.random::<f64>();
         for _ in 0..2000 {
             let q = [1.0 + 8.0 * (u() - 0.5), -2.0 + 8.0 * (u() - 0.5), s * u()];
             let (i, d) = fan.nearest_within(&q, f64::INFINITY).unwrap();
@@ -490,5 +509,54 @@ mod tests {
         // Too few points: an error, and an empty reference.
         assert!(fan.rebuild_scan(&scan[..3], &at, &params).is_err());
         assert!(fan.is_empty());
+    }
+
+    /// Both tree kinds, the plane one (no intensity weight) and the one with
+    /// an intensity axis, find exactly what an exhaustive search finds, and
+    /// honour the distance bound.
+    #[test]
+    fn tree_search_is_exact_with_and_without_intensity() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut u = || rng.random::<f64>();
+        // Clustered points (walls and clutter), unordered: the tree is used.
+        let points: Vec<IPoint> = (0..1500)
+            .map(|i| {
+                let t = u();
+                let (x, y) = match i % 3 {
+                    0 => (4.0 * t, 0.02 * u()),
+                    1 => (0.02 * u(), 3.0 * t),
+                    _ => (1.5 + 0.3 * u(), 1.0 + 0.3 * t),
+                };
+                IPoint::new(x, y, u())
+            })
+            .collect();
+        for w in [0.0, 0.3] {
+            let params = IcpParams {
+                intensity_weight: w,
+                ..IcpParams::default()
+            };
+            let mut r = Reference::new();
+            r.rebuild(&points, &params).unwrap();
+            assert_eq!(matches!(r.tree, Some(Tree::Plane(_))), w == 0.0);
+            let s = r.intensity_scale();
+            for _ in 0..2000 {
+                let q = [5.0 * u() - 0.5, 4.0 * u() - 0.5, s * u()];
+                let (i, d) = r.nearest_within(&q, f64::INFINITY).unwrap();
+                let brute = r
+                    .points()
+                    .iter()
+                    .map(|p| {
+                        (p.x - q[0]).powi(2)
+                            + (p.y - q[1]).powi(2)
+                            + (s * p.intensity - q[2]).powi(2)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    (d - brute).abs() < 1e-12,
+                    "w {w}, query {q:?}: got {i} at {d}, best {brute}"
+                );
+                assert_eq!(r.nearest_within(&q, brute * 0.999).is_none(), brute > 0.0);
+            }
+        }
     }
 }

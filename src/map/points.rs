@@ -229,6 +229,8 @@ impl PointMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn wall(x0: f64, x1: f64, step: f64, y: f64) -> Vec<IPoint> {
         let n = ((x1 - x0) / step).round() as usize;
@@ -244,13 +246,8 @@ mod tests {
     #[test]
     fn neighbour_query_matches_brute_force() {
         let mut m = PointMap::new(0.05, 0);
-        let mut s = 12345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(12345);
+        let mut rnd = || rng.random::<f64>();
         for _ in 0..2000 {
             let (x, y) = (rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0);
             m.insert(IPoint::new(x, y, 0.1));
