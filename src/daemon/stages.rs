@@ -268,9 +268,10 @@ impl Stage for LocaliseStage {
         let before = self.tracker.pose();
         let restored = self.tracker.map().len();
         let robot_odom = msg.odom;
+        // The keyframe (a k-d tree rebuild) is added after the pose is handed on.
         let step = self
             .tracker
-            .step(&self.points, Some(&(robot_odom * self.mount)));
+            .step_deferred(&self.points, Some(&(robot_odom * self.mount)));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
         if resuming {
             let how = match step.outcome {
@@ -287,10 +288,6 @@ impl Stage for LocaliseStage {
                 "resume: first scan against {restored} restored keyframe(s) {how}, {:.3} m from its start pose",
                 (step.pose.translation.vector - before.translation.vector).norm()
             );
-        }
-        if step.keyframe && self.publish_keyframes {
-            let kf = Arc::new(self.tracker.state());
-            self.shared.with_status(|s| s.keyframes = Some(kf));
         }
         let mut robot = step.pose * self.mount.inverse();
         match self.turn_check.step(&self.points, &robot_odom) {
@@ -381,6 +378,11 @@ impl Stage for LocaliseStage {
                 pose: step.pose,
                 scan: msg.scan,
             });
+        }
+        self.tracker.finish_keyframe();
+        if step.keyframe && self.publish_keyframes {
+            let kf = Arc::new(self.tracker.state());
+            self.shared.with_status(|s| s.keyframes = Some(kf));
         }
         Ok(())
     }

@@ -52,7 +52,9 @@ pub struct Step {
     pub pose: Pose,
     /// How it was obtained.
     pub outcome: Outcome,
-    /// True when the scan was added to the local map as a keyframe.
+    /// True when the scan was added to the local map as a keyframe (after
+    /// [`Tracker::step_deferred`]: when it is to be added by
+    /// [`Tracker::finish_keyframe`]).
     pub keyframe: bool,
 }
 
@@ -85,6 +87,10 @@ pub struct Tracker {
     reported: Pose,
     /// The previous scan at its reported pose (scan-to-scan reference).
     previous: Reference,
+    /// A keyframe decided on by [`Tracker::step_deferred`] and not yet
+    /// added: the scan-to-map pose it is added at (its points are the
+    /// matcher's prepared points until the next step).
+    pending_keyframe: Option<Pose>,
 }
 
 impl Tracker {
@@ -103,10 +109,12 @@ impl Tracker {
             started: false,
             reported: start,
             previous: Reference::new(),
+            pending_keyframe: None,
         })
     }
 
     /// The state to continue from later ([`Tracker::restore`]); allocates.
+    /// A keyframe still pending (see [`Tracker::step_deferred`]) is not in it.
     pub fn state(&self) -> TrackerState {
         TrackerState {
             keyframes: self.map.export(),
@@ -139,6 +147,7 @@ impl Tracker {
     /// Moves the estimate to `pose` (e.g. a relocalisation), keeping the
     /// local map; the motion prior starts over.
     pub fn set_pose(&mut self, pose: Pose) {
+        self.finish_keyframe();
         self.map_pose = unit(pose);
         self.reported = self.map_pose;
         self.previous.clear();
@@ -188,7 +197,34 @@ impl Tracker {
     /// wheel odometry pose at the same time when there is one. Matches against
     /// the tracker's own keyframe map and adds keyframes as the robot moves.
     pub fn step(&mut self, points: &[IPoint], odom: Option<&Pose>) -> Step {
+        let mut step = self.step_inner(points, odom, None);
+        if self.pending_keyframe.is_some() {
+            step.keyframe = self.finish_keyframe();
+        }
+        step
+    }
+
+    /// Like [`Tracker::step`], but a keyframe that is due is only decided
+    /// on (`Step::keyframe` says so): adding it, which rebuilds the local
+    /// map's k-d tree (the costliest part of a keyframe step), waits for
+    /// [`Tracker::finish_keyframe`]. A daemon hands the pose on first and
+    /// finishes after, off the pose's latency. The estimates are the same as
+    /// with [`Tracker::step`]: the next step (or [`Tracker::set_pose`])
+    /// finishes a keyframe left pending before doing anything else.
+    pub fn step_deferred(&mut self, points: &[IPoint], odom: Option<&Pose>) -> Step {
         self.step_inner(points, odom, None)
+    }
+
+    /// Adds the keyframe [`Tracker::step_deferred`] decided on, if any;
+    /// true when one was added.
+    pub fn finish_keyframe(&mut self) -> bool {
+        let Some(pose) = self.pending_keyframe.take() else {
+            return false;
+        };
+        let params = self.matcher.params().clone();
+        self.map
+            .insert(&pose, self.matcher.prepared_points(), &params)
+            .is_ok()
     }
 
     /// Like [`Tracker::step`], but matches against `reference` (e.g. a snapshot
@@ -209,6 +245,7 @@ impl Tracker {
         odom: Option<&Pose>,
         external: Option<&Reference>,
     ) -> Step {
+        self.finish_keyframe();
         // A fresh odometry reading predicts from the pose where the previous
         // distinct reading first appeared; a stalled (repeated) reading says
         // nothing, so the constant-velocity prior is used instead.
@@ -326,7 +363,10 @@ impl Tracker {
                 let before = self.map_pose;
                 self.velocity = unit(self.map_pose.inverse() * m.pose);
                 self.map_pose = unit(m.pose);
-                let keyframe = external.is_none() && self.maybe_keyframe();
+                let keyframe = external.is_none() && self.keyframe_due();
+                if keyframe {
+                    self.pending_keyframe = Some(self.map_pose);
+                }
                 let pose = self.fuse(&before, true);
                 Step {
                     pose,
@@ -434,23 +474,18 @@ impl Tracker {
         }
     }
 
-    fn maybe_keyframe(&mut self) -> bool {
+    /// Whether the scan just matched at `map_pose` is far enough from the
+    /// newest keyframe to become one.
+    fn keyframe_due(&self) -> bool {
         let params = self.matcher.params();
-        let due = match self.map.last_pose() {
+        match self.map.last_pose() {
             None => true,
             Some(k) => {
                 let d = k.inverse() * self.map_pose;
                 d.translation.vector.norm() >= params.keyframe_distance
                     || d.rotation.angle().abs() >= params.keyframe_angle
             }
-        };
-        if !due {
-            return false;
         }
-        let params = params.clone();
-        self.map
-            .insert(&self.map_pose, self.matcher.prepared_points(), &params)
-            .is_ok()
     }
 }
 
@@ -459,6 +494,48 @@ mod tests {
     use super::*;
     use crate::geom::pose;
     use crate::icp::synth::{cast_seeded, room, Wall};
+
+    /// Deferring the keyframe (the daemon's order: pose out first, keyframe
+    /// after) gives the very same estimates as adding it within the step,
+    /// also when a relocalisation (`set_pose`) comes between.
+    #[test]
+    fn a_deferred_keyframe_changes_no_estimate() {
+        let mut walls = room(5.0, 4.0, 0.5);
+        walls.push(Wall::new(3.0, 1.0, 3.0, 2.2, 0.9));
+        let truth = |k: u32| pose(1.0 + 0.04 * f64::from(k), 1.5, 0.03 * f64::from(k));
+        let params = IcpParams {
+            keyframe_distance: 0.1,
+            keyframe_window: 6,
+            ..IcpParams::default()
+        };
+        let mut now = Tracker::new(params.clone(), truth(0)).unwrap();
+        let mut later = Tracker::new(params, truth(0)).unwrap();
+        let mut keyframes = 0;
+        for k in 0..40 {
+            let scan = cast_seeded(&walls, &truth(k), u64::from(k));
+            let odom = truth(k) * pose(0.002, -0.001, 0.001);
+            let a = now.step(&scan, Some(&odom));
+            let b = later.step_deferred(&scan, Some(&odom));
+            assert_eq!(a.pose, b.pose, "scan {k}");
+            assert_eq!(a.keyframe, b.keyframe, "scan {k}");
+            if k == 25 {
+                // The pending keyframe goes in before the pose moves.
+                now.set_pose(truth(k));
+                later.set_pose(truth(k));
+                assert!(!later.finish_keyframe());
+            } else if k % 3 != 0 {
+                // Every third scan's keyframe is left for the next step.
+                assert_eq!(later.finish_keyframe(), b.keyframe, "scan {k}");
+            } else if b.keyframe && k > 0 {
+                // Left pending: not in the local map yet.
+                assert_ne!(now.map().last_pose(), later.map().last_pose(), "scan {k}");
+            }
+            keyframes += usize::from(a.keyframe);
+        }
+        assert!(keyframes >= 10, "{keyframes} keyframes");
+        later.finish_keyframe();
+        assert_eq!(now.state(), later.state());
+    }
 
     #[test]
     fn restored_keyframes_pull_an_offset_start_back_into_their_frame() {
