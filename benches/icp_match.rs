@@ -1,6 +1,7 @@
 //! Scan-matching speed on the MIT CSAIL benchmark log (361-beam scans):
 //! one match against the keyframe local map, one scan-to-scan match, and the
-//! whole log through the tracker (per-scan cost = time / 1987 scans).
+//! whole log through the tracker with the default settings and with the
+//! daemon's (`hw/robot.toml`) (per-scan cost = time / 1987 scans).
 //! Skips with one line when `../shared/datasets/mit-csail/mit-csail.clf` is missing.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -104,15 +105,27 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("icp_track");
     g.sample_size(10);
     g.throughput(Throughput::Elements(data.len() as u64 - 1));
-    g.bench_function("mit_csail_whole_log", |b| {
-        b.iter(|| {
-            let mut t = Tracker::new(params.clone(), data[0].1).unwrap();
-            for (pts, odom) in &data {
-                t.step(pts, Some(odom));
-            }
-            t.pose()
-        })
-    });
+    // The defaults, and the daemon's matcher: hw/robot.toml's [icp] table
+    // (40 keyframes, so a larger k-d tree to query and to rebuild at each
+    // keyframe).
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+    let daemon = sweepline::config::Config::load(std::path::Path::new(path))
+        .expect("hw/robot.toml loads")
+        .icp;
+    for (name, p) in [
+        ("mit_csail_whole_log", &params),
+        ("mit_csail_whole_log_robot_toml", &daemon),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let mut t = Tracker::new(p.clone(), data[0].1).unwrap();
+                for (pts, odom) in &data {
+                    t.step(pts, Some(odom));
+                }
+                t.pose()
+            })
+        });
+    }
     g.finish();
 }
 
