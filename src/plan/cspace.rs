@@ -960,6 +960,27 @@ impl CSpace {
         None
     }
 
+    /// Whether at least `n` traversable cells are connected to cell
+    /// `start` (moving as the path search does): a flood fill that stops
+    /// once it has found `n`, so a large part costs no more than a small one.
+    pub fn traversable_part_holds(&self, start: usize, n: usize) -> bool {
+        if start >= self.frame.len() || !self.traversable[start] {
+            return false;
+        }
+        let mut found = vec![start];
+        let mut next = 0;
+        while next < found.len() && found.len() < n {
+            let i = found[next];
+            next += 1;
+            for (j, _) in self.steps(i) {
+                if !found.contains(&j) {
+                    found.push(j);
+                }
+            }
+        }
+        found.len() >= n
+    }
+
     /// Whether the straight segment `a`–`b` keeps the robot body off every
     /// seen obstacle (sampled every quarter cell).
     pub fn segment_safe(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {

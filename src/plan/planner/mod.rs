@@ -1101,7 +1101,7 @@ impl CoveragePlanner {
         }
         if !self.cspace.traversable[robot] {
             self.log_escape_cause(&p);
-            if let Some(goal) = self.escape_target(robot) {
+            if let Some(path) = self.escape_path(robot, &p) {
                 let forgive = self.may_forgive();
                 // The robot was pushed into an inflation zone (a cell seen
                 // occupied next to it, tracking error): the task it was on is
@@ -1110,7 +1110,7 @@ impl CoveragePlanner {
                     self.forgive_task();
                 }
                 self.stats.escapes += 1;
-                self.set_task(Task::Escape, vec![goal], None);
+                self.set_task(Task::Escape, path, None);
                 return working(Task::Escape);
             }
             return Err(PlanError::Trapped { x: p.x, y: p.y });
@@ -1525,7 +1525,6 @@ impl CoveragePlanner {
         }
     }
 
-    /// The nearest traversable cell reachable over seen-free cells.
     /// Says why the robot at `p` is out of the traversable space: what lies
     /// within its clearance, and whether the path it was on is still
     /// traversable where it passes nearest (the robot left it: tracking)
@@ -1570,15 +1569,30 @@ impl CoveragePlanner {
         );
     }
 
-    fn escape_target(&self, robot: usize) -> Option<Point2<f64>> {
+    /// Where the robot at `p` (cell `robot`), out of the traversable
+    /// space, escapes to: the nearest traversable cell reachable over
+    /// seen-free cells, found breadth first. When that cell's traversable
+    /// part is smaller than the robot's footprint (an island a surface seen
+    /// since left in a tight passage: the robot would be boxed in there at
+    /// once, and escape again as the map changes, back and forth), the
+    /// nearest cell of a part at least that large is taken instead, by the
+    /// seen-free cells' way there with corners cut where the bare body
+    /// stays off seen obstacles. With no such part, the island.
+    fn escape_path(&self, robot: usize, p: &Point2<f64>) -> Option<Vec<Point2<f64>>> {
         let f = self.cspace.frame;
-        let mut seen = vec![false; f.len()];
+        let mut parent = vec![usize::MAX; f.len()];
         let mut queue = std::collections::VecDeque::new();
-        seen[robot] = true;
+        parent[robot] = robot;
         queue.push_back(robot);
+        let mut island = None;
+        let mut goal = None;
         while let Some(i) = queue.pop_front() {
             if self.cspace.traversable[i] {
-                return Some(f.centre(i));
+                if self.cspace.traversable_part_holds(i, self.stamp.len()) {
+                    goal = Some(i);
+                    break;
+                }
+                island.get_or_insert(i);
             }
             let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
             for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
@@ -1587,13 +1601,46 @@ impl CoveragePlanner {
                     continue;
                 }
                 let j = ny as usize * f.w + nx as usize;
-                if !seen[j] && self.cspace.state[j] == FREE {
-                    seen[j] = true;
+                if parent[j] == usize::MAX && self.cspace.state[j] == FREE {
+                    parent[j] = i;
                     queue.push_back(j);
                 }
             }
         }
-        None
+        let (goal, passed) = match (goal, island) {
+            (Some(g), Some(i)) => (g, Some(i)),
+            (Some(g), None) => (g, None),
+            (None, i) => (i?, None),
+        };
+        let Some(island) = passed else {
+            return Some(vec![f.centre(goal)]);
+        };
+        log::info!(
+            "escape: the nearest traversable floor, at ({:.2}, {:.2}) m, is an island smaller than the robot's footprint; escaping to ({:.2}, {:.2}) m instead",
+            f.centre(island).x,
+            f.centre(island).y,
+            f.centre(goal).x,
+            f.centre(goal).y
+        );
+        let mut way = Vec::new();
+        let mut k = goal;
+        while k != robot {
+            way.push(f.centre(k));
+            k = parent[k];
+        }
+        way.reverse();
+        let mut path = Vec::new();
+        let (mut from, mut at) = (*p, 0);
+        while at < way.len() {
+            let far = (at + 1..way.len())
+                .rev()
+                .find(|&j| self.cspace.segment_safe(&from, &way[j]))
+                .unwrap_or(at);
+            path.push(way[far]);
+            from = way[far];
+            at = far + 1;
+        }
+        Some(path)
     }
 
     /// The end game: once the room has been toured and less than

@@ -195,6 +195,54 @@ fn a_boxed_in_robot_waits_for_the_map_to_clear() {
     assert!(r.unreachable_area > 4.0, "{r:?}");
 }
 
+/// A 3 m x 2.25 m room whose upper part is a corridor 0.4 m wide (rows
+/// 31-38) east of x = 1 m: too narrow for the clearance anywhere, but for
+/// an island of a few cells under a notch in its ceiling (x 2.0-2.4 m). A
+/// robot in the corridor west of the notch escapes to the nearest floor
+/// with room for its footprint (the open part west and south), not to the
+/// island, where it would be boxed in at once.
+#[test]
+fn an_escape_passes_over_an_island_smaller_than_the_footprint() {
+    let g = crate::plan::test_support::room_with(60, 45, |x, y| {
+        (y >= 39 && !(40..=47).contains(&x)) || (y == 30 && x >= 20)
+    });
+    let mut p = crate::plan::test_support::planner();
+    let at = g.centre_of((36, 35));
+    let start = crate::geom::pose(at.x, at.y, 0.0);
+    p.update(&g, &Decomposition::default(), &start, None)
+        .unwrap();
+    // The room as the test means it: the robot out of the traversable
+    // space, an island under the notch, too small for the body.
+    let f = p.cspace.frame;
+    let robot = f.index_of(&at).unwrap();
+    assert!(!p.cspace.traversable[robot]);
+    let island = f.index_of(&g.centre_of((43, 36))).unwrap();
+    assert!(p.cspace.traversable[island], "no island under the notch");
+    assert!(!p.cspace.traversable_part_holds(island, p.stamp.len()));
+    let (path, _) = p.path();
+    assert_eq!(p.task, Task::Escape);
+    let end = *path.last().unwrap();
+    let e = f.index_of(&end).unwrap();
+    assert!(end.x < 1.0, "escapes west, not to the island: {end:?}");
+    assert!(p.cspace.traversable[e]);
+    assert!(p.cspace.traversable_part_holds(e, p.stamp.len()));
+    let mut from = at;
+    for q in path {
+        assert!(p.cspace.segment_safe(&from, q), "{from:?} -> {q:?}");
+        from = *q;
+    }
+    // From there the room is covered as usual.
+    let st = p
+        .update(
+            &g,
+            &Decomposition::default(),
+            &crate::geom::pose(end.x, end.y, 0.0),
+            None,
+        )
+        .unwrap();
+    assert!(covers_floor(&st), "{st:?}");
+}
+
 #[test]
 fn a_robot_boxed_in_a_pocket_the_body_fits_out_of_steps_out_instead_of_finishing() {
     // A 3 m x 2 m room; on its left a 0.7 m x 0.7 m chamber whose door
