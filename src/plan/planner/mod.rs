@@ -1101,7 +1101,7 @@ impl CoveragePlanner {
         }
         if !self.cspace.traversable[robot] {
             self.log_escape_cause(&p);
-            if let Some(path) = self.escape_path(robot, &p) {
+            if let Some(path) = self.escape_path(robot) {
                 let forgive = self.may_forgive();
                 // The robot was pushed into an inflation zone (a cell seen
                 // occupied next to it, tracking error): the task it was on is
@@ -1569,30 +1569,50 @@ impl CoveragePlanner {
         );
     }
 
-    /// Where the robot at `p` (cell `robot`), out of the traversable
-    /// space, escapes to: the nearest traversable cell reachable over
-    /// seen-free cells, found breadth first. When that cell's traversable
-    /// part is smaller than the robot's footprint (an island a surface seen
-    /// since left in a tight passage: the robot would be boxed in there at
-    /// once, and escape again as the map changes, back and forth), the
-    /// nearest cell of a part at least that large is taken instead, by the
-    /// seen-free cells' way there with corners cut where the bare body
-    /// stays off seen obstacles. With no such part, the island.
-    fn escape_path(&self, robot: usize, p: &Point2<f64>) -> Option<Vec<Point2<f64>>> {
+    /// Where the robot at cell `robot`, out of the traversable space,
+    /// escapes to: the nearest traversable cell reachable over seen-free
+    /// cells, found breadth first. When that cell's traversable part is
+    /// smaller than the robot's footprint (an island a surface seen since
+    /// left in a tight passage: the robot would be boxed in there at once,
+    /// and escape again as the map changes, back and forth), the way to the
+    /// nearest part at least that large over the cells the bare body fits
+    /// on ([`super::unbox::way_out`]) instead; with none, the island.
+    fn escape_path(&self, robot: usize) -> Option<Vec<Point2<f64>>> {
         let f = self.cspace.frame;
-        let mut parent = vec![usize::MAX; f.len()];
+        let goal = self.escape_target(robot)?;
+        let need = self.stamp.len();
+        if self.cspace.traversable_part_holds(goal, need) {
+            return Some(vec![f.centre(goal)]);
+        }
+        let nowhere = vec![false; f.len()];
+        let Some(path) =
+            super::unbox::way_out(&self.cspace, robot, &nowhere, f64::INFINITY, |part| {
+                part.len() >= need
+            })
+        else {
+            return Some(vec![f.centre(goal)]);
+        };
+        let end = path.last().copied().unwrap_or_else(|| f.centre(goal));
+        log::info!(
+            "escape: the nearest traversable floor, at ({:.2}, {:.2}) m, is an island smaller than the robot's footprint; escaping to ({:.2}, {:.2}) m instead",
+            f.centre(goal).x,
+            f.centre(goal).y,
+            end.x,
+            end.y
+        );
+        Some(path)
+    }
+
+    /// The nearest traversable cell to `robot` reachable over seen-free cells.
+    fn escape_target(&self, robot: usize) -> Option<usize> {
+        let f = self.cspace.frame;
+        let mut seen = vec![false; f.len()];
         let mut queue = std::collections::VecDeque::new();
-        parent[robot] = robot;
+        seen[robot] = true;
         queue.push_back(robot);
-        let mut island = None;
-        let mut goal = None;
         while let Some(i) = queue.pop_front() {
             if self.cspace.traversable[i] {
-                if self.cspace.traversable_part_holds(i, self.stamp.len()) {
-                    goal = Some(i);
-                    break;
-                }
-                island.get_or_insert(i);
+                return Some(i);
             }
             let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
             for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
@@ -1601,46 +1621,13 @@ impl CoveragePlanner {
                     continue;
                 }
                 let j = ny as usize * f.w + nx as usize;
-                if parent[j] == usize::MAX && self.cspace.state[j] == FREE {
-                    parent[j] = i;
+                if !seen[j] && self.cspace.state[j] == FREE {
+                    seen[j] = true;
                     queue.push_back(j);
                 }
             }
         }
-        let (goal, passed) = match (goal, island) {
-            (Some(g), Some(i)) => (g, Some(i)),
-            (Some(g), None) => (g, None),
-            (None, i) => (i?, None),
-        };
-        let Some(island) = passed else {
-            return Some(vec![f.centre(goal)]);
-        };
-        log::info!(
-            "escape: the nearest traversable floor, at ({:.2}, {:.2}) m, is an island smaller than the robot's footprint; escaping to ({:.2}, {:.2}) m instead",
-            f.centre(island).x,
-            f.centre(island).y,
-            f.centre(goal).x,
-            f.centre(goal).y
-        );
-        let mut way = Vec::new();
-        let mut k = goal;
-        while k != robot {
-            way.push(f.centre(k));
-            k = parent[k];
-        }
-        way.reverse();
-        let mut path = Vec::new();
-        let (mut from, mut at) = (*p, 0);
-        while at < way.len() {
-            let far = (at + 1..way.len())
-                .rev()
-                .find(|&j| self.cspace.segment_safe(&from, &way[j]))
-                .unwrap_or(at);
-            path.push(way[far]);
-            from = way[far];
-            at = far + 1;
-        }
-        Some(path)
+        None
     }
 
     /// The end game: once the room has been toured and less than
