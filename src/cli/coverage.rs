@@ -364,8 +364,8 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
     if let Some(r) = online.report {
         let _ = writeln!(
             s,
-            "\nPlanner report: unreachable seen floor {:.2} m², floor given up {:.2} m², leftovers declined {:.2} m², frontier left unexplored {:.2} m (no reachable place sees past it, or given up).",
-            r.unreachable_area, r.abandoned_area, r.declined_area, r.unexplored_frontier
+            "\nPlanner report: unreachable seen floor {:.2} m², floor behind passages tighter than the clearance {:.2} m², floor given up {:.2} m², leftovers declined {:.2} m², frontier left unexplored {:.2} m (no reachable place sees past it, or given up).",
+            r.unreachable_area, r.behind_tight_passages, r.abandoned_area, r.declined_area, r.unexplored_frontier
         );
     }
     s

@@ -874,9 +874,10 @@ impl Stage for PlanStage {
                 });
                 self.shared.done.store(true, Ordering::Relaxed);
                 log::info!(
-                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² abandoned, {:.2} m² of leftovers declined, {:.2} m of frontier left unexplored",
+                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² behind passages tighter than the clearance, {:.2} m² abandoned, {:.2} m² of leftovers declined, {:.2} m of frontier left unexplored",
                     r.covered_area,
                     r.unreachable_area,
+                    r.behind_tight_passages,
                     r.abandoned_area,
                     r.declined_area,
                     r.unexplored_frontier
