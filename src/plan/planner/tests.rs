@@ -243,6 +243,20 @@ fn an_escape_passes_over_an_island_smaller_than_the_footprint() {
     assert!(covers_floor(&st), "{st:?}");
 }
 
+/// A planner with a safety margin of 0.1 m (a 0.5 m door then lets the
+/// bare body through but not the margin), after its first update in `g`
+/// with the robot at `start`.
+fn wide_margin_planner(g: &Grid, start: &crate::geom::Pose) -> CoveragePlanner {
+    let params = PlanParams {
+        look_around: false,
+        safety_margin: 0.1,
+        ..PlanParams::default()
+    };
+    let mut p = CoveragePlanner::new(&params, &RobotParams::default()).unwrap();
+    p.update(g, &Decomposition::default(), start, None).unwrap();
+    p
+}
+
 #[test]
 fn a_robot_boxed_in_a_pocket_the_body_fits_out_of_steps_out_instead_of_finishing() {
     // A 3 m x 2 m room; on its left a 0.7 m x 0.7 m chamber whose door
@@ -255,16 +269,9 @@ fn a_robot_boxed_in_a_pocket_the_body_fits_out_of_steps_out_instead_of_finishing
             || (y == 21 && x <= 15)
             || (y == 6 && x <= 15)
     });
-    let params = PlanParams {
-        look_around: false,
-        safety_margin: 0.1,
-        ..PlanParams::default()
-    };
-    let robot = RobotParams::default();
     let empty = Decomposition::default();
     let start = crate::geom::pose(0.4, 0.7, 0.0);
-    let mut p = CoveragePlanner::new(&params, &robot).unwrap();
-    p.update(&g, &empty, &start, None).unwrap();
+    let mut p = wide_margin_planner(&g, &start);
     assert!(
         p.boxed_in_now(),
         "the chamber must be smaller than the body"
@@ -1053,16 +1060,9 @@ fn floor_behind_a_passage_tighter_than_the_clearance_is_reported_when_done() {
     let g = crate::plan::test_support::room_with(60, 40, |x, y| {
         (x == 25 && y <= 25 && !(9..=18).contains(&y)) || (y == 25 && x <= 25)
     });
-    let params = PlanParams {
-        look_around: false,
-        safety_margin: 0.1,
-        ..PlanParams::default()
-    };
-    let robot = RobotParams::default();
     let empty = Decomposition::default();
     let start = crate::geom::pose(0.6, 0.6, 0.0);
-    let mut p = CoveragePlanner::new(&params, &robot).unwrap();
-    p.update(&g, &empty, &start, None).unwrap();
+    let mut p = wide_margin_planner(&g, &start);
     assert!(!p.boxed_in_now(), "the chamber holds the footprint");
     // The whole chamber swept.
     for k in 0..=22 {
