@@ -1692,14 +1692,13 @@ impl CoveragePlanner {
         cands.retain(|_| k.next().copied().unwrap_or(true));
     }
 
-    /// What is left at the end; [`CSpace::dist`] must hold the travel
-    /// costs from `robot` (the last decision's search).
+    /// What is left at the end; the reachable centres
+    /// (`reachable_mask`) must be this decision's.
     fn done_report(&self, robot: usize) -> DoneReport {
         let f = self.cspace.frame;
         let a = f.res * f.res;
         let touch = body_touch(&self.cspace, robot);
-        let reached: Vec<bool> = self.cspace.dist.iter().map(|d| d.is_finite()).collect();
-        let own = touch_from(&self.cspace, &reached);
+        let own = touch_from(&self.cspace, &self.reachable_mask);
         let mut r = DoneReport::default();
         for (i, &t) in touch.iter().enumerate() {
             if self.cspace.state[i] == FREE && !t {
