@@ -989,14 +989,43 @@ impl CSpace {
 
     /// The first sample of the straight segment `a`–`b` (every quarter
     /// cell, from `a`) where the bare body would touch a seen obstacle or
-    /// leave the map; `None` when the whole segment is safe.
+    /// leave the map; `None` when the whole segment is safe. A sample in a
+    /// cell that is not [`CSpace::collision_free`] (judged at the cell's
+    /// centre) is measured again where it is: up to half a cell from the
+    /// centre, a path may pass a surface seen since it was planned by a
+    /// few millimetres more than the robot radius, and is not blocked.
     pub fn first_unsafe(&self, a: &Point2<f64>, b: &Point2<f64>) -> Option<Point2<f64>> {
-        self.samples(a, b).find(|p| {
-            !self
-                .frame
-                .index_of(p)
-                .is_some_and(|i| self.collision_free[i])
+        self.samples(a, b).find(|p| match self.frame.index_of(p) {
+            Some(i) => !self.collision_free[i] && self.body_touches(p, i),
+            None => true,
         })
+    }
+
+    /// Whether a robot body centred at `p`, in cell `i`, comes nearer than
+    /// the robot radius to the square of a cell seen occupied or holding a
+    /// surface (one bordering free floor, as [`CSpace::collision_free`]
+    /// counts them).
+    fn body_touches(&self, p: &Point2<f64>, i: usize) -> bool {
+        let f = self.frame;
+        let (w, h) = (f.w as i64, f.h as i64);
+        let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
+        let k = (self.radius / f.res).ceil() as i64 + 1;
+        for ny in (y - k).max(0)..=(y + k).min(h - 1) {
+            for nx in (x - k).max(0)..=(x + k).min(w - 1) {
+                let j = ny as usize * f.w + nx as usize;
+                let solid = self.state[j] == OCCUPIED || self.held[j];
+                if !solid || !self.borders_free(nx, ny) {
+                    continue;
+                }
+                let c = f.centre(j);
+                let gx = ((p.x - c.x).abs() - 0.5 * f.res).max(0.0);
+                let gy = ((p.y - c.y).abs() - 0.5 * f.res).max(0.0);
+                if gx.hypot(gy) < self.radius {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// Whether the straight segment `a`–`b` stays on traversable cells
@@ -1256,6 +1285,27 @@ mod tests {
         }
         c.rebuild(&g);
         assert!(c.traversable[near] && c.collision_free[near]);
+    }
+
+    #[test]
+    fn a_path_is_blocked_where_the_body_itself_touches_a_surface_not_where_its_cell_would() {
+        // The chair-leg cell (20, 10), the square [1.00, 1.05] x [0.50, 0.55].
+        let (g, _) = hit_then_passed(40, 1.02);
+        let mut c = CSpace::new(0.2, 0.17);
+        c.rebuild(&g);
+        // In cell (17, 8), whose centre is 0.146 m from the square, at its
+        // far corner: 0.178 m from the square, clear of a 0.17 m body.
+        let clear = Point2::new(0.852, 0.402);
+        assert!(!c.collision_free[c.frame.index_of(&clear).unwrap()]);
+        assert_eq!(c.first_unsafe(&clear, &clear), None);
+        assert!(c.segment_safe(&Point2::new(0.5, 0.402), &clear));
+        // In the same cell nearer the leg: 0.153 m, the body touches it.
+        let touching = Point2::new(0.87, 0.42);
+        assert_eq!(c.first_unsafe(&touching, &touching), Some(touching));
+        assert!(!c.segment_safe(&clear, &touching));
+        // Off the map is never safe.
+        let off = Point2::new(-0.1, 0.4);
+        assert_eq!(c.first_unsafe(&off, &off), Some(off));
     }
 
     #[test]
