@@ -343,6 +343,14 @@ fn square_offsets(radius: f64, r: f64) -> Vec<(i64, i64)> {
     v
 }
 
+/// Distance from point `p` to the square of side `res` centred at `c` (0
+/// inside it): how near a body centred at `p` comes to a whole grid cell.
+fn square_gap(p: &Point2<f64>, c: &Point2<f64>, res: f64) -> f64 {
+    let gx = ((p.x - c.x).abs() - 0.5 * res).max(0.0);
+    let gy = ((p.y - c.y).abs() - 0.5 * res).max(0.0);
+    gx.hypot(gy)
+}
+
 impl CSpace {
     /// An empty configuration space; `inflation` is the clearance (m) the
     /// robot centre keeps from obstacle and unexplored cells, `radius` the
@@ -695,13 +703,10 @@ impl CSpace {
             // Within the clearance of the robot's cell (what makes it not
             // traversable); measured from the robot itself.
             let c = f.centre(j);
-            let edge = |q: Point2<f64>| {
-                let gx = ((q.x - c.x).abs() - 0.5 * f.res).max(0.0);
-                let gy = ((q.y - c.y).abs() - 0.5 * f.res).max(0.0);
-                gx.hypot(gy)
-            };
-            let distance = edge(*p);
-            if edge(f.centre(i)) >= self.inflation || best.is_some_and(|b| b.distance <= distance) {
+            let distance = square_gap(p, &c, f.res);
+            if square_gap(&f.centre(i), &c, f.res) >= self.inflation
+                || best.is_some_and(|b| b.distance <= distance)
+            {
                 continue;
             }
             let kind = match self.state[j] {
@@ -1017,10 +1022,7 @@ impl CSpace {
                 if !solid || !self.borders_free(nx, ny) {
                     continue;
                 }
-                let c = f.centre(j);
-                let gx = ((p.x - c.x).abs() - 0.5 * f.res).max(0.0);
-                let gy = ((p.y - c.y).abs() - 0.5 * f.res).max(0.0);
-                if gx.hypot(gy) < self.radius {
+                if square_gap(p, &f.centre(j), f.res) < self.radius {
                     return true;
                 }
             }
