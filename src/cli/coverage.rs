@@ -129,6 +129,7 @@ pub fn run(args: Args) -> CliResult {
     }
     let mut md = markdown(&world.name, &online, offline.as_ref());
     md += &conditions(&opts);
+    md += &people(&world, &online);
     std::fs::write(args.out.join("metrics.md"), &md)?;
     std::fs::write(
         args.out.join("metrics.csv"),
@@ -136,6 +137,19 @@ pub fn run(args: Args) -> CliResult {
     )?;
     print!("{md}");
     Ok(())
+}
+
+/// The line of metrics.md about people walking through the room (empty
+/// when nobody does).
+fn people(world: &World, online: &RunResult) -> String {
+    if world.walkers.is_empty() {
+        return String::new();
+    }
+    format!(
+        "\nPeople walking through the room (online run only; the offline reference has the room to itself): {}; contacts with them: {}.\n",
+        world.walkers.len(),
+        online.metrics.person_contacts
+    )
 }
 
 /// The line of metrics.md that says how the map was sensed.

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::sim::floorplan;
 use crate::sim::ros_map::{self, Region};
+use crate::sim::walker::Walker;
 use crate::sim::world::World;
 
 /// World selection arguments.
@@ -37,6 +38,12 @@ pub struct WorldArgs {
     /// default: the free point farthest from obstacles).
     #[arg(long, requires = "map", allow_hyphen_values = true, value_parser = ros_map::parse_start)]
     pub start: Option<crate::geom::Pose>,
+    /// A person walking through the room: `RADIUS,SPEED,X0,Y0,X1,Y1[,X,Y...]`
+    /// (m, m/s, way points in the world frame), out and back along the way
+    /// points for the whole run; may be given more than once. The world
+    /// file's `walker` lines add people too.
+    #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
+    pub walker: Vec<String>,
 }
 
 impl WorldArgs {
@@ -48,8 +55,23 @@ impl WorldArgs {
     }
 
     /// Loads the selected world; `default` when none is selected (an error
-    /// naming the options when there is no default either).
+    /// naming the options when there is no default either); with the
+    /// `--walker` people added.
     pub fn load(
+        &self,
+        default: Option<&Path>,
+    ) -> Result<World, Box<dyn std::error::Error + Send + Sync>> {
+        let mut world = self.load_room(default)?;
+        for spec in &self.walker {
+            let w = Walker::parse(spec).map_err(|m| format!("--walker {spec}: {m}"))?;
+            world
+                .add_walker(w)
+                .map_err(|m| format!("--walker {spec}: {m}"))?;
+        }
+        Ok(world)
+    }
+
+    fn load_room(
         &self,
         default: Option<&Path>,
     ) -> Result<World, Box<dyn std::error::Error + Send + Sync>> {
@@ -106,6 +128,7 @@ mod tests {
             map: None,
             region: None,
             start: None,
+            walker: Vec::new(),
         }
     }
 
@@ -126,6 +149,32 @@ mod tests {
         .load(None)
         .unwrap_err();
         assert!(e.to_string().contains("need --map"), "{e}");
+    }
+
+    #[test]
+    fn walkers_are_added_to_the_world_and_bad_ones_name_the_option() {
+        let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/worlds/paper.world");
+        let w = WorldArgs {
+            world: Some(paper.into()),
+            walker: vec!["0.2,1.0,0.5,3.6,6.0,3.6".into()],
+            ..args()
+        }
+        .load(None)
+        .unwrap();
+        assert_eq!(w.walkers.len(), 1);
+        for (spec, says) in [
+            ("0.2,1.0,0.5,3.6", "--walker 0.2,1.0,0.5,3.6: walker takes"),
+            ("0.2,1.0,0.5,3.6,9,3.6", "leaves the free floor"),
+        ] {
+            let e = WorldArgs {
+                world: Some(paper.into()),
+                walker: vec![spec.into()],
+                ..args()
+            }
+            .load(None)
+            .unwrap_err();
+            assert!(e.to_string().contains(says), "{spec}: {e}");
+        }
     }
 
     #[test]

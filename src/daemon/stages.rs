@@ -820,6 +820,7 @@ impl Stage for PlanStage {
             Some(0)
         };
         let here = self.shared.with_status(|s| s.pose);
+        self.planner.set_time(self.clock.now());
         let status = self
             .planner
             .update(&grid, decomp, &here, progress)

@@ -113,6 +113,15 @@ pub struct PlanParams {
     /// face of 5 cells or more (a wall) is not held: ranges ending in it now
     /// and then are noise, and holding it cut the lane hugging the wall.
     pub surface_hold: u32,
+    /// Seconds to wait, planning nothing, when nothing reachable is left
+    /// but floor the robot could once get to is left unswept beyond
+    /// obstacles (at least `min_patch_area` of it): a person standing in a
+    /// doorway walls a room off until they go and beams pass through where
+    /// they stood. The robot first drives to about a metre from that floor
+    /// to look at it from near. A wait that ends with work may come again
+    /// (at most 20 in a run); one that does not ends the run. 0 = finish at
+    /// once.
+    pub clear_wait: f64,
 }
 
 impl Default for PlanParams {
@@ -139,6 +148,7 @@ impl Default for PlanParams {
             coverage_goal: 0.995,
             leftover_ratio: 10.0,
             surface_hold: 100,
+            clear_wait: 60.0,
         }
     }
 }
@@ -160,6 +170,7 @@ impl PlanParams {
             ("max_lane_join", self.max_lane_join),
             ("way_out_passage", self.way_out_passage),
             ("leftover_ratio", self.leftover_ratio),
+            ("clear_wait", self.clear_wait),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PlanError::BadParam {

@@ -9,7 +9,7 @@
 //! daemon's pose estimate beside it (for the pose error).
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use nalgebra::Point2;
@@ -29,6 +29,7 @@ use crate::serial::DeviceConnector;
 use crate::sim::base_emu::{self, EmuStats, EmulatorHandle, Fault};
 use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::sim::urg_emu::{self, Echo, Scene};
+use crate::sim::walker::{cast_ray_among, touches, Body, Crowd};
 use crate::sim::world::World;
 use crate::urg::HealthSnapshot;
 
@@ -391,6 +392,10 @@ struct WorldScene {
     upside_down: bool,
     noise: f64,
     rng: ChaCha8Rng,
+    /// People walking through the room (stepped by the base emulator).
+    crowd: Arc<Mutex<Crowd>>,
+    /// Scratch: where the people are for this scan.
+    bodies: Vec<Body>,
 }
 
 impl WorldScene {
@@ -418,8 +423,11 @@ impl Scene for WorldScene {
         let th = heading(&sensor);
         let o = Point2::from(sensor.translation.vector);
         let turn = if self.upside_down { -1.0 } else { 1.0 };
+        self.bodies.clear();
+        self.bodies
+            .extend_from_slice(lock_crowd(&self.crowd).bodies());
         for (a, e) in angles.iter().zip(out.iter_mut()) {
-            *e = match self.world.cast_ray(&o, th + turn * a, URG_RANGE) {
+            *e = match cast_ray_among(&self.world, &self.bodies, &o, th + turn * a, URG_RANGE) {
                 Some(hit) => {
                     let r = hit.range + self.noise * self.gauss();
                     Echo::Hit {
@@ -489,15 +497,23 @@ fn link_dir() -> PathBuf {
     ))
 }
 
+/// The crowd, even if a thread that held it panicked (its state is plain
+/// positions, never left half-written).
+fn lock_crowd(c: &Mutex<Crowd>) -> std::sync::MutexGuard<'_, Crowd> {
+    c.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 fn start_emulators(
     opts: &SimOptions,
     clock: &SharedClock,
     seen: TruthLog,
+    crowd: Arc<Mutex<Crowd>>,
     links: &Path,
 ) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
     let mut ecfg = base_emu::EmulatorConfig::from_config(&opts.config, opts.base);
     ecfg.start = opts.world.start;
     ecfg.world = Some(opts.world.clone());
+    ecfg.crowd = Some(crowd.clone());
     ecfg.seed = opts.seed;
     ecfg.kinematics.seed = opts.seed;
     let wheel_base = opts.true_wheel_base();
@@ -526,6 +542,8 @@ fn start_emulators(
         upside_down,
         noise: opts.range_noise,
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
+        crowd,
+        bodies: Vec::new(),
     };
     let ucfg = urg_emu::EmulatorConfig {
         faults: opts.urg_faults.clone(),
@@ -546,7 +564,8 @@ pub fn spawn_emulators(
     clock: &SharedClock,
     links: &Path,
 ) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
-    start_emulators(opts, clock, Arc::default(), links)
+    let crowd = Arc::new(Mutex::new(Crowd::new(&opts.world.walkers)));
+    start_emulators(opts, clock, Arc::default(), crowd, links)
 }
 
 /// Runs one closed-loop coverage of `opts.world` and writes the report
@@ -572,22 +591,32 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
     let clock: SharedClock = Arc::new(ScaledClock::new(opts.speed));
     let seen: TruthLog = Arc::default();
     let links = link_dir();
-    let started = start_emulators(opts, &clock, seen.clone(), &links);
+    let crowd = Arc::new(Mutex::new(Crowd::new(&opts.world.walkers)));
+    let started = start_emulators(opts, &clock, seen.clone(), crowd.clone(), &links);
+    let truth = Truth { seen, crowd };
     let result =
-        started.and_then(|(base, urg)| drive(opts, clock, seen, base, urg, tracker, wall0));
+        started.and_then(|(base, urg)| drive(opts, clock, truth, base, urg, tracker, wall0));
     let _ = std::fs::remove_dir_all(&links);
     result
+}
+
+/// What the emulators share with the run's sampler: the true poses the
+/// scans were cast from, and the people walking through.
+struct Truth {
+    seen: TruthLog,
+    crowd: Arc<Mutex<Crowd>>,
 }
 
 fn drive(
     opts: &SimOptions,
     clock: SharedClock,
-    seen: TruthLog,
+    truth: Truth,
     base: Arc<EmulatorHandle>,
     urg: urg_emu::Emulator,
     mut tracker: CoverageTracker,
     wall0: Instant,
 ) -> Result<SimReport, SimError> {
+    let Truth { seen, crowd } = truth;
     let base_path = base
         .path()
         .ok_or_else(|| SimError::Emulator("the base emulator has no pty path".into()))?;
@@ -669,6 +698,13 @@ fn drive(
             (m, _) => (crate::plan::Motion::Other, m.map_or(0, |m| m.task)),
         };
         tracker.record_doing(&p, t, motion, task);
+        let centre = Point2::from(p.translation.vector);
+        let touching = touches(
+            lock_crowd(&crowd).bodies(),
+            &centre,
+            opts.config.robot.radius,
+        );
+        tracker.record_contact(touching, &centre, t);
         // The truth at the estimate's own time (both threads run
         // independently): from the recent truth samples when the estimate
         // is older, carried forward along the current motion when newer.

@@ -106,6 +106,9 @@ pub struct CoverageMetrics {
     pub rotation: f64,
     /// Number of times the robot disk entered non-free ground truth.
     pub collisions: usize,
+    /// Number of times the robot disk touched a person walking through the
+    /// room (see [`crate::sim::walker`]; 0 in a room nobody walks through).
+    pub person_contacts: usize,
     /// Simulated time (s).
     pub time: f64,
 }
@@ -137,6 +140,8 @@ pub struct CoverageTracker {
     last_dir: Option<f64>,
     colliding: bool,
     collisions: usize,
+    touching_person: bool,
+    person_contacts: usize,
     time: f64,
 }
 
@@ -276,6 +281,8 @@ impl CoverageTracker {
             last_dir: None,
             colliding: false,
             collisions: 0,
+            touching_person: false,
+            person_contacts: 0,
             time: 0.0,
         })
     }
@@ -407,15 +414,13 @@ impl CoverageTracker {
             self.last_seen[j] = time;
         }
         let hit = !self.disk_free(&p);
-        if hit && !self.colliding {
-            self.collisions += 1;
+        if begins(&mut self.colliding, hit, &mut self.collisions) {
             log::warn!(
                 "collision: the robot disk entered an obstacle at ({:.3}, {:.3}) m, t = {time:.1} s, while on a {motion:?} motion",
                 p.x,
                 p.y
             );
         }
-        self.colliding = hit;
     }
 
     fn disk_free(&self, p: &Point2<f64>) -> bool {
@@ -487,9 +492,35 @@ impl CoverageTracker {
             turns: self.turns,
             rotation: self.rotation,
             collisions: self.collisions,
+            person_contacts: self.person_contacts,
             time: self.time,
         }
     }
+
+    /// Records whether the robot disk at `p` touches a person walking
+    /// through the room at `time` (s); each new touch is a contact, logged.
+    pub fn record_contact(&mut self, touching: bool, p: &Point2<f64>, time: f64) {
+        if begins(
+            &mut self.touching_person,
+            touching,
+            &mut self.person_contacts,
+        ) {
+            log::warn!(
+                "contact: the robot disk touched a person walking by at ({:.3}, {:.3}) m, t = {time:.1} s",
+                p.x,
+                p.y
+            );
+        }
+    }
+}
+
+/// Whether a touch begins now (`now`, and not `was` at the last record),
+/// counted in `count`; `was` becomes `now`.
+fn begins(was: &mut bool, now: bool, count: &mut usize) -> bool {
+    let new = now && !*was;
+    *was = now;
+    *count += usize::from(new);
+    new
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::geom::{heading, polar, Pose};
 use crate::motor::odometry::arc_increment;
 use crate::motor::{Sides, WheelSpeeds};
+use crate::sim::walker::{covers, touches, Body};
 use crate::sim::world::World;
 
 /// Physical and noise parameters of the simulated base (serde-ready for a
@@ -128,6 +129,18 @@ impl DiffDriveSim {
     /// Advances by `dt` seconds towards wheel set-points `target`; `world`, when
     /// given, is what the body collides with.
     pub fn step(&mut self, target: WheelSpeeds, dt: f64, world: Option<&World>) -> StepOutcome {
+        self.step_among(target, dt, world, &[])
+    }
+
+    /// [`Self::step`] with people standing in the room where `bodies` are:
+    /// the body runs into them as into the world's obstacles.
+    pub fn step_among(
+        &mut self,
+        target: WheelSpeeds,
+        dt: f64,
+        world: Option<&World>,
+        bodies: &[Body],
+    ) -> StepOutcome {
         if !(dt.is_finite() && dt > 0.0) {
             return StepOutcome {
                 blocked: false,
@@ -156,16 +169,21 @@ impl DiffDriveSim {
         let gl = dl * (1.0 + el + slip * self.gauss());
         let gr = dr * (1.0 + er + slip * self.gauss());
         let candidate = self.pose * arc_increment(gl, gr, p.wheel_base);
+        let (c, c0) = (
+            Point2::from(candidate.translation.vector),
+            Point2::from(self.pose.translation.vector),
+        );
+        let moving = dl != 0.0 || dr != 0.0;
+        // A body already overlapping something (a bad start, a person who
+        // stepped into it) may move; otherwise the disk must stay on free floor.
         let blocked = match world {
-            Some(w) if dl != 0.0 || dr != 0.0 => {
-                let c = candidate.translation.vector;
-                // A body already overlapping something (a bad start) may move;
-                // otherwise the disk must stay on free floor.
-                !w.disk_is_free(&Point2::from(c), p.body_radius)
-                    && w.disk_is_free(&Point2::from(self.pose.translation.vector), p.body_radius)
+            Some(w) if moving => {
+                !w.disk_is_free(&c, p.body_radius) && w.disk_is_free(&c0, p.body_radius)
             }
             _ => false,
-        };
+        } || (moving
+            && touches(bodies, &c, p.body_radius)
+            && !touches(bodies, &c0, p.body_radius));
         if blocked {
             // The wheels stall against the obstacle: no travel, nothing counted.
             self.wheel = WheelSpeeds::STOP;
@@ -177,18 +195,16 @@ impl DiffDriveSim {
             self.encoder.0 += dl + nl;
             self.encoder.1 += dr + nr;
         }
-        self.bumper = match world {
-            Some(w) => self.front_contact(w),
-            None => Sides::default(),
-        };
+        self.bumper = self.front_contact(world, bodies);
         StepOutcome {
             blocked,
             bumper: self.bumper,
         }
     }
 
-    /// Which side of the front half touches something.
-    fn front_contact(&self, w: &World) -> Sides {
+    /// Which side of the front half touches something: the world's
+    /// obstacles or a person.
+    fn front_contact(&self, world: Option<&World>, bodies: &[Body]) -> Sides {
         let r = self.params.body_radius + self.params.bumper_margin;
         let th = heading(&self.pose);
         let c = Point2::from(self.pose.translation.vector);
@@ -199,7 +215,7 @@ impl DiffDriveSim {
         for k in -40i32..=40 {
             let a = th + (k as f64) * 2f64.to_radians();
             let q = polar(c, a, r);
-            if !w.free.is_free(&q) {
+            if world.is_some_and(|w| !w.free.is_free(&q)) || covers(bodies, &q) {
                 if k >= 0 {
                     s.left = true;
                 }
@@ -301,6 +317,30 @@ mod tests {
         // Encoders said ~1 m straight; truth wandered but stayed close.
         assert!((a.translation.x - 1.0).abs() < 0.05, "{a}");
         assert!(a.translation.y.abs() > 1e-6);
+    }
+
+    #[test]
+    fn a_person_in_the_way_blocks_and_closes_the_bumper_on_their_side() {
+        let w = World::parse("room 0 0 4 0 4 2 0 2\n").unwrap();
+        // Standing ahead and a little to the left of the robot's line.
+        let person = Body {
+            centre: Point2::new(2.0, 1.25),
+            radius: 0.2,
+            reflectivity: 0.4,
+        };
+        let mut s = DiffDriveSim::new(quiet(), pose(1.0, 1.0, 0.0));
+        let ahead = WheelSpeeds {
+            left: 0.2,
+            right: 0.2,
+        };
+        let hit = (0..1000).find(|_| s.step_among(ahead, 0.01, Some(&w), &[person]).blocked);
+        assert!(hit.is_some(), "walked through the person");
+        let c = Point2::from(s.pose().translation.vector);
+        let gap = (c - person.centre).norm() - 0.2 - 0.17;
+        assert!((0.0..=0.003).contains(&gap), "stopped {gap} m off");
+        assert!(s.bumper().left && !s.bumper().right, "{:?}", s.bumper());
+        // Nobody there: the same step drives on.
+        assert!(!s.step_among(ahead, 0.01, Some(&w), &[]).blocked);
     }
 
     #[test]

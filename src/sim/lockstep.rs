@@ -24,6 +24,7 @@ use crate::plan::planner::{DoneReport, PlanStats};
 use crate::plan::{CoveragePlanner, PlanError, PlanStatus};
 use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::sim::noise::gauss;
+use crate::sim::walker::{cast_ray_among, touches, Body, Crowd};
 use crate::sim::world::World;
 
 /// Simulated URG-04LX: number of beams (steps 44..=725).
@@ -177,7 +178,7 @@ pub struct RunResult {
 
 /// Casts one simulated URG-04LX scan at `pose` and integrates it into `grid`.
 pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
-    cast_scan(world, pose, pose, grid, || 0.0);
+    cast_scan(world, &[], pose, pose, grid, || 0.0);
 }
 
 /// Casts scans at the true pose and integrates them as a robot with
@@ -197,11 +198,12 @@ impl NoisyScanner {
         }
     }
 
-    /// One scan from the true `pose` into `grid` (exactly [`scan_into`]
-    /// when the noise is all zero).
-    pub fn scan_into(&mut self, world: &World, pose: &Pose, grid: &mut Grid) {
+    /// One scan from the true `pose` into `grid`, people walking through
+    /// the room standing where `bodies` are (exactly [`scan_into`] when the
+    /// noise is all zero and there is nobody).
+    pub fn scan_into(&mut self, world: &World, bodies: &[Body], pose: &Pose, grid: &mut Grid) {
         if self.noise.is_ideal() {
-            return scan_into(world, pose, grid);
+            return cast_scan(world, bodies, pose, pose, grid, || 0.0);
         }
         let n = self.noise;
         let dx = n.position * gauss(&mut self.rng);
@@ -209,7 +211,7 @@ impl NoisyScanner {
         let dth = n.heading * gauss(&mut self.rng);
         let seen = pose_off_by(pose, Vector2::new(dx, dy), dth);
         let rng = &mut self.rng;
-        cast_scan(world, pose, &seen, grid, || n.range * gauss(rng));
+        cast_scan(world, bodies, pose, &seen, grid, || n.range * gauss(rng));
     }
 }
 
@@ -221,10 +223,11 @@ pub fn pose_off_by(pose: &Pose, shift: Vector2<f64>, turn: f64) -> Pose {
     Pose::new(pose.translation.vector + shift, heading(pose) + turn)
 }
 
-/// Casts one scan at the true `pose` and integrates it as seen from
-/// `seen`, each hit's range plus `range_error()`.
+/// Casts one scan at the true `pose`, `bodies` standing in the room, and
+/// integrates it as seen from `seen`, each hit's range plus `range_error()`.
 fn cast_scan(
     world: &World,
+    bodies: &[Body],
     pose: &Pose,
     seen: &Pose,
     grid: &mut Grid,
@@ -238,7 +241,7 @@ fn cast_scan(
         let rel = URG_FIRST + k as f64 * URG_STEP;
         let a = sth + rel;
         let dir = Vector2::new(a.cos(), a.sin());
-        match world.cast_ray(&o, th + rel, URG_MAX_RANGE) {
+        match cast_ray_among(world, bodies, &o, th + rel, URG_MAX_RANGE) {
             Some(hit) if hit.range >= URG_MIN_RANGE => {
                 let r = (hit.range + range_error()).max(URG_MIN_RANGE);
                 grid.integrate_ray(&so, &(so + dir * r), true);
@@ -344,6 +347,12 @@ pub fn run(
         fill_from_truth(world, &mut grid);
     }
     let mut pose = world.start;
+    // The offline reference has the room to itself: with no scans, it could
+    // not see a person to keep off them.
+    let mut crowd = match mode {
+        Mode::Online => Crowd::new(&world.walkers),
+        Mode::Offline => Crowd::default(),
+    };
     let mut t = 0.0;
     let mut next_scan = 0.0;
     let mut next_snapshot = 0.0;
@@ -360,7 +369,7 @@ pub fn run(
         if t + 1e-9 >= next_scan {
             next_scan += opts.scan_period;
             if mode == Mode::Online {
-                scanner.scan_into(world, &pose, &mut grid);
+                scanner.scan_into(world, crowd.bodies(), &pose, &mut grid);
             }
             let t0 = std::time::Instant::now();
             let decomp = if opts.use_cells {
@@ -371,6 +380,7 @@ pub fn run(
             decomp_seconds.push(t0.elapsed().as_secs_f64());
             let progress = (!follower.is_done()).then(|| follower.next_index());
             let t1 = std::time::Instant::now();
+            planner.set_time(t);
             let status = planner.update(&grid, decomp, &pose, progress)?;
             plan_seconds.push(t1.elapsed().as_secs_f64());
             if opts.snapshot_every > 0.0 && t + 1e-9 >= next_snapshot {
@@ -398,6 +408,11 @@ pub fn run(
         let twist = Twist::from_wheels(&wheels, robot.wheel_base);
         pose = integrate(&pose, &twist, opts.dt);
         t += opts.dt;
+        if !crowd.is_empty() {
+            let at = Point2::from(pose.translation.vector);
+            crowd.step(opts.dt, &at, robot.radius);
+            tracker.record_contact(touches(crowd.bodies(), &at, robot.radius), &at, t);
+        }
         trajectory.push(pose);
         let motion = if follower.is_done() {
             crate::plan::Motion::Other
@@ -550,7 +565,7 @@ mod tests {
             let mut g = grid_for(&w, 0.05, 0.5, 0.0);
             let mut s = NoisyScanner::new(noise);
             for _ in 0..3 {
-                s.scan_into(&w, &w.start, &mut g);
+                s.scan_into(&w, &[], &w.start, &mut g);
             }
             cells(&g)
         };

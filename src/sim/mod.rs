@@ -12,4 +12,5 @@ pub mod noise;
 pub mod ros_map;
 pub mod sim_report;
 pub mod urg_emu;
+pub mod walker;
 pub mod world;

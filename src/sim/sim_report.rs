@@ -201,6 +201,10 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
         ("turns (> 30°)", format!("{}", m.turns)),
         ("collisions (truth)", format!("{}", m.collisions)),
         (
+            "contacts with people walking through (truth)",
+            format!("{}", m.person_contacts),
+        ),
+        (
             "localisation error at scan times: position RMSE / max, heading RMSE",
             format!(
                 "{:.1} mm / {:.1} mm, {:.2}° ({} scans scored; best stamp shift {:+.0} ms)",

@@ -13,11 +13,18 @@
 //! wall 2 0 2 1.5 refl 0.8               # a thin wall segment (no area)
 //! low box 0.9 1.9 1.1 2.1               # below the scanner's plane (a stool)
 //! start 0.5 0.5 0.0                     # robot start pose: x y theta
+//! walker 0.2 1.0 1 3 5.5 3 trips 2     # a person: radius speed, a path, how often
 //! ```
 //!
 //! `low` before `box` or `polygon` makes an obstacle the scanner's plane
 //! passes over: rays miss it, the body still runs into it (only the bumper
 //! can find it).
+//!
+//! `walker RADIUS SPEED X0 Y0 X1 Y1 [X Y ...] [refl R] [after T] [trips N]`
+//! is a person walking out and back along the way points from time `T`
+//! (s), `N` times one way or for the whole run (see [`crate::sim::walker`]):
+//! seen by the scanner, run into by the body, not part of the ground
+//! truth's floor. Its path must stay on free floor.
 //!
 //! Worlds can also be built from an occupancy raster (the floor-plan PNGs of
 //! `../shared/maps/`), see [`World::from_raster`].
@@ -28,6 +35,7 @@ use nalgebra::{Point2, Vector2};
 
 use crate::geom::{pose, Pose, Segment};
 use crate::grid::CellWalk;
+use crate::sim::walker::Walker;
 
 /// One wall segment with the reflectivity of its surface (0..1).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -193,6 +201,8 @@ pub struct World {
     pub free: FreeRaster,
     /// Where the robot starts.
     pub start: Pose,
+    /// People walking through the room (none unless the world says so).
+    pub walkers: Vec<Walker>,
     index: WallIndex,
 }
 
@@ -211,6 +221,7 @@ impl World {
         let mut low: Vec<Vec<Point2<f64>>> = Vec::new();
         let mut thin: Vec<Wall> = Vec::new();
         let mut start: Option<Pose> = None;
+        let mut walkers: Vec<(usize, Walker)> = Vec::new();
         for (i, raw) in text.lines().enumerate() {
             let ln = i + 1;
             let line = raw.split('#').next().unwrap_or("").trim();
@@ -277,6 +288,7 @@ impl World {
                     let v = exactly(&nums, 3, ln, "start takes x y theta")?;
                     start = Some(pose(v[0], v[1], v[2]));
                 }
+                "walker" => walkers.push((ln, Walker::parse_words(&rest).map_err(|m| err(ln, m))?)),
                 other => return Err(err(ln, format!("unknown directive `{other}`"))),
             }
             if below && obstacles.len() > before {
@@ -332,6 +344,9 @@ impl World {
         }
         let mut world = World::assemble(name, walls, raster, start);
         world.low = low_walls;
+        for (ln, w) in walkers {
+            world.add_walker(w).map_err(|m| err(ln, m))?;
+        }
         Ok(world)
     }
 
@@ -412,8 +427,23 @@ impl World {
             low: Vec::new(),
             free,
             start,
+            walkers: Vec::new(),
             index,
         }
+    }
+
+    /// Adds a person walking through the room; refused (saying where) when
+    /// the path leaves the free floor.
+    pub fn add_walker(&mut self, w: Walker) -> Result<(), String> {
+        let step = self.free.resolution.min(0.05);
+        if let Some(p) = w.samples(step).find(|p| !self.free.is_free(p)) {
+            return Err(format!(
+                "the walker's path leaves the free floor at ({:.2}, {:.2}) m",
+                p.x, p.y
+            ));
+        }
+        self.walkers.push(w);
+        Ok(())
     }
 
     /// Casts a ray from `origin` in direction `angle` (world frame) and returns
@@ -671,6 +701,35 @@ mod tests {
         assert_eq!((w.walls.len(), w.low.len()), (4, 4));
         let e = World::parse("room 0 0 4 0 4 3 0 3\nlow wall 1 1 2 2\n").unwrap_err();
         assert!(e.to_string().contains("line 2"), "{e}");
+    }
+
+    #[test]
+    fn walker_lines_give_people_on_free_floor_and_bad_ones_name_the_line() {
+        let w = World::parse("room 0 0 4 0 4 3 0 3\nwalker 0.2 1.0 0.5 1.5 3.5 1.5\nwalker 0.15 0.5 1 0.5 1 2.5 refl 0.9\n")
+            .unwrap();
+        assert_eq!(w.walkers.len(), 2);
+        let default = crate::sim::walker::DEFAULT_WALKER_REFLECTIVITY;
+        assert!((w.walkers[0].reflectivity - default).abs() < 1e-12);
+        assert!((w.walkers[1].reflectivity - 0.9).abs() < 1e-12);
+        // People are not walls: the rays of the world alone miss them.
+        assert_eq!(w.walls.len(), 4);
+        for (text, needle) in [
+            (
+                "room 0 0 4 0 4 3 0 3\nbox 1 1 2 2\nwalker 0.2 1 0.5 1.5 3.5 1.5\n",
+                "line 3: the walker's path leaves the free floor at (1.0",
+            ),
+            (
+                "room 0 0 4 0 4 3 0 3\nwalker 0.2 1 0.5 1.5\n",
+                "line 2: walker takes",
+            ),
+            (
+                "room 0 0 4 0 4 3 0 3\nwalker 0.2 1 0.5 1.5 5 1.5\n",
+                "leaves the free floor at (4.0",
+            ),
+        ] {
+            let e = World::parse(text).unwrap_err().to_string();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
     }
 
     #[test]

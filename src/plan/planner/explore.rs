@@ -10,7 +10,63 @@ use super::{
 };
 use crate::plan::cspace::{Frame, FREE};
 
+/// Distance (m) from seen floor walled off by obstacles at which the robot
+/// waits for it to clear (see [`CoveragePlanner::look_place`]): near enough
+/// that its beams pass densely through what walls the floor off (a person's
+/// trail is let go in a few scans), far enough that a person walking there
+/// passes the robot without waiting for it.
+const LOOK_DISTANCE: f64 = 1.0;
+
 impl CoveragePlanner {
+    /// Seen free floor, not swept, that the robot could get to once but no
+    /// place it can get to now with the full clearance lets it sweep (floor
+    /// beyond a person standing or walking in the way, or behind a passage
+    /// seen too tight since), in pieces of at least `plan.min_patch_area`.
+    /// Floor never within reach (a pocket behind furniture) is not in it.
+    pub(super) fn walled_off(&self) -> Vec<bool> {
+        let f = self.cspace.frame;
+        let own = super::touch_from(&self.cspace, &self.reachable_mask);
+        let once = super::touch_from(&self.cspace, &self.ever_reachable);
+        let mut walled: Vec<bool> = (0..f.len())
+            .map(|i| self.cspace.state[i] == FREE && !self.covered[i] && !own[i] && once[i])
+            .collect();
+        let mut cells: Vec<usize> = (0..f.len()).filter(|&i| walled[i]).collect();
+        let min_cells = (self.params.min_patch_area / (f.res * f.res)).ceil() as usize;
+        drop_specks(&mut cells, &mut walled, f, min_cells.max(1));
+        walled
+    }
+
+    /// The place to wait at for walled-off floor (`walled`) to clear, and
+    /// the point of that floor nearest to it (to face: the scanner sees 240°):
+    /// of the places the robot can get to (the travel costs from the robot
+    /// must be up to date), the one nearest to [`LOOK_DISTANCE`] from that
+    /// floor, the nearer by travel of two as near (the robot's own place
+    /// when it is as near as any). `None` when there is no such floor.
+    pub(super) fn look_place(&self, robot: usize, walled: &[bool]) -> Option<(usize, Point2<f64>)> {
+        let f = self.cspace.frame;
+        let away = chamfer_distance(f, walled);
+        let want = LOOK_DISTANCE / f.res;
+        let key = |j: usize| ((away[j] - want).abs().round(), self.cspace.dist[j]);
+        let best = (0..f.len())
+            .filter(|&j| self.reachable_mask[j] && self.cspace.dist[j].is_finite())
+            .filter(|&j| away[j].is_finite())
+            .min_by(|&a, &b| {
+                let (ka, kb) = (key(a), key(b));
+                ka.0.total_cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+            })?;
+        let place = if away[robot].is_finite() && key(robot).0 <= key(best).0 {
+            robot
+        } else {
+            best
+        };
+        let at = f.centre(place);
+        let face = (0..f.len())
+            .filter(|&i| walled[i])
+            .map(|i| f.centre(i))
+            .min_by(|a, b| (a - at).norm().total_cmp(&(b - at).norm()))?;
+        Some((place, face))
+    }
+
     /// The nearest reachable place with unexplored space in view (within
     /// `explore_view_distance`, along a line a scan would pass: see
     /// [`CSpace::sees_unknown_beside`]), and the frontier point to face
@@ -272,4 +328,46 @@ fn cluster_filter(list: &[usize], f: Frame, min: usize) -> Vec<usize> {
         }
     }
     out
+}
+
+/// Per cell, the distance (cells) to the nearest cell marked in `marked`
+/// (infinite when none is): a two-pass chamfer transform (steps of 1 and
+/// √2), within 8 % of the straight-line distance.
+fn chamfer_distance(f: Frame, marked: &[bool]) -> Vec<f64> {
+    let (w, h) = (f.w, f.h);
+    let mut d: Vec<f64> = marked
+        .iter()
+        .map(|&m| if m { 0.0 } else { f64::INFINITY })
+        .collect();
+    let diag = std::f64::consts::SQRT_2;
+    let forward = [
+        (-1i64, 0i64, 1.0),
+        (-1, -1, diag),
+        (0, -1, 1.0),
+        (1, -1, diag),
+    ];
+    let relax = |d: &mut Vec<f64>, x: usize, y: usize, steps: &[(i64, i64, f64)]| {
+        let i = y * w + x;
+        for &(dx, dy, c) in steps {
+            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+            if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                let v = d[ny as usize * w + nx as usize] + c;
+                if v < d[i] {
+                    d[i] = v;
+                }
+            }
+        }
+    };
+    for y in 0..h {
+        for x in 0..w {
+            relax(&mut d, x, y, &forward);
+        }
+    }
+    let backward = forward.map(|(dx, dy, c)| (-dx, -dy, c));
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            relax(&mut d, x, y, &backward);
+        }
+    }
+    d
 }

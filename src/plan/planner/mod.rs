@@ -97,6 +97,9 @@ pub enum Task {
     Cover(Option<CellId>),
     /// Driving toward unexplored space.
     Explore,
+    /// Driving to a place near seen floor that obstacles wall off, to wait
+    /// there for the way to clear (see [`PlanParams::clear_wait`]).
+    Wait,
     /// Nothing reachable is left.
     Done,
 }
@@ -302,6 +305,9 @@ pub struct CoveragePlanner {
     counted: std::collections::BTreeSet<CellId>,
     frontier: Vec<usize>,
     reachable_mask: Vec<bool>,
+    /// Places the robot could get to with the full clearance at some
+    /// decision of the run (see [`Self::walled_off`]).
+    ever_reachable: Vec<bool>,
     targets: Vec<bool>,
     scratch_a: Vec<bool>,
     scratch_t: Vec<bool>,
@@ -350,6 +356,17 @@ pub struct CoveragePlanner {
     /// The surface hold ([`PlanParams::surface_hold`]) ended: nothing was
     /// left to do once.
     hold_ended: bool,
+    /// When the robot began to wait for walled-off floor to clear (see
+    /// [`PlanParams::clear_wait`]; planner clock, s); `None` when not
+    /// waiting.
+    wait_since: Option<f64>,
+    /// The time last told by [`Self::set_time`] (s).
+    clock: Option<f64>,
+    /// Updates so far (the clock when none is told).
+    update_count: u64,
+    /// Waits for walled-off floor begun in this run (see
+    /// [`MAX_CLEAR_WAITS`]).
+    clear_waits: usize,
     /// Travel costs between lane ends of the last lane tour (reused buffer).
     tour_costs: Vec<f64>,
 }
@@ -359,6 +376,16 @@ pub struct CoveragePlanner {
 /// bad scan, or contact marks, around it) before it concludes that nothing
 /// reachable is left: the map may clear meanwhile.
 const BOXED_IN_UPDATES: usize = 25;
+
+/// Seconds an update counts on a planner never told the time (see
+/// [`CoveragePlanner::set_time`]): the lock-step simulation's planning period.
+const UNTIMED_UPDATE: f64 = 0.2;
+
+/// Waits for walled-off floor to clear (see [`PlanParams::clear_wait`])
+/// begun in one run at most: after that many, nothing reachable left is
+/// final (a cell flickering at the edge of a pocket could otherwise start a
+/// wait, a try and a wait again for ever).
+const MAX_CLEAR_WAITS: usize = 20;
 
 /// Ways out (see [`super::unbox`]) in a row, with no cover or explore task
 /// between them, after which the planner stops looking for one: the parts
@@ -459,6 +486,7 @@ impl CoveragePlanner {
             counted: std::collections::BTreeSet::new(),
             frontier: Vec::new(),
             reachable_mask: Vec::new(),
+            ever_reachable: Vec::new(),
             targets: Vec::new(),
             scratch_a: Vec::new(),
             scratch_t: Vec::new(),
@@ -480,6 +508,10 @@ impl CoveragePlanner {
             forgiven: 0,
             retried: false,
             hold_ended: false,
+            wait_since: None,
+            clock: None,
+            update_count: 0,
+            clear_waits: 0,
             tour_costs: Vec::new(),
             region_of: Vec::new(),
             lent_to: Vec::new(),
@@ -535,6 +567,22 @@ impl CoveragePlanner {
         self.report
     }
 
+    /// Tells the planner the time (s, any origin, not going back): the
+    /// clock its waits are timed by (see [`PlanParams::clear_wait`]).
+    /// Without it, each update counts [`UNTIMED_UPDATE`] seconds.
+    pub fn set_time(&mut self, now: f64) {
+        if now.is_finite() {
+            self.clock = Some(now);
+        }
+    }
+
+    /// The planner's clock (s): the time last told, or the updates so far
+    /// at [`UNTIMED_UPDATE`] seconds each.
+    fn now(&self) -> f64 {
+        self.clock
+            .unwrap_or(self.update_count as f64 * UNTIMED_UPDATE)
+    }
+
     fn ensure_frame(&mut self) {
         let n = self.cspace.frame.len();
         if self.covered.len() != n {
@@ -545,6 +593,7 @@ impl CoveragePlanner {
             self.declined = vec![false; n];
             self.given_up = vec![false; n];
             self.reachable_mask = vec![false; n];
+            self.ever_reachable = vec![false; n];
             self.targets = vec![false; n];
             // Nothing counts as new floor until the next decision.
             self.decided = vec![true; n];
@@ -824,6 +873,7 @@ impl CoveragePlanner {
         pose: &Pose,
         progress: Option<usize>,
     ) -> Result<PlanStatus, PlanError> {
+        self.update_count += 1;
         self.cspace.rebuild(grid);
         self.ensure_frame();
         if let Some(r) = self.report {
@@ -1026,6 +1076,14 @@ impl CoveragePlanner {
     }
 
     fn set_task(&mut self, task: Task, path: Vec<Point2<f64>>, final_heading: Option<f64>) {
+        if !matches!(task, Task::Idle | Task::Wait | Task::Done) {
+            if let Some(t0) = self.wait_since.take() {
+                log::info!(
+                    "the way cleared after {:.0} s of waiting: {task:?} planned",
+                    self.now() - t0
+                );
+            }
+        }
         // An interrupted task: what it was after counts one more try; after
         // MAX_TRIES tries it is given up (no endless back and forth).
         let old_targets = std::mem::take(&mut self.task_targets);
@@ -1131,6 +1189,9 @@ impl CoveragePlanner {
             .set_extra_cost(|i| (if covered[i] { w } else { 0.0 }) + wo * f64::from(fresh[i]));
         self.cspace.distances_from(robot);
         self.compute_targets();
+        for (e, &r) in self.ever_reachable.iter_mut().zip(&self.reachable_mask) {
+            *e |= r;
+        }
         self.mark_cells(decomp);
         let mut cands = self.cell_candidates(decomp, CellStatus::Final);
         if cands.is_empty() && self.params.cover_settling_cells && !keep_exploring {
@@ -1241,6 +1302,58 @@ impl CoveragePlanner {
             cands = self.patch_candidates(decomp);
         }
         if cands.is_empty() {
+            // Floor the robot could once get to, walled off now: a person
+            // standing or walking in the way leaves surfaces in the map until
+            // beams pass through where they stood. Wait (plan nothing)
+            // before calling that floor unreachable.
+            let walled = self.walled_off();
+            let cell_area = self.cspace.frame.res * self.cspace.frame.res;
+            let walled_off = walled.iter().filter(|&&w| w).count() as f64 * cell_area;
+            let waiting = self.wait_since.is_some() || self.task == Task::Wait;
+            let waited = self.wait_since.map_or(0.0, |t0| self.now() - t0);
+            if walled_off >= self.params.min_patch_area
+                && waited < self.params.clear_wait
+                && (waiting || self.clear_waits < MAX_CLEAR_WAITS)
+            {
+                // First look from near: a trail seen from afar is let go
+                // slowly, since few beams pass through it.
+                if !waiting {
+                    self.clear_waits += 1;
+                    if let Some((j, face)) = self.look_place(robot, &walled) {
+                        let mut path = self.cspace.path_to(j).unwrap_or_default();
+                        if !path.is_empty() {
+                            path.remove(0);
+                        }
+                        if path.is_empty() {
+                            path.push(p);
+                        }
+                        let q = path[path.len() - 1];
+                        let d = face - q;
+                        log::info!(
+                            "nothing reachable left but {walled_off:.2} m² of seen floor unswept beyond obstacles: waiting at ({:.2}, {:.2}) m, facing ({:.2}, {:.2}), up to {:.0} s for the way to clear",
+                            q.x,
+                            q.y,
+                            face.x,
+                            face.y,
+                            self.params.clear_wait
+                        );
+                        self.set_task(Task::Wait, path, Some(d.y.atan2(d.x)));
+                        return working(Task::Wait);
+                    }
+                }
+                self.wait_since.get_or_insert(self.now());
+                self.task = Task::Idle;
+                self.path.clear();
+                self.motions.clear();
+                self.final_heading = None;
+                return working(Task::Idle);
+            }
+            if let Some(t0) = self.wait_since.take() {
+                log::warn!(
+                    "waited {:.0} s for {walled_off:.2} m² of floor beyond obstacles to clear; it stays walled off",
+                    self.now() - t0
+                );
+            }
             let report = self.done_report(robot);
             if report.behind_tight_passages > 0.0 {
                 log::warn!(

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
+use nalgebra::Point2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -21,6 +22,7 @@ use crate::sim::base_emu::create2::Create2Device;
 use crate::sim::base_emu::roboclaw::RoboClawDevice;
 use crate::sim::base_emu::{BaseDevice, BodyState, DeviceStats};
 use crate::sim::kinematics::{DiffDriveSim, KinematicsParams};
+use crate::sim::walker::{Body, Crowd};
 use crate::sim::world::World;
 
 /// The emulator's end of the link.
@@ -133,6 +135,10 @@ pub struct EmulatorConfig {
     /// What the body collides with (may contain obstacles the scanner's world
     /// lacks); `None` for open floor.
     pub world: Option<Arc<World>>,
+    /// People walking through the room: stepped on the emulator's clock
+    /// with the robot's true pose, run into by the body (and closing the
+    /// bumper); `None` for nobody. Shared with the scanner emulator's scene.
+    pub crowd: Option<Arc<Mutex<Crowd>>>,
     /// Kinematics step (s of clock time).
     pub step: f64,
     /// Seed of the fault-injection generator.
@@ -156,6 +162,7 @@ impl EmulatorConfig {
             },
             start: Pose::identity(),
             world: None,
+            crowd: None,
             step: 0.005,
             seed: 1,
         }
@@ -373,6 +380,7 @@ fn run(
     let mut out: Vec<u8> = Vec::with_capacity(1024);
     let mut was_bumped = false;
     let mut unplugged_until: Option<f64> = None;
+    let mut bodies: Vec<Body> = Vec::new();
     while !stop.load(Ordering::SeqCst) {
         // Cable pulled: nothing flows, the robot coasts to a stop on its own
         // controller (RoboClaw timeout) or keeps going (Create 2).
@@ -412,14 +420,21 @@ fn run(
                 lock(&shared).stats.unplugs += 1;
             }
         }
-        // Kinematics up to now.
+        // Kinematics up to now, people moved on first.
         let mut dt = (now - last).clamp(0.0, 0.2);
         last = now;
+        if let Some(c) = &cfg.crowd {
+            let mut c = c.lock().unwrap_or_else(|e| e.into_inner());
+            let at = Point2::from(sim.pose().translation.vector);
+            c.step(dt, &at, cfg.kinematics.body_radius);
+            bodies.clear();
+            bodies.extend_from_slice(c.bodies());
+        }
         let mut blocked = 0u64;
         while dt > 1e-12 {
             let h = dt.min(step);
             if !lifted {
-                let o = sim.step(target, h, world.as_deref());
+                let o = sim.step_among(target, h, world.as_deref(), &bodies);
                 blocked += u64::from(o.blocked);
             }
             dt -= h;
