@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::sim::floorplan;
 use crate::sim::ros_map::{self, Region};
-use crate::sim::walker::Walker;
+use crate::sim::walker::{random_walkers, Walker};
 use crate::sim::world::World;
 
 /// World selection arguments.
@@ -44,6 +44,16 @@ pub struct WorldArgs {
     /// file's `walker` lines add people too.
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub walker: Vec<String>,
+    /// People drawn at random for the room: each walks a straight clear
+    /// line of 1.5 m or more, at 0.6-1.2 m/s, coming in at 0-300 s, for 2-6
+    /// trips (see `--people-seed`); added to any `--walker` and `walker`
+    /// lines.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub people: usize,
+    /// Seed of the people `--people` draws (the same seed and room give the
+    /// same people).
+    #[arg(long, default_value_t = 1, value_name = "SEED")]
+    pub people_seed: u64,
 }
 
 impl WorldArgs {
@@ -67,6 +77,29 @@ impl WorldArgs {
             world
                 .add_walker(w)
                 .map_err(|m| format!("--walker {spec}: {m}"))?;
+        }
+        let drawn = random_walkers(&world, self.people, self.people_seed);
+        if drawn.len() < self.people {
+            log::warn!(
+                "--people {}: only {} straight clear lines of 1.5 m or more found in {}",
+                self.people,
+                drawn.len(),
+                world.name
+            );
+        }
+        for w in drawn {
+            log::info!(
+                "--people: a person of {:.2} m walks ({:.2}, {:.2}) - ({:.2}, {:.2}) m at {:.2} m/s from {:.0} s, {} trips",
+                w.radius,
+                w.path[0].x,
+                w.path[0].y,
+                w.path[1].x,
+                w.path[1].y,
+                w.speed,
+                w.after,
+                w.trips.unwrap_or(0)
+            );
+            world.add_walker(w)?;
         }
         Ok(world)
     }
@@ -129,6 +162,8 @@ mod tests {
             region: None,
             start: None,
             walker: Vec::new(),
+            people: 0,
+            people_seed: 1,
         }
     }
 

@@ -262,6 +262,69 @@ impl Crowd {
     }
 }
 
+/// Radius of a person drawn by [`random_walkers`] (m).
+const RANDOM_RADIUS: f64 = 0.2;
+
+/// `n` people for `world`, drawn from the generator seeded with `seed`
+/// (the same world and seed give the same people): each walks a straight
+/// line of at least 1.5 m (2 m where the room has one) between two points
+/// of free floor, the disc clear of every obstacle all along, its ends at
+/// least 1 m from the robot's start; at 0.6-1.2 m/s, coming in at 0-300 s,
+/// for 2-6 trips. Fewer when the room has no such line (a cluttered room).
+pub fn random_walkers(world: &World, n: usize, seed: u64) -> Vec<Walker> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let f = &world.free;
+    let start = Point2::from(world.start.translation.vector);
+    // Places a person fits, on a 10 cm lattice.
+    let stride = (0.1 / f.resolution).round().max(1.0) as usize;
+    let mut spots = Vec::new();
+    for cy in (0..f.height).step_by(stride) {
+        for cx in (0..f.width).step_by(stride) {
+            let p = f.centre_of(cx, cy);
+            if (p - start).norm() >= 1.0 && world.disk_is_free(&p, RANDOM_RADIUS) {
+                spots.push(p);
+            }
+        }
+    }
+    let clear = |a: &Point2<f64>, b: &Point2<f64>| {
+        let k = ((b - a).norm() / 0.05).ceil().max(1.0) as usize;
+        (0..=k).all(|i| world.disk_is_free(&(a + (b - a) * (i as f64 / k as f64)), RANDOM_RADIUS))
+    };
+    let mut out = Vec::new();
+    if spots.len() < 2 {
+        return out;
+    }
+    for _ in 0..n {
+        let mut found = None;
+        for (tries, min_len) in [(400, 2.0), (400, 1.5)] {
+            for _ in 0..tries {
+                let a = spots[rng.random_range(0..spots.len())];
+                let b = spots[rng.random_range(0..spots.len())];
+                if (b - a).norm() >= min_len && clear(&a, &b) {
+                    found = Some((a, b));
+                    break;
+                }
+            }
+            if found.is_some() {
+                break;
+            }
+        }
+        let Some((a, b)) = found else {
+            break;
+        };
+        out.push(Walker {
+            radius: RANDOM_RADIUS,
+            speed: rng.random_range(0.6..=1.2),
+            path: vec![a, b],
+            reflectivity: DEFAULT_WALKER_REFLECTIVITY,
+            after: rng.random_range(0.0..=300.0),
+            trips: Some(rng.random_range(2..=6)),
+        });
+    }
+    out
+}
+
 /// Whether a disc of `radius` at `p` overlaps any of `bodies`.
 pub fn touches(bodies: &[Body], p: &Point2<f64>, radius: f64) -> bool {
     bodies
@@ -428,6 +491,31 @@ mod tests {
             c.step(0.01, &away, 0.17);
         }
         assert!(c.bodies().is_empty(), "came back");
+    }
+
+    #[test]
+    fn random_people_walk_clear_lines_and_repeat_with_their_seed() {
+        let world =
+            World::parse("room 0 0 6 0 6 4 0 4\nbox 2.5 1.5 3.5 2.5\nstart 0.5 0.5 0\n").unwrap();
+        let a = random_walkers(&world, 3, 7);
+        assert_eq!(a, random_walkers(&world, 3, 7));
+        assert_ne!(a, random_walkers(&world, 3, 8));
+        assert_eq!(a.len(), 3);
+        for w in &a {
+            assert!(w.length() >= 2.0, "{w:?}");
+            assert!(
+                w.samples(0.02).all(|p| world.disk_is_free(&p, w.radius)),
+                "{w:?}"
+            );
+            assert!((0.6..=1.2).contains(&w.speed) && (0.0..=300.0).contains(&w.after));
+            assert!(w
+                .path
+                .iter()
+                .all(|p| (p - Point2::new(0.5, 0.5)).norm() >= 1.0));
+        }
+        // A room with no room to walk gets nobody.
+        let tiny = World::parse("room 0 0 1 0 1 1 0 1\nstart 0.5 0.5 0\n").unwrap();
+        assert!(random_walkers(&tiny, 2, 1).is_empty());
     }
 
     #[test]

@@ -85,7 +85,7 @@ mod tests {
     use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::cspace::Frame;
     use crate::plan::test_support::{planner, walled_room as room};
-    use crate::plan::PlanStatus;
+    use crate::plan::{PlanParams, PlanStatus, Task};
 
     /// Every cell of `frame` abandoned after `tries` tries.
     fn all_given_up(frame: Frame, retried: bool) -> PlanTries {
@@ -123,17 +123,38 @@ mod tests {
         assert_eq!(loaded, saved);
 
         // Restored before the first update (no grid yet), as on a resume:
-        // nothing is left to try, so the planner is done at once and
-        // reports the floor it gave up.
+        // nothing is left to try now, and so much given up (people may
+        // have kept crossing the robot's paths) that the planner waits
+        // `plan.clear_wait` rather than finish, then tries it again.
         let mut b = planner();
         b.restore_tries(loaded.clone());
         assert!(b.tries().is_none(), "no grid yet");
+        b.set_time(0.0);
         let st = b.update(&grid, &empty, &at, None).unwrap();
         assert_eq!(b.tries().unwrap(), saved);
         assert!(
-            matches!(st, PlanStatus::Done(r) if r.abandoned_area > 4.0),
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Idle,
+                    ..
+                }
+            ),
             "{st:?}"
         );
+        b.set_time(PlanParams::default().clear_wait + 1.0);
+        let st = b.update(&grid, &empty, &at, None).unwrap();
+        assert!(
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Cover(_),
+                    ..
+                }
+            ),
+            "{st:?}"
+        );
+        assert!(b.tries().unwrap().cells.iter().all(|t| !t.abandoned));
 
         // Without the second round had, the given-up floor gets it.
         let mut c = planner();

@@ -5,8 +5,8 @@ use nalgebra::Point2;
 
 use super::regions::drop_specks;
 use super::{
-    CoveragePlanner, Task, FRONTIER_SPREAD, FRUITFUL_EXPLORE_CELLS, MAX_FRUITLESS_EXPLORES,
-    MAX_WAYS_OUT,
+    CoveragePlanner, Task, FRONTIER_SPREAD, FRUITFUL_EXPLORE_CELLS, GIVEN_UP_AGAIN,
+    MAX_EXTRA_RETRIES, MAX_FRUITLESS_EXPLORES, MAX_WAYS_OUT,
 };
 use crate::plan::cspace::{Frame, FREE};
 
@@ -218,13 +218,19 @@ impl CoveragePlanner {
     /// Takes back every give-up of floor not swept yet (see [`Self::choose`]);
     /// false when there is none.
     pub(super) fn retry_given_up(&mut self) -> bool {
+        if self.retried {
+            self.extra_retries += 1;
+        }
         self.retried = true;
+        self.retry_at = self.now();
         self.tries_generation += 1;
         let mut any = false;
+        self.retry_set.clear();
         for i in 0..self.abandoned.len() {
             if self.abandoned[i] && !self.covered[i] && !self.declined[i] {
                 self.abandoned[i] = false;
                 self.tries[i] = 0;
+                self.retry_set.push(i);
                 any = true;
             }
         }
@@ -232,6 +238,35 @@ impl CoveragePlanner {
             self.compute_targets();
         }
         any
+    }
+
+    /// Whether floor given up may be tried again now: the first round
+    /// always; up to [`MAX_EXTRA_RETRIES`] more while the last round swept
+    /// at least `plan.min_patch_area` of the floor it tried again, or while
+    /// [`GIVEN_UP_AGAIN`] or more is given up and `plan.clear_wait` has
+    /// passed since the last round: people crossing the robot's paths had
+    /// it given up, not the room (a room nobody walks through gives up a
+    /// few tenths of a square metre at most).
+    pub(super) fn may_retry_again(&self) -> bool {
+        if !self.retried {
+            return true;
+        }
+        let a = self.cspace.frame.res * self.cspace.frame.res;
+        let swept = self.retry_set.iter().filter(|&&i| self.covered[i]).count() as f64 * a;
+        let waited = self.now() - self.retry_at >= self.params.clear_wait;
+        self.extra_retries < MAX_EXTRA_RETRIES
+            && (swept >= self.params.min_patch_area || (self.much_given_up() && waited))
+    }
+
+    /// Whether [`GIVEN_UP_AGAIN`] or more floor is given up, after its first
+    /// round, with rounds left (see [`Self::may_retry_again`]).
+    pub(super) fn much_given_up(&self) -> bool {
+        let a = self.cspace.frame.res * self.cspace.frame.res;
+        let given_up = (0..self.abandoned.len())
+            .filter(|&i| self.abandoned[i] && !self.covered[i] && !self.declined[i])
+            .count() as f64
+            * a;
+        self.retried && self.extra_retries < MAX_EXTRA_RETRIES && given_up >= GIVEN_UP_AGAIN
     }
 
     /// Seen-free cells of the map.

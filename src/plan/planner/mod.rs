@@ -248,6 +248,21 @@ const SAME_PASS_RECORDS: u32 = 10;
 /// from the robot to a region is no measure of what it adds to a tour.
 const LEFTOVER_AREA: f64 = 0.5;
 
+/// Distance (m) ahead of the robot from which the stretch of path it is on
+/// is checked for surfaces seen since it was planned: from its own place
+/// a surface it already stands near (tracking error) would block every plan.
+const ON_WAY_SKIP: f64 = 0.03;
+
+/// Rounds of given-up floor after the first one, at most (see
+/// `CoveragePlanner::may_retry_again`).
+const MAX_EXTRA_RETRIES: usize = 10;
+
+/// Floor given up (m²) that gets another round once `plan.clear_wait` has
+/// passed since the last (see `CoveragePlanner::may_retry_again`): rooms
+/// nobody walks through end with 0.24 m² given up at most (24 rooms, ideal
+/// and noisy maps).
+const GIVEN_UP_AGAIN: f64 = 1.0;
+
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
 
@@ -353,6 +368,13 @@ pub struct CoveragePlanner {
     forgiven: usize,
     /// Floor given up has had its second round (see `retry_given_up`).
     retried: bool,
+    /// The floor the last round of given-up floor tried again (see
+    /// [`Self::may_retry_again`]).
+    retry_set: Vec<usize>,
+    /// Rounds of given-up floor after the first (see [`MAX_EXTRA_RETRIES`]).
+    extra_retries: usize,
+    /// When the last round of given-up floor began (planner clock, s).
+    retry_at: f64,
     /// The surface hold ([`PlanParams::surface_hold`]) ended: nothing was
     /// left to do once.
     hold_ended: bool,
@@ -507,6 +529,9 @@ impl CoveragePlanner {
             forgiven_at: 0,
             forgiven: 0,
             retried: false,
+            retry_set: Vec::new(),
+            extra_retries: 0,
+            retry_at: 0.0,
             hold_ended: false,
             wait_since: None,
             clock: None,
@@ -910,12 +935,21 @@ impl CoveragePlanner {
         if let Some(next) = progress {
             // Blocked by something seen since?
             let from = next.min(self.path.len());
-            if let Some((k, q)) = self.path[from..]
-                .windows(2)
-                .enumerate()
-                .find_map(|(k, s)| self.cspace.first_unsafe(&s[0], &s[1]).map(|q| (k, q)))
-            {
-                let (a, b) = (self.path[from + k], self.path[from + k + 1]);
+            // The stretch the robot is on, from a little ahead of it (a
+            // person who stepped beside the robot's way), then the rest.
+            let on_way = self.path.get(from).and_then(|&b| {
+                let d = b - p;
+                let a = p + d * (ON_WAY_SKIP / d.norm().max(ON_WAY_SKIP));
+                self.cspace.first_unsafe(&a, &b).map(|q| (a, b, q))
+            });
+            let ahead = || {
+                self.path[from..].windows(2).enumerate().find_map(|(k, s)| {
+                    self.cspace
+                        .first_unsafe(&s[0], &s[1])
+                        .map(|q| (s[0], s[1], q, k))
+                })
+            };
+            if let Some((a, b, q, k)) = on_way.map(|(a, b, q)| (a, b, q, 0)).or_else(ahead) {
                 if log::log_enabled!(log::Level::Debug) {
                     let by = self
                         .cspace
@@ -1298,7 +1332,9 @@ impl CoveragePlanner {
         // Floor given up while the map was still changing (tasks interrupted
         // again and again at furniture seen from closer) gets one more
         // round, once, when nothing else is left.
-        if cands.is_empty() && !self.retried && self.retry_given_up() {
+        // Another round while the last one swept some of what it retried:
+        // floor given up because people kept crossing the robot's paths.
+        if cands.is_empty() && self.may_retry_again() && self.retry_given_up() {
             cands = self.patch_candidates(decomp);
         }
         if cands.is_empty() {
@@ -1311,7 +1347,9 @@ impl CoveragePlanner {
             let walled_off = walled.iter().filter(|&&w| w).count() as f64 * cell_area;
             let waiting = self.wait_since.is_some() || self.task == Task::Wait;
             let waited = self.wait_since.map_or(0.0, |t0| self.now() - t0);
-            if walled_off >= self.params.min_patch_area
+            // Much floor given up after its rounds (people kept crossing
+            // the robot's paths): wait too, then try it again.
+            if (walled_off >= self.params.min_patch_area || self.much_given_up())
                 && waited < self.params.clear_wait
                 && (waiting || self.clear_waits < MAX_CLEAR_WAITS)
             {
@@ -1319,7 +1357,10 @@ impl CoveragePlanner {
                 // slowly, since few beams pass through it.
                 if !waiting {
                     self.clear_waits += 1;
-                    if let Some((j, face)) = self.look_place(robot, &walled) {
+                    let look = (walled_off > 0.0)
+                        .then(|| self.look_place(robot, &walled))
+                        .flatten();
+                    if let Some((j, face)) = look {
                         let mut path = self.cspace.path_to(j).unwrap_or_default();
                         if !path.is_empty() {
                             path.remove(0);
@@ -1340,6 +1381,10 @@ impl CoveragePlanner {
                         self.set_task(Task::Wait, path, Some(d.y.atan2(d.x)));
                         return working(Task::Wait);
                     }
+                    log::info!(
+                        "nothing reachable left but {walled_off:.2} m² of seen floor unswept beyond obstacles and much floor given up on paths blocked again and again: waiting up to {:.0} s before trying it again",
+                        self.params.clear_wait
+                    );
                 }
                 self.wait_since.get_or_insert(self.now());
                 self.task = Task::Idle;

@@ -433,14 +433,21 @@ fn floor_seen_near_the_robot_during_a_lane_tour_joins_the_tour() {
     assert_eq!(after.blocked, before.blocked, "{before:?} -> {after:?}");
 }
 
-#[test]
-fn a_path_blocked_by_something_seen_since_is_planned_again_and_counted() {
-    let mut g = crate::plan::test_support::walled_room();
+/// The walled room, a planner that has just planned to cover it from
+/// (0.4, 0.4), no cells, and that pose.
+fn covering_the_walled_room() -> (Grid, CoveragePlanner, Decomposition, Pose) {
+    let g = crate::plan::test_support::walled_room();
     let mut p = crate::plan::test_support::planner();
     let empty = Decomposition::default();
     let at = crate::geom::pose(0.4, 0.4, 0.0);
     let st = p.update(&g, &empty, &at, None).unwrap();
     assert!(covers_floor(&st), "{st:?}");
+    (g, p, empty, at)
+}
+
+#[test]
+fn a_path_blocked_by_something_seen_since_is_planned_again_and_counted() {
+    let (mut g, mut p, empty, at) = covering_the_walled_room();
     assert_eq!(p.stats().blocked, 0);
     // An obstacle in the middle of the path's second segment.
     let path = p.path().0.to_vec();
@@ -460,6 +467,29 @@ fn a_path_blocked_by_something_seen_since_is_planned_again_and_counted() {
         .0
         .windows(2)
         .all(|s| p.cspace.segment_safe(&s[0], &s[1])));
+}
+
+#[test]
+fn a_surface_seen_on_the_stretch_the_robot_is_on_blocks_it() {
+    let (mut g, mut p, empty, _) = covering_the_walled_room();
+    // The robot a tenth of the way along the path's first long segment (a
+    // lane), heading for its end (the next waypoint); someone steps onto
+    // that stretch, with nothing on the path beyond it.
+    let path = p.path().0.to_vec();
+    let k = (1..path.len())
+        .find(|&k| (path[k] - path[k - 1]).norm() > 0.5)
+        .expect("a lane");
+    let (a, b) = (path[k - 1], path[k]);
+    let here = a + (b - a) * 0.1;
+    let on = crate::geom::pose(here.x, here.y, (b - a).y.atan2((b - a).x));
+    let mid = a + (b - a) * 0.5;
+    g.set_state(g.cell_of(&mid).unwrap(), CellState::Occupied);
+    let st = p.update(&g, &empty, &on, Some(k)).unwrap();
+    assert!(
+        matches!(st, PlanStatus::Working { new_path: true, .. }),
+        "{st:?}"
+    );
+    assert_eq!(p.stats().blocked, 1);
 }
 
 #[test]
@@ -510,12 +540,71 @@ fn floor_given_up_gets_one_more_round_before_done() {
     let st = p.update(&g, &empty, &at, None).unwrap();
     assert!(covers_floor(&st), "{st:?}");
     assert!(p.abandoned.iter().all(|a| !a));
-    // Given up again: there is no third round.
-    p.abandoned.iter_mut().for_each(|a| *a = true);
+    // Given up again, all of it: no third round at once, but a wait of
+    // `plan.clear_wait` (people crossing the robot's paths may have had it
+    // given up), then another round; at most MAX_EXTRA_RETRIES more.
+    let mut t = 0.0;
+    let mut rounds = 0;
+    loop {
+        p.abandoned.iter_mut().for_each(|a| *a = true);
+        p.interrupt();
+        p.set_time(t);
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        if matches!(st, PlanStatus::Done(_)) {
+            assert!(
+                matches!(st, PlanStatus::Done(r) if r.abandoned_area > 4.0),
+                "{st:?}"
+            );
+            break;
+        }
+        assert!(
+            matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Idle,
+                    ..
+                }
+            ),
+            "round {rounds}: {st:?}"
+        );
+        t += p.params.clear_wait + 1.0;
+        p.set_time(t);
+        let st = p.update(&g, &empty, &at, None).unwrap();
+        assert!(covers_floor(&st), "round {rounds}: {st:?}");
+        rounds += 1;
+        assert!(rounds <= MAX_EXTRA_RETRIES, "round {rounds}");
+    }
+    assert_eq!(rounds, MAX_EXTRA_RETRIES);
+}
+
+#[test]
+fn a_little_floor_given_up_gets_no_third_round() {
+    let g = crate::plan::test_support::walled_room();
+    let mut p = crate::plan::test_support::planner();
+    let empty = Decomposition::default();
+    let at = crate::geom::pose(1.5, 1.0, 0.0);
+    p.update(&g, &empty, &at, None).unwrap();
+    // All swept but a 0.5 m x 0.5 m patch, given up twice.
+    let f = p.cspace.frame;
+    let patch = |i: usize| {
+        let c = f.centre(i);
+        (2.0..2.5).contains(&c.x) && (1.0..1.5).contains(&c.y)
+    };
+    for i in 0..f.len() {
+        p.covered[i] = !patch(i);
+        p.abandoned[i] = patch(i);
+    }
     p.interrupt();
     let st = p.update(&g, &empty, &at, None).unwrap();
+    assert!(covers_floor(&st), "{st:?}");
+    for i in 0..f.len() {
+        p.abandoned[i] = patch(i);
+    }
+    p.interrupt();
+    p.set_time(1000.0);
+    let st = p.update(&g, &empty, &at, None).unwrap();
     assert!(
-        matches!(st, PlanStatus::Done(r) if r.abandoned_area > 4.0),
+        matches!(st, PlanStatus::Done(r) if r.abandoned_area > 0.1),
         "{st:?}"
     );
 }
