@@ -406,3 +406,34 @@ fn chamfer_distance(f: Frame, marked: &[bool]) -> Vec<f64> {
     }
     d
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chamfer_distances_are_within_8_percent_of_straight_lines() {
+        let f = Frame {
+            origin: Point2::new(0.0, 0.0),
+            res: 0.05,
+            w: 40,
+            h: 30,
+        };
+        let mut marked = vec![false; f.len()];
+        marked[10 * f.w + 5] = true;
+        let d = chamfer_distance(f, &marked);
+        for y in 0..f.h {
+            for x in 0..f.w {
+                let exact = (((x as f64) - 5.0).powi(2) + ((y as f64) - 10.0).powi(2)).sqrt();
+                let got = d[y * f.w + x];
+                assert!(
+                    got >= exact - 1e-9 && got <= exact * 1.09 + 1e-9,
+                    "({x}, {y}): {got} vs {exact}"
+                );
+            }
+        }
+        assert!(chamfer_distance(f, &vec![false; f.len()])
+            .iter()
+            .all(|v| v.is_infinite()));
+    }
+}

@@ -248,9 +248,10 @@ const SAME_PASS_RECORDS: u32 = 10;
 /// from the robot to a region is no measure of what it adds to a tour.
 const LEFTOVER_AREA: f64 = 0.5;
 
-/// Distance (m) ahead of the robot from which the stretch of path it is on
-/// is checked for surfaces seen since it was planned: from its own place
-/// a surface it already stands near (tracking error) would block every plan.
+/// Distance (m) ahead of the robot (measured along the stretch of path it
+/// is on) from which that stretch is checked for surfaces seen since it
+/// was planned: from its own place a surface it already stands near would
+/// block every plan.
 const ON_WAY_SKIP: f64 = 0.03;
 
 /// Rounds of given-up floor after the first one, at most (see
@@ -935,11 +936,23 @@ impl CoveragePlanner {
         if let Some(next) = progress {
             // Blocked by something seen since?
             let from = next.min(self.path.len());
-            // The stretch the robot is on, from a little ahead of it (a
-            // person who stepped beside the robot's way), then the rest.
+            // The stretch the robot is on, from a little ahead of where it
+            // is along it (a person who stepped beside the robot's way),
+            // then the rest. Along the planned stretch, not from the robot
+            // itself: a few millimetres of tracking error beside a wall
+            // would block every plan.
             let on_way = self.path.get(from).and_then(|&b| {
-                let d = b - p;
-                let a = p + d * (ON_WAY_SKIP / d.norm().max(ON_WAY_SKIP));
+                let a0 = from.checked_sub(1).map_or(p, |k| self.path[k]);
+                let d = b - a0;
+                let len = d.norm();
+                if len <= ON_WAY_SKIP {
+                    return None;
+                }
+                let along = ((p - a0).dot(&d) / len).clamp(0.0, len) + ON_WAY_SKIP;
+                if along >= len {
+                    return None;
+                }
+                let a = a0 + d * (along / len);
                 self.cspace.first_unsafe(&a, &b).map(|q| (a, b, q))
             });
             let ahead = || {
@@ -1330,10 +1343,9 @@ impl CoveragePlanner {
             }
         }
         // Floor given up while the map was still changing (tasks interrupted
-        // again and again at furniture seen from closer) gets one more
-        // round, once, when nothing else is left.
-        // Another round while the last one swept some of what it retried:
-        // floor given up because people kept crossing the robot's paths.
+        // again and again at furniture seen from closer, or by people
+        // crossing the robot's paths) gets one more round when nothing else
+        // is left, and more as `may_retry_again` allows.
         if cands.is_empty() && self.may_retry_again() && self.retry_given_up() {
             cands = self.patch_candidates(decomp);
         }
