@@ -120,7 +120,9 @@ pub struct PlanParams {
     /// they stood. The robot first drives to about a metre from that floor
     /// to look at it from near. A wait that ends with work may come again
     /// (at most 20 in a run); one that does not ends the run. 0 = finish at
-    /// once.
+    /// once. When 1 m² or more of floor is given up after its rounds
+    /// (paths to it blocked again and again by people), the planner waits
+    /// as long before another round.
     pub clear_wait: f64,
 }
 
