@@ -61,8 +61,38 @@ fn walls(world: &World, v: &View) -> Group {
     for w in &world.low {
         g = g.add(segment(w, v).set("stroke-dasharray", "4 3"));
     }
+    // People walking through: their way, dotted purple, and their size at
+    // the way in.
+    for p in &world.walkers {
+        let pts: Vec<String> = p
+            .path
+            .iter()
+            .map(|q| format!("{:.1},{:.1}", v.x(q.x), v.y(q.y)))
+            .collect();
+        g = g
+            .add(
+                Polyline::new()
+                    .set("points", pts.join(" "))
+                    .set("fill", "none")
+                    .set("stroke", WALKER_COLOUR)
+                    .set("stroke-width", 1.5)
+                    .set("stroke-dasharray", "2 4"),
+            )
+            .add(
+                Circle::new()
+                    .set("cx", v.x(p.path[0].x))
+                    .set("cy", v.y(p.path[0].y))
+                    .set("r", p.radius * SCALE)
+                    .set("fill", "none")
+                    .set("stroke", WALKER_COLOUR)
+                    .set("stroke-width", 1.5),
+            );
+    }
     g
 }
+
+/// Colour of the people walking through (`walker` lines) in the pictures.
+const WALKER_COLOUR: &str = "#8e44ad";
 
 fn segment(w: &crate::sim::world::Wall, v: &View) -> Line {
     Line::new()
