@@ -29,7 +29,7 @@ use crate::serial::DeviceConnector;
 use crate::sim::base_emu::{self, EmuStats, EmulatorHandle, Fault};
 use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::sim::urg_emu::{self, Echo, Scene};
-use crate::sim::walker::{cast_ray_among, touches, Body, Crowd};
+use crate::sim::walker::{cast_ray_among, lock_crowd, touches, Body, Crowd};
 use crate::sim::world::World;
 use crate::urg::HealthSnapshot;
 
@@ -495,12 +495,6 @@ fn link_dir() -> PathBuf {
         std::process::id(),
         RUN.fetch_add(1, Ordering::Relaxed)
     ))
-}
-
-/// The crowd, even if a thread that held it panicked (its state is plain
-/// positions, never left half-written).
-fn lock_crowd(c: &Mutex<Crowd>) -> std::sync::MutexGuard<'_, Crowd> {
-    c.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 fn start_emulators(

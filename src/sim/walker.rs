@@ -13,6 +13,8 @@
 //! Deterministic: where a walker is depends only on the steps' lengths and on
 //! where the robot was at each step.
 
+use std::sync::{Mutex, MutexGuard};
+
 use nalgebra::{Point2, Vector2};
 
 use crate::sim::world::{RayHit, World};
@@ -151,11 +153,23 @@ impl Walker {
     /// Points of the path every `step` metres or less, ends included (to
     /// check that it stays on free floor).
     pub fn samples(&self, step: f64) -> impl Iterator<Item = Point2<f64>> + '_ {
-        self.path.windows(2).flat_map(move |w| {
-            let n = ((w[1] - w[0]).norm() / step).ceil().max(1.0) as usize;
-            (0..=n).map(move |k| w[0] + (w[1] - w[0]) * (k as f64 / n as f64))
-        })
+        self.path
+            .windows(2)
+            .flat_map(move |w| points_along(w[0], w[1], step))
     }
+}
+
+/// Points from `a` to `b` every `step` metres or less, both ends included.
+fn points_along(a: Point2<f64>, b: Point2<f64>, step: f64) -> impl Iterator<Item = Point2<f64>> {
+    let n = ((b - a).norm() / step).ceil().max(1.0) as usize;
+    (0..=n).map(move |k| a + (b - a) * (k as f64 / n as f64))
+}
+
+/// Locks the people shared between the emulators and the sampler, even if a
+/// thread that held them panicked (their state is plain positions, never
+/// left half-written).
+pub fn lock_crowd(c: &Mutex<Crowd>) -> MutexGuard<'_, Crowd> {
+    c.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// A disc standing in the scanner's plane: a walker where it is now.
@@ -288,8 +302,7 @@ pub fn random_walkers(world: &World, n: usize, seed: u64) -> Vec<Walker> {
         }
     }
     let clear = |a: &Point2<f64>, b: &Point2<f64>| {
-        let k = ((b - a).norm() / 0.05).ceil().max(1.0) as usize;
-        (0..=k).all(|i| world.disk_is_free(&(a + (b - a) * (i as f64 / k as f64)), RANDOM_RADIUS))
+        points_along(*a, *b, 0.05).all(|p| world.disk_is_free(&p, RANDOM_RADIUS))
     };
     let mut out = Vec::new();
     if spots.len() < 2 {

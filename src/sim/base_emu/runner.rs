@@ -22,7 +22,7 @@ use crate::sim::base_emu::create2::Create2Device;
 use crate::sim::base_emu::roboclaw::RoboClawDevice;
 use crate::sim::base_emu::{BaseDevice, BodyState, DeviceStats};
 use crate::sim::kinematics::{DiffDriveSim, KinematicsParams};
-use crate::sim::walker::{Body, Crowd};
+use crate::sim::walker::{lock_crowd, Body, Crowd};
 use crate::sim::world::World;
 
 /// The emulator's end of the link.
@@ -424,7 +424,7 @@ fn run(
         let mut dt = (now - last).clamp(0.0, 0.2);
         last = now;
         if let Some(c) = &cfg.crowd {
-            let mut c = c.lock().unwrap_or_else(|e| e.into_inner());
+            let mut c = lock_crowd(c);
             let at = Point2::from(sim.pose().translation.vector);
             c.step(dt, &at, cfg.kinematics.body_radius);
             bodies.clear();
