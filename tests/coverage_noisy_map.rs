@@ -10,6 +10,9 @@
 //! error that turned the scan about the origin instead of the robot (the
 //! noise model of session 9) moved whole scans by centimetres, and these
 //! runs then ended at 94-96 %.
+//!
+//! The protective field (`control.guard`) must not take those noisy walls
+//! for something in the robot's way.
 
 mod coverage_support;
 
@@ -34,7 +37,12 @@ fn covered_on_noisy_map(spec: &str, world: &World) {
     };
     // Measured (this build, same settings): paper 99.67 %, ratio 1.054;
     // lab_a_scan:1 99.83 %, 1.036; NLB:0 99.61 %, 0.905.
-    coverage_support::online_and_offline(spec, world, &Config::default(), &opts, 1.2, 0.99);
+    let (on, _) =
+        coverage_support::online_and_offline(spec, world, &Config::default(), &opts, 1.2, 0.99);
+    // Walls read short by the noise, passed 1 cm off and met at every
+    // lane's end, are what the path expects: the protective field never
+    // holds the robot back here (it did not in any of the 24 rooms).
+    assert_eq!(on.guard_stops, 0, "{spec}: stops of the protective field");
 }
 
 #[test]

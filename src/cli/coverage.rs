@@ -130,6 +130,10 @@ pub fn run(args: Args) -> CliResult {
     let mut md = markdown(&world.name, &online, offline.as_ref());
     md += &conditions(&opts);
     md += &people(&world, &online);
+    md += &format!(
+        "\nProtective field (control.guard): the robot slowed or stopped short of something the scan showed ahead that its path did not expect {} time(s) online.\n",
+        online.guard_stops
+    );
     std::fs::write(args.out.join("metrics.md"), &md)?;
     std::fs::write(
         args.out.join("metrics.csv"),

@@ -8,6 +8,12 @@
 //! speeds for the configured wheel base, both clipped so that neither wheel
 //! nor the turn rate exceeds the robot's limits. Pure and deterministic: the
 //! caller passes the pose and the time step.
+//!
+//! Given what the newest scan shows straight ahead ([`guard`]), the follower
+//! also stops short of something its path does not expect: nearer than the
+//! next waypoint, it brakes to stand `guard_gap` before it.
+
+pub mod guard;
 
 use nalgebra::Point2;
 
@@ -34,6 +40,18 @@ pub struct ControlParams {
     pub max_accel: f64,
     /// Angular deceleration used to end turns in place without overshoot (rad/s²).
     pub max_angular_accel: f64,
+    /// Whether the follower stops short of something the newest scan shows
+    /// ahead, nearer than its next waypoint (the protective field).
+    pub guard: bool,
+    /// Gap kept short of such a thing (m).
+    pub guard_gap: f64,
+    /// Strip along each flank of the body the field does not watch (m): a
+    /// wall passed at the planner's clearance, read short by the scanner's
+    /// noise, must not stop the robot.
+    pub guard_side_clearance: f64,
+    /// Something at most this much nearer than the next waypoint is what
+    /// the path expects (the wall at a lane's end, read short) (m).
+    pub guard_slack: f64,
 }
 
 impl Default for ControlParams {
@@ -46,6 +64,10 @@ impl Default for ControlParams {
             cross_track_gain: 8.0,
             max_accel: 0.5,
             max_angular_accel: 2.0,
+            guard: true,
+            guard_gap: 0.05,
+            guard_side_clearance: 0.03,
+            guard_slack: 0.02,
         }
     }
 }
@@ -79,6 +101,18 @@ impl ControlParams {
                 return Err(ControlError::BadParam {
                     key,
                     message: format!("must be a finite number > 0, got {v}"),
+                });
+            }
+        }
+        for (key, v) in [
+            ("guard_gap", self.guard_gap),
+            ("guard_side_clearance", self.guard_side_clearance),
+            ("guard_slack", self.guard_slack),
+        ] {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return Err(ControlError::BadParam {
+                    key,
+                    message: format!("must be a finite number in 0..=1 m, got {v}"),
                 });
             }
         }
@@ -152,6 +186,8 @@ pub struct PathFollower {
     state: FollowState,
     last: Twist,
     horizon: f64,
+    radius: f64,
+    held_short: bool,
 }
 
 /// Integrates unicycle kinematics exactly over `dt` (arc motion).
@@ -175,6 +211,15 @@ impl PathFollower {
     /// A follower with `params` for the robot `robot` (speed limits, wheel base).
     pub fn new(params: &ControlParams, robot: &RobotParams) -> Result<Self, ControlError> {
         params.validate()?;
+        if params.guard_side_clearance >= robot.radius {
+            return Err(ControlError::BadParam {
+                key: "guard_side_clearance",
+                message: format!(
+                    "must be smaller than robot.radius ({} m), got {}",
+                    robot.radius, params.guard_side_clearance
+                ),
+            });
+        }
         for (key, v) in [
             ("robot.max_speed", robot.max_speed),
             ("robot.max_turn_rate", robot.max_turn_rate),
@@ -198,6 +243,8 @@ impl PathFollower {
             state: FollowState::Idle,
             last: Twist::default(),
             horizon: 0.0,
+            radius: robot.radius,
+            held_short: false,
         })
     }
 
@@ -253,10 +300,37 @@ impl PathFollower {
     /// One control step at `pose` for a period of `dt` seconds: the twist and
     /// wheel speeds to apply until the next step.
     pub fn step(&mut self, pose: &Pose, dt: f64) -> (Twist, WheelCmd) {
-        let twist = self.compute(pose, dt);
+        self.step_guarded(pose, dt, None)
+    }
+
+    /// [`PathFollower::step`] with the protective field: `ahead` holds the
+    /// newest scan's points and `odom` is the robot's odometry pose in their
+    /// frame. The robot stops `guard_gap` short of a point the body would
+    /// touch driving straight on when that is nearer than the next waypoint
+    /// (less `guard_slack`); [`PathFollower::held_short`] tells when it did.
+    pub fn step_guarded(
+        &mut self,
+        pose: &Pose,
+        dt: f64,
+        ahead: Option<(&guard::ObstaclePoints, &Pose)>,
+    ) -> (Twist, WheelCmd) {
+        let free = match ahead {
+            Some((points, odom)) if self.params.guard => {
+                points.free_ahead(odom, self.radius, self.params.guard_side_clearance)
+            }
+            _ => f64::INFINITY,
+        };
+        self.held_short = false;
+        let twist = self.compute(pose, dt, free);
         let twist = self.limit(twist);
         self.last = twist;
         (twist, twist.to_wheels(self.wheel_base))
+    }
+
+    /// Whether the last step slowed or stopped for something its path does
+    /// not expect ahead (the protective field).
+    pub fn held_short(&self) -> bool {
+        self.held_short
     }
 
     fn limit(&self, t: Twist) -> Twist {
@@ -279,7 +353,7 @@ impl PathFollower {
         w.max(0.05_f64.min(self.max_turn_rate)) * err.signum()
     }
 
-    fn compute(&mut self, pose: &Pose, dt: f64) -> Twist {
+    fn compute(&mut self, pose: &Pose, dt: f64, free: f64) -> Twist {
         let p: Point2<f64> = pose.translation.vector.into();
         let th = heading(pose);
         // Skip reached waypoints.
@@ -353,14 +427,28 @@ impl PathFollower {
         // Speed: slow down so the robot stops at a waypoint followed by a sharp turn.
         let stop_here = self.stops_at(self.next);
         let mut v = self.max_speed;
+        let dist_along = to_goal.dot(&(seg / seg.norm().max(1e-9))).max(0.0);
         if stop_here {
-            let dist_along = to_goal.dot(&(seg / seg.norm().max(1e-9))).max(0.0);
-            v = v.min((2.0 * self.params.max_accel * dist_along).sqrt());
-            // Never overshoot within one step, nor within the horizon.
-            v = v.min(dist_along / dt.max(self.horizon).max(1e-6));
+            v = v.min(self.stopping_speed(dist_along, dt));
+        }
+        // Something ahead that the segment does not reach for: stop short.
+        if free < dist_along - self.params.guard_slack {
+            let cap = self.stopping_speed((free - self.params.guard_gap).max(0.0), dt);
+            if cap < v {
+                v = cap;
+                self.held_short = true;
+            }
         }
         let v = v.min(self.last.v.abs() + self.params.max_accel * dt);
         Twist { v, w }
+    }
+
+    /// The highest speed that still stops within `room` (m) with the
+    /// deceleration, and within one step or the command horizon.
+    fn stopping_speed(&self, room: f64, dt: f64) -> f64 {
+        (2.0 * self.params.max_accel * room)
+            .sqrt()
+            .min(room / dt.max(self.horizon).max(1e-6))
     }
 
     /// Turn rate that reaches a heading error `err` without overshooting in one step.
@@ -414,6 +502,105 @@ mod tests {
             }
         }
         (p, max_v, max_w)
+    }
+
+    /// Drives `f` for `steps` steps of 0.05 s from `p`, a scan every other
+    /// step seeing the world points `seen(step)`; returns the end pose, the
+    /// nearest the robot's centre came to `near`, and whether it held short.
+    fn run_seeing(
+        f: &mut PathFollower,
+        mut p: Pose,
+        steps: usize,
+        near: Point2<f64>,
+        seen: impl Fn(usize) -> Vec<Point2<f64>>,
+    ) -> (Pose, f64, bool) {
+        let mut ahead = guard::ObstaclePoints::default();
+        let (mut closest, mut held) = (f64::INFINITY, false);
+        for k in 0..steps {
+            if k % 2 == 0 {
+                ahead.clear(p);
+                for q in seen(k) {
+                    ahead.push(p.inverse() * q);
+                }
+            }
+            let (t, _) = f.step_guarded(&p, 0.05, Some((&ahead, &p)));
+            held |= f.held_short();
+            p = integrate(&p, &t, 0.05);
+            closest = closest.min((Point2::from(p.translation.vector) - near).norm());
+        }
+        (p, closest, held)
+    }
+
+    /// The front half of a person's disc of radius 0.2 m at `c`, as a
+    /// scanner at the origin sees it.
+    fn person(c: Point2<f64>) -> Vec<Point2<f64>> {
+        (0..=20)
+            .map(|k| {
+                let a = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * k as f64 / 20.0;
+                c + 0.2 * nalgebra::Vector2::new(a.cos(), a.sin())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn stops_short_of_a_person_in_its_lane_and_goes_on_once_they_are_gone() {
+        let body = robot().radius;
+        let c = Point2::new(1.5, 0.0);
+        let lane = [Point2::new(3.0, 0.0)];
+        let mut f = PathFollower::new(&ControlParams::default(), &robot()).unwrap();
+        f.set_path(&lane, None);
+        let start = pose(0.0, 0.0, 0.0);
+        let (stood, closest, held) = run_seeing(&mut f, start, 200, c, |_| person(c));
+        assert!(held);
+        assert!(!f.is_done());
+        // It stands about control.guard_gap short of touching, still.
+        let gap = closest - body - 0.2;
+        assert!((0.03..0.08).contains(&gap), "gap {gap}");
+        let mut ahead = guard::ObstaclePoints::default();
+        ahead.clear(stood);
+        for q in person(c) {
+            ahead.push(stood.inverse() * q);
+        }
+        let (t, _) = f.step_guarded(&stood, 0.05, Some((&ahead, &stood)));
+        assert!(t.v.abs() < 1e-9, "{t:?}");
+        // The person walks off: the lane is driven to its end.
+        let (end, _, _) = run_seeing(&mut f, stood, 400, c, |_| Vec::new());
+        assert!(f.is_done(), "{end:?}");
+        // Without the field the body runs into the person.
+        let off = ControlParams {
+            guard: false,
+            ..ControlParams::default()
+        };
+        let mut f = PathFollower::new(&off, &robot()).unwrap();
+        f.set_path(&lane, None);
+        let (_, closest, held) = run_seeing(&mut f, start, 200, c, |_| person(c));
+        assert!(!held);
+        assert!(closest < body + 0.2, "{closest}");
+    }
+
+    #[test]
+    fn a_wall_at_a_lanes_end_read_short_and_walls_along_it_do_not_stop_it() {
+        // A lane ending 1 cm before a wall and passing 1 cm beside another,
+        // both read up to 2 cm short.
+        let body = robot().radius;
+        let end = Point2::new(2.0, 0.0);
+        let walls = |k: usize| -> Vec<Point2<f64>> {
+            let short = |i: usize| 0.02 * (((i + k) % 5) as f64) / 4.0;
+            let mut w: Vec<Point2<f64>> = (0..100)
+                .map(|i| Point2::new(2.0 + body + 0.01 - short(i), -1.0 + 0.02 * i as f64))
+                .collect();
+            w.extend((0..110).map(|i| Point2::new(0.02 * i as f64, body + 0.01 - short(i))));
+            w
+        };
+        let mut f = PathFollower::new(&ControlParams::default(), &robot()).unwrap();
+        f.set_path(&[end], None);
+        let (at, _, held) = run_seeing(&mut f, pose(0.0, 0.0, 0.0), 400, end, walls);
+        assert!(!held);
+        assert!(f.is_done());
+        assert!(
+            (Point2::from(at.translation.vector) - end).norm() <= 0.011,
+            "{at:?}"
+        );
     }
 
     #[test]
@@ -516,6 +703,32 @@ mod tests {
         };
         let e = PathFollower::new(&p, &robot()).unwrap_err();
         assert!(e.to_string().contains("heading_gain"), "{e}");
+        for (p, key) in [
+            (
+                ControlParams {
+                    guard_gap: -0.01,
+                    ..ControlParams::default()
+                },
+                "guard_gap",
+            ),
+            (
+                ControlParams {
+                    guard_slack: f64::INFINITY,
+                    ..ControlParams::default()
+                },
+                "guard_slack",
+            ),
+            (
+                ControlParams {
+                    guard_side_clearance: 0.2,
+                    ..ControlParams::default()
+                },
+                "guard_side_clearance",
+            ),
+        ] {
+            let e = PathFollower::new(&p, &robot()).unwrap_err();
+            assert!(e.to_string().contains(key), "{e}");
+        }
         let mut f = PathFollower::new(&ControlParams::default(), &robot()).unwrap();
         f.set_path(&[], None);
         assert!(f.is_done());

@@ -342,6 +342,7 @@ impl Daemon {
                 watch: stuck::ProgressWatch::new(cfg.daemon.stuck_after),
                 scan_timeout: cfg.daemon.scan_timeout,
                 held_since: None,
+                guard: Default::default(),
             },
         )?;
         pipeline.spawn(

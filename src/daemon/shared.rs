@@ -224,6 +224,13 @@ pub struct Shared {
     pub stuck_paths: AtomicU64,
     /// Times the control stage held the wheels for lack of scans.
     pub scan_holds: AtomicU64,
+    /// The newest scan's end points in the robot frame with the odometry
+    /// pose they were seen from (localise writes, control reads: the
+    /// protective field, see [`crate::control::guard`]).
+    pub ahead: Mutex<crate::control::guard::ObstaclePoints>,
+    /// Times the control stage slowed or stopped short of something the
+    /// scan showed ahead that the path did not expect.
+    pub guard_stops: AtomicU64,
     /// Bumper contact marks the map stage took out because they walled off
     /// floor (see [`super::stages::MarkProbe`]).
     pub marks_taken_out: AtomicU64,
@@ -239,6 +246,14 @@ pub struct Shared {
 }
 
 impl Shared {
+    /// Runs `f` on the newest scan's points ahead (the protective field).
+    pub fn with_ahead<T>(
+        &self,
+        f: impl FnOnce(&mut crate::control::guard::ObstaclePoints) -> T,
+    ) -> T {
+        f(&mut lock(&self.ahead))
+    }
+
     /// Runs `f` on the live status.
     pub fn with_status<T>(&self, f: impl FnOnce(&mut LiveStatus) -> T) -> T {
         f(&mut lock(&self.status))

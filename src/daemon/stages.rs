@@ -21,6 +21,7 @@ use super::stuck::ProgressWatch;
 use super::travel_check::{TravelFit, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE};
 use super::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
 use crate::clock::SharedClock;
+use crate::control::guard::{StopCounter, StopEvent};
 use crate::control::PathFollower;
 use crate::decomp::Decomposer;
 use crate::geom::{carried, heading, IPoint, Pose};
@@ -191,6 +192,8 @@ impl Stage for LocaliseStage {
     fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         ctx.note_age(msg.t0);
         msg.scan.points_into(&mut self.points);
+        self.shared
+            .with_ahead(|a| a.load_scan(&msg.scan, &self.mount, msg.odom));
         let resuming = self.relocalise_on.is_some();
         if let Some(grid) = self.relocalise_on.take() {
             let guess = self.tracker.pose();
@@ -1080,6 +1083,8 @@ pub struct ControlStage {
     pub scan_timeout: f64,
     /// Clock time since which the wheels are held for lack of scans.
     pub held_since: Option<f64>,
+    /// The protective field's stops.
+    pub guard: StopCounter,
 }
 
 impl ControlStage {
@@ -1145,6 +1150,24 @@ impl ControlStage {
         blind
     }
 
+    /// Counts and logs the follower's stops short of something unplanned
+    /// ahead (the protective field).
+    fn note_guard(&mut self, now: f64, est: &Pose) {
+        let (x, y) = (est.translation.x, est.translation.y);
+        match self.guard.note(self.follower.held_short(), now) {
+            Some(StopEvent::Began) => {
+                self.shared.guard_stops.fetch_add(1, Ordering::Relaxed);
+                log::info!(
+                    "control: something the path does not expect is straight ahead of the robot at ({x:.2}, {y:.2}); slowing to stop control.guard_gap short of it"
+                );
+            }
+            Some(StopEvent::Ended) => {
+                log::info!("control: the way ahead is clear again at ({x:.2}, {y:.2})")
+            }
+            None => {}
+        }
+    }
+
     /// Computes and sends the wheel command for the newest estimate; `t0`
     /// is the scan's last byte when a pose fix triggered it.
     fn command(&mut self, t0: Option<Stamp>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
@@ -1173,7 +1196,11 @@ impl ControlStage {
             WheelSpeeds::STOP
         } else {
             self.watch_headway(now, &est);
-            let (_, w) = self.follower.step(&est, dt);
+            let odom = self.shared.odom.latest();
+            let (_, w) = self
+                .shared
+                .with_ahead(|a| self.follower.step_guarded(&est, dt, Some((a, &odom))));
+            self.note_guard(now, &est);
             WheelSpeeds {
                 left: w.left,
                 right: w.right,

@@ -226,6 +226,9 @@ pub struct SimReport {
     pub safety_events: u64,
     /// Paths the daemon gave up because the robot made no headway on them.
     pub stuck_paths: u64,
+    /// Times the daemon slowed or stopped short of something the scan
+    /// showed ahead that its path did not expect (the protective field).
+    pub guard_stops: u64,
     /// Bumper contact marks taken out to try the floor they walled off.
     pub marks_taken_out: u64,
     /// The daemon's planner counters at the end (tasks, plans started over).
@@ -798,6 +801,9 @@ fn drive(
         plan_stats: shared.with_status(|s| s.plan_stats),
         stuck_paths: shared
             .stuck_paths
+            .load(std::sync::atomic::Ordering::Relaxed),
+        guard_stops: shared
+            .guard_stops
             .load(std::sync::atomic::Ordering::Relaxed),
         pipeline: outcome.snapshot,
         truth,

@@ -16,6 +16,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::config::Config;
+use crate::control::guard::{ObstaclePoints, StopCounter};
 use crate::control::{integrate, ControlError, PathFollower, Twist};
 use crate::decomp::{DecompError, Decomposer, Decomposition};
 use crate::geom::{heading, Pose};
@@ -174,11 +175,15 @@ pub struct RunResult {
     pub repeat_causes: Vec<u8>,
     /// Every task the planner planned, in order.
     pub tasks: Vec<crate::plan::planner::TaskRecord>,
+    /// Times the follower slowed or stopped short of something the scan
+    /// showed ahead that its path did not expect (the protective field).
+    pub guard_stops: u64,
 }
 
 /// Casts one simulated URG-04LX scan at `pose` and integrates it into `grid`.
 pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
-    cast_scan(world, &[], pose, pose, grid, || 0.0);
+    let mut ahead = ObstaclePoints::default();
+    cast_scan(world, &[], pose, pose, grid, &mut ahead, || 0.0);
 }
 
 /// Casts scans at the true pose and integrates them as a robot with
@@ -187,6 +192,7 @@ pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
 pub struct NoisyScanner {
     noise: SensingNoise,
     rng: ChaCha8Rng,
+    ahead: ObstaclePoints,
 }
 
 impl NoisyScanner {
@@ -195,7 +201,14 @@ impl NoisyScanner {
         Self {
             noise,
             rng: ChaCha8Rng::seed_from_u64(noise.seed),
+            ahead: ObstaclePoints::default(),
         }
+    }
+
+    /// The newest scan's end points in the robot frame, as read (for the
+    /// follower's protective field).
+    pub fn ahead(&self) -> &ObstaclePoints {
+        &self.ahead
     }
 
     /// One scan from the true `pose` into `grid`, people walking through
@@ -203,7 +216,7 @@ impl NoisyScanner {
     /// noise is all zero and there is nobody).
     pub fn scan_into(&mut self, world: &World, bodies: &[Body], pose: &Pose, grid: &mut Grid) {
         if self.noise.is_ideal() {
-            return cast_scan(world, bodies, pose, pose, grid, || 0.0);
+            return cast_scan(world, bodies, pose, pose, grid, &mut self.ahead, || 0.0);
         }
         let n = self.noise;
         let dx = n.position * gauss(&mut self.rng);
@@ -211,7 +224,9 @@ impl NoisyScanner {
         let dth = n.heading * gauss(&mut self.rng);
         let seen = pose_off_by(pose, Vector2::new(dx, dy), dth);
         let rng = &mut self.rng;
-        cast_scan(world, bodies, pose, &seen, grid, || n.range * gauss(rng));
+        cast_scan(world, bodies, pose, &seen, grid, &mut self.ahead, || {
+            n.range * gauss(rng)
+        });
     }
 }
 
@@ -224,19 +239,22 @@ pub fn pose_off_by(pose: &Pose, shift: Vector2<f64>, turn: f64) -> Pose {
 }
 
 /// Casts one scan at the true `pose`, `bodies` standing in the room, and
-/// integrates it as seen from `seen`, each hit's range plus `range_error()`.
+/// integrates it as seen from `seen`, each hit's range plus `range_error()`;
+/// `ahead` gets the hits as read, in the robot frame.
 fn cast_scan(
     world: &World,
     bodies: &[Body],
     pose: &Pose,
     seen: &Pose,
     grid: &mut Grid,
+    ahead: &mut ObstaclePoints,
     mut range_error: impl FnMut() -> f64,
 ) {
     let o: Point2<f64> = pose.translation.vector.into();
     let th = heading(pose);
     let so: Point2<f64> = seen.translation.vector.into();
     let sth = heading(seen);
+    ahead.clear(*pose);
     for k in 0..URG_BEAMS {
         let rel = URG_FIRST + k as f64 * URG_STEP;
         let a = sth + rel;
@@ -245,6 +263,7 @@ fn cast_scan(
             Some(hit) if hit.range >= URG_MIN_RANGE => {
                 let r = (hit.range + range_error()).max(URG_MIN_RANGE);
                 grid.integrate_ray(&so, &(so + dir * r), true);
+                ahead.push(Point2::new(r * rel.cos(), r * rel.sin()));
             }
             Some(_) => {}
             None => grid.integrate_ray(&so, &(so + dir * URG_MAX_RANGE), false),
@@ -361,6 +380,7 @@ pub fn run(
     let mut snapshots = Vec::new();
     let (mut decomp_seconds, mut plan_seconds) = (Vec::new(), Vec::new());
     let mut finished = false;
+    let mut guard = StopCounter::default();
     let mut report = None;
     let empty = Decomposition::default();
     tracker.record(&pose, t);
@@ -404,7 +424,9 @@ pub fn run(
                 PlanStatus::Working { .. } => {}
             }
         }
-        let (_, wheels) = follower.step(&pose, opts.dt);
+        let ahead = (mode == Mode::Online).then(|| (scanner.ahead(), &pose));
+        let (_, wheels) = follower.step_guarded(&pose, opts.dt, ahead);
+        guard.note(follower.held_short(), t);
         let twist = Twist::from_wheels(&wheels, robot.wheel_base);
         pose = integrate(&pose, &twist, opts.dt);
         t += opts.dt;
@@ -443,6 +465,7 @@ pub fn run(
         passes: tracker.passes().to_vec(),
         repeat_causes: tracker.repeat_causes().to_vec(),
         tasks: planner.history().to_vec(),
+        guard_stops: guard.stops,
     })
 }
 

@@ -272,6 +272,10 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             "paths given up for lack of headway",
             format!("{}", r.stuck_paths),
         ),
+        (
+            "stops short of something unplanned straight ahead (control.guard)",
+            format!("{}", r.guard_stops),
+        ),
         ("wheels held for lack of scans", format!("{}", r.scan_holds)),
         (
             "tasks planned (started over: path blocked / new floor near the robot)",
