@@ -216,6 +216,16 @@ fn hostile_inputs_name_the_key_or_line() {
             &["daemon.scan_timeout", "got 60.0"],
         ),
         (
+            "no time between plans",
+            "[daemon]\nplan_interval = 0.0\n".into(),
+            &["daemon.plan_interval", "got 0.0"],
+        ),
+        (
+            "a plan a minute",
+            "[daemon]\nplan_interval = 60.0\n".into(),
+            &["daemon.plan_interval", "got 60.0"],
+        ),
+        (
             "bearing outside the bumper",
             "[daemon.contact]\nside_bearing = 1.5\n".into(),
             &["daemon.contact.side_bearing", "got 1.5"],

@@ -52,8 +52,6 @@ pub use shared::{LiveStatus, Shared};
 pub const CONTROL_PERIOD: f64 = 0.05;
 /// Encoder polling period (s).
 pub const MOTOR_POLL_PERIOD: f64 = 0.02;
-/// Shortest time between two planning updates (s).
-pub const PLAN_INTERVAL: f64 = 0.2;
 /// Time the robot reverses after a bumper contact (s).
 pub const BUMP_BACKOFF: f64 = 1.0;
 /// Longest time it keeps reversing while the bumper stays closed (s): a
@@ -356,7 +354,7 @@ impl Daemon {
                 shared: shared.clone(),
                 control: supervisor.control(),
                 clock: clock.clone(),
-                min_interval: PLAN_INTERVAL,
+                min_interval: cfg.daemon.plan_interval,
                 last: f64::NEG_INFINITY,
                 seq: 0,
                 updates: 0,

@@ -17,6 +17,12 @@ pub const SCAN_TIMEOUT: f64 = 1.0;
 /// Longest `daemon.scan_timeout` accepted (clock s).
 pub const MAX_SCAN_TIMEOUT: f64 = 10.0;
 
+/// Default of `daemon.plan_interval` (clock s): five plans a second.
+pub const PLAN_INTERVAL: f64 = 0.2;
+
+/// Longest `daemon.plan_interval` accepted (clock s).
+pub const MAX_PLAN_INTERVAL: f64 = 10.0;
+
 /// The `[daemon]` table.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -28,6 +34,10 @@ pub struct DaemonParams {
     /// the wheels until scans return: the robot drives on odometry across
     /// a short gap but not blind for long (no obstacle sensing).
     pub scan_timeout: f64,
+    /// Shortest clock time between two planner updates: a slower robot PC
+    /// may plan less often, leaving new obstacles to the protective field
+    /// (`control.guard`) for longer.
+    pub plan_interval: f64,
     /// At a fresh start, turn the map frame so the walls of the first scan
     /// run along its axes (the lanes run along the axes; see
     /// [`super::align`]).
@@ -48,6 +58,7 @@ impl Default for DaemonParams {
         Self {
             stuck_after: STUCK_AFTER,
             scan_timeout: SCAN_TIMEOUT,
+            plan_interval: PLAN_INTERVAL,
             align_to_walls: true,
             fit_scanner_mount: true,
             contact: ContactParams::default(),
@@ -71,6 +82,15 @@ impl DaemonParams {
                 "daemon.scan_timeout",
                 &format!(
                     "must be a finite number of seconds in (0, {MAX_SCAN_TIMEOUT}], got {t:?}"
+                ),
+            ));
+        }
+        let p = self.plan_interval;
+        if !(p.is_finite() && (0.01..=MAX_PLAN_INTERVAL).contains(&p)) {
+            return Err(invalid(
+                "daemon.plan_interval",
+                &format!(
+                    "must be a finite number of seconds in 0.01..={MAX_PLAN_INTERVAL}, got {p:?}"
                 ),
             ));
         }

@@ -1168,17 +1168,13 @@ impl ControlStage {
         }
     }
 
-    /// Computes and sends the wheel command for the newest estimate; `t0`
-    /// is the scan's last byte when a pose fix triggered it.
-    fn command(&mut self, t0: Option<Stamp>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
-        let now = self.clock.now();
-        let dt = (now - self.last_cmd).clamp(1e-3, 4.0 * self.period);
-        self.last_cmd = now;
-        let est = self.estimate();
+    /// The wheel speeds for the estimate `est` at clock time `now`, `dt`
+    /// after the last command: stop when halted or done, reverse after a
+    /// bump, hold without scans, else follow the path (with the protective
+    /// field on the newest scan's points).
+    fn wheels(&mut self, now: f64, dt: f64, est: &Pose) -> WheelSpeeds {
         let blind = self.lacks_scans(now);
-        let wheels = if self.shared.halt.load(Ordering::Relaxed)
-            || self.shared.done.load(Ordering::Relaxed)
-        {
+        if self.shared.halt.load(Ordering::Relaxed) || self.shared.done.load(Ordering::Relaxed) {
             WheelSpeeds::STOP
         } else if now - self.shared.last_bump() < self.backoff
             || (self.shared.bumper_closed.load(Ordering::Relaxed)
@@ -1195,17 +1191,27 @@ impl ControlStage {
             self.watch.reset();
             WheelSpeeds::STOP
         } else {
-            self.watch_headway(now, &est);
+            self.watch_headway(now, est);
             let odom = self.shared.odom.latest();
             let (_, w) = self
                 .shared
-                .with_ahead(|a| self.follower.step_guarded(&est, dt, Some((a, &odom))));
-            self.note_guard(now, &est);
+                .with_ahead(|a| self.follower.step_guarded(est, dt, Some((a, &odom))));
+            self.note_guard(now, est);
             WheelSpeeds {
                 left: w.left,
                 right: w.right,
             }
-        };
+        }
+    }
+
+    /// Computes and sends the wheel command for the newest estimate; `t0`
+    /// is the scan's last byte when a pose fix triggered it.
+    fn command(&mut self, t0: Option<Stamp>, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        let now = self.clock.now();
+        let dt = (now - self.last_cmd).clamp(1e-3, 4.0 * self.period);
+        self.last_cmd = now;
+        let est = self.estimate();
+        let wheels = self.wheels(now, dt, &est);
         let d = self
             .last_pose
             .map(|p| (p.translation.vector - est.translation.vector).norm())
@@ -1512,6 +1518,84 @@ mod tests {
         let arcs = Arc::new(ContactArcs { arcs: vec![arc] });
         shared.with_status(|s| s.contacts = Some(arcs));
         (g, p, shared, at)
+    }
+
+    /// A control stage at the map origin facing +x, a pose fix just in,
+    /// following a 3 m lane along +x; its channels lead nowhere.
+    fn control_stage(shared: Arc<Shared>) -> ControlStage {
+        let robot = crate::config::RobotParams::default();
+        let mut follower =
+            PathFollower::new(&crate::control::ControlParams::default(), &robot).unwrap();
+        follower.set_path(&[Point2::new(3.0, 0.0)], None);
+        let clock: SharedClock = Arc::new(crate::clock::ScaledClock::new(1.0));
+        let now = clock.now();
+        let (_, paths) = queue::<PathMsg>("paths", 1, Overflow::DropOldest);
+        let (_, fixes) = queue::<PoseFix>("fixes", 1, Overflow::DropOldest);
+        let (tx, _) = queue::<CmdMsg>("cmds", 1, Overflow::DropOldest);
+        let (poses, _) = queue::<Pose>("poses", 1, Overflow::DropOldest);
+        ControlStage {
+            follower,
+            paths,
+            fixes,
+            tx,
+            poses,
+            shared,
+            clock,
+            period: 0.05,
+            next_tick: now,
+            last_cmd: now,
+            fix: Some(PoseFix {
+                t0: Stamp::now(),
+                stamp: now,
+                pose: Pose::identity(),
+                odom: Pose::identity(),
+                matched: true,
+            }),
+            start: Pose::identity(),
+            path_seq: 1,
+            wheel_base: robot.wheel_base,
+            backoff: super::super::BUMP_BACKOFF,
+            last_pose: None,
+            bump_seen: f64::NEG_INFINITY,
+            watch: crate::daemon::stuck::ProgressWatch::new(20.0),
+            scan_timeout: 1.0,
+            held_since: None,
+            guard: StopCounter::default(),
+        }
+    }
+
+    #[test]
+    fn the_control_stage_stops_short_of_what_the_localised_scan_shows_ahead() {
+        let shared = Arc::new(Shared::default());
+        let mut c = control_stage(shared.clone());
+        let now = c.clock.now();
+        let here = Pose::identity();
+        // Nothing seen yet: the robot sets off along the lane.
+        let w = c.wheels(now, 0.05, &here);
+        assert!(w.left > 0.0 && w.right > 0.0, "{w:?}");
+        // The localise stage loads a scan from a scanner 0.1 m ahead of the
+        // axle: a person's legs 0.12 m in front of it, 0.22 m from the axle,
+        // just clear of the 0.17 m body. The robot stands.
+        let mut scan = crate::scan::LaserScan::default();
+        for k in -5..=5 {
+            let _ = scan.beams.push(crate::scan::Beam {
+                angle: 0.05 * f64::from(k),
+                range: 0.12,
+                intensity: 0.0,
+                valid: true,
+            });
+        }
+        let mount = crate::geom::pose(0.1, 0.0, 0.0);
+        shared.with_ahead(|a| a.load_scan(&scan, &mount, Pose::identity()));
+        for k in 1..=3 {
+            let w = c.wheels(now + 0.05 * f64::from(k), 0.05, &here);
+            assert_eq!((w.left, w.right), (0.0, 0.0), "step {k}");
+        }
+        assert_eq!(shared.guard_stops.load(Ordering::Relaxed), 1);
+        // The next scan shows the way clear: the robot drives on.
+        shared.with_ahead(|a| a.load_scan(&Default::default(), &mount, Pose::identity()));
+        let w = c.wheels(now + 0.25, 0.05, &here);
+        assert!(w.left > 0.0 && w.right > 0.0, "{w:?}");
     }
 
     #[test]

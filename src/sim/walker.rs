@@ -43,12 +43,15 @@ pub struct Walker {
     /// Walks along the path (one way each) before the walker leaves the
     /// room from where it ends; `None`: it walks for the whole run.
     pub trips: Option<u32>,
+    /// Comes in only once the robot's centre is within this distance (m) of
+    /// the first way point: someone stepping out in front of the robot.
+    pub near: Option<f64>,
 }
 
 impl Walker {
     /// A walker from the words of its line: `RADIUS SPEED X0 Y0 X1 Y1
-    /// [X Y ...]`, then optionally `refl R` (0..1), `after T` (s) and
-    /// `trips N`; the message says what is wrong.
+    /// [X Y ...]`, then optionally `refl R` (0..1), `after T` (s),
+    /// `trips N` and `near D` (m); the message says what is wrong.
     pub fn parse_words(words: &[&str]) -> Result<Walker, String> {
         let number = |w: &str| {
             w.parse::<f64>()
@@ -58,9 +61,10 @@ impl Walker {
         };
         let mut nums = Vec::new();
         let (mut reflectivity, mut after, mut trips) = (DEFAULT_WALKER_REFLECTIVITY, 0.0, None);
+        let mut near = None;
         let mut it = words.iter();
         while let Some(&w) = it.next() {
-            if !matches!(w, "refl" | "after" | "trips") {
+            if !matches!(w, "refl" | "after" | "trips" | "near") {
                 nums.push(number(w)?);
                 continue;
             }
@@ -72,9 +76,10 @@ impl Walker {
                 "refl" if (0.0..=1.0).contains(&v) => reflectivity = v,
                 "after" if v >= 0.0 => after = v,
                 "trips" if v >= 1.0 && v.fract() == 0.0 => trips = Some(v as u32),
+                "near" if v > 0.0 => near = Some(v),
                 _ => {
                     return Err(format!(
-                        "walker: `{w} {v}` out of range (refl 0..1, after >= 0 s, trips a whole number >= 1)"
+                        "walker: `{w} {v}` out of range (refl 0..1, after >= 0 s, trips a whole number >= 1, near > 0 m)"
                     ))
                 }
             }
@@ -103,6 +108,7 @@ impl Walker {
             reflectivity,
             after,
             trips,
+            near,
         };
         if w.length() < 0.1 {
             return Err(format!(
@@ -218,8 +224,9 @@ impl Crowd {
     /// Moves every walker on by `dt` seconds of walking, except one that would
     /// step nearer to the robot (a disc of `robot_radius` at `robot`) while
     /// within [`YIELD_GAP`] of it: that one waits. A walker comes in at its
-    /// time (at its first way point, once the robot is clear of it) and
-    /// leaves after its trips.
+    /// time (at its first way point, once the robot is clear of it, and for
+    /// a walker with `near`, once the robot is that near) and leaves after
+    /// its trips.
     pub fn step(&mut self, dt: f64, robot: &Point2<f64>, robot_radius: f64) {
         if !(dt.is_finite() && dt > 0.0) {
             return;
@@ -235,7 +242,11 @@ impl Crowd {
             let keep = robot_radius + w.radius + YIELD_GAP;
             let trip_end = w.trips.map_or(f64::INFINITY, |n| f64::from(n) * w.length());
             match *at {
-                None if *u == 0.0 && self.time >= w.after && (w.path[0] - robot).norm() >= keep => {
+                None if *u == 0.0
+                    && self.time >= w.after
+                    && (keep..=w.near.unwrap_or(f64::INFINITY))
+                        .contains(&(w.path[0] - robot).norm()) =>
+                {
                     *at = Some(w.path[0]);
                 }
                 None => continue,
@@ -332,6 +343,7 @@ pub fn random_walkers(world: &World, n: usize, seed: u64) -> Vec<Walker> {
             path: vec![a, b],
             reflectivity: DEFAULT_WALKER_REFLECTIVITY,
             after: rng.random_range(0.0..=300.0),
+            near: None,
             trips: Some(rng.random_range(2..=6)),
         });
     }
@@ -431,6 +443,7 @@ mod tests {
             ("0.2 1 1 2 3 4 trips 1.5", "out of range"),
             ("0.2 1 1 2 3 4 after -1", "out of range"),
             ("0.2 1 1 2 3 4 refl 2", "out of range"),
+            ("0.2 1 1 2 3 4 near 0", "out of range"),
             ("0.2 1 1 2 3 4 trips", "`trips` needs a value"),
         ] {
             let e = Walker::parse(text).unwrap_err();
@@ -504,6 +517,23 @@ mod tests {
             c.step(0.01, &away, 0.17);
         }
         assert!(c.bodies().is_empty(), "came back");
+    }
+
+    #[test]
+    fn a_walker_with_near_steps_in_only_when_the_robot_comes_that_near() {
+        let w = Walker::parse("0.2 0.01 3 2 3 2.12 near 0.8").unwrap();
+        assert_eq!(w.near, Some(0.8));
+        let mut c = Crowd::new(&[w]);
+        // Far off: nobody. Within 0.8 m but nearer than the yield gap
+        // allows (0.52 m): nobody either.
+        for x in [0.5, 1.5, 2.1, 2.6] {
+            c.step(0.1, &Point2::new(x, 2.0), 0.17);
+            assert!(c.bodies().is_empty(), "in with the robot at x {x}");
+        }
+        // 0.7 m off, driving towards the way point: in.
+        let mut c = Crowd::new(&c.walkers);
+        c.step(0.1, &Point2::new(2.3, 2.0), 0.17);
+        assert_eq!(c.bodies()[0].centre, Point2::new(3.0, 2.0));
     }
 
     #[test]

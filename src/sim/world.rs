@@ -20,9 +20,10 @@
 //! passes over: rays miss it, the body still runs into it (only the bumper
 //! can find it).
 //!
-//! `walker RADIUS SPEED X0 Y0 X1 Y1 [X Y ...] [refl R] [after T] [trips N]`
-//! is a person walking out and back along the way points from time `T`
-//! (s), `N` times one way or for the whole run (see [`crate::sim::walker`]):
+//! `walker RADIUS SPEED X0 Y0 X1 Y1 [X Y ...] [refl R] [after T] [trips N]
+//! [near D]` is a person walking out and back along the way points from
+//! time `T` (s; with `near`, once the robot comes within `D` m of the first
+//! way point), `N` times one way or for the whole run (see [`crate::sim::walker`]):
 //! seen by the scanner, run into by the body, not part of the ground
 //! truth's floor. Its path must stay on free floor.
 //!
