@@ -23,6 +23,13 @@ use crate::scan::LaserScan;
 /// that stops within a few centimetres.
 pub const WATCH_RANGE: f64 = 2.0;
 
+/// A point further than this inside the body's outline (m) is the robot
+/// itself (a mast, a cable, a bumper in the scanner's view) or a reading
+/// of a covered window, never something in its way: left out, or it would
+/// hold the robot for good. Nearer the outline it may be something
+/// touching the body, read a little short: kept.
+pub const SELF_INSIDE: f64 = 0.03;
+
 /// One scan's end points in the robot frame, and where the robot was.
 #[derive(Clone, Debug, Default)]
 pub struct ObstaclePoints {
@@ -74,9 +81,10 @@ impl ObstaclePoints {
     /// How far (m, at most [`WATCH_RANGE`]) the body of radius `radius`
     /// can drive straight ahead from odometry pose `now` before it touches
     /// a point of the scan lying within `radius - side_clearance` of its
-    /// centre line. A point already under the front half of the body gives
-    /// 0; points behind the axle do not stop forward motion. With no scan
-    /// loaded nothing is known ahead: [`WATCH_RANGE`].
+    /// centre line. A point at the front of the body gives 0; points more
+    /// than [`SELF_INSIDE`] inside it (the robot itself) and points behind
+    /// the axle do not stop forward motion. With no scan loaded nothing is
+    /// known ahead: [`WATCH_RANGE`].
     pub fn free_ahead(&self, now: &Pose, radius: f64, side_clearance: f64) -> f64 {
         let half = radius - side_clearance;
         if !self.loaded || half <= 0.0 {
@@ -88,7 +96,11 @@ impl ObstaclePoints {
         let mut free = WATCH_RANGE;
         for &[x, y] in self.points.iter() {
             let p = back * Point2::new(f64::from(x), f64::from(y));
-            if p.y.abs() >= half || p.x <= 0.0 || p.x > free + radius {
+            if p.y.abs() >= half
+                || p.x <= 0.0
+                || p.x > free + radius
+                || p.coords.norm() < radius - SELF_INSIDE
+            {
                 continue;
             }
             let reach = (radius * radius - p.y * p.y).sqrt();
@@ -180,9 +192,18 @@ mod tests {
         let f = o.free_ahead(&pose(0.0, 0.0, 0.0), 0.17, 0.03);
         let want = 0.67 - (0.17f64.powi(2) - 0.01).sqrt();
         assert!((f - want).abs() < 1e-6, "{f} vs {want}");
-        // A point touching the front already: nothing is free.
-        let o = points(pose(0.0, 0.0, 0.0), &[(0.1, 0.0)]);
+        // Something touching the front, read a centimetre short: nothing
+        // is free.
+        let o = points(pose(0.0, 0.0, 0.0), &[(0.16, 0.0), (0.5, 0.0)]);
         assert_eq!(o.free_ahead(&pose(0.0, 0.0, 0.0), 0.17, 0.03), 0.0);
+        // Points well inside the body are the robot's own (a mast in
+        // view): they hold nothing back.
+        let o = points(
+            pose(0.0, 0.0, 0.0),
+            &[(0.1, 0.0), (0.05, 0.02), (0.67, 0.0)],
+        );
+        let f = o.free_ahead(&pose(0.0, 0.0, 0.0), 0.17, 0.03);
+        assert!((f - 0.5).abs() < 1e-6, "{f}");
     }
 
     #[test]
