@@ -39,6 +39,11 @@ pub struct ObstaclePoints {
     pub at: Pose,
     /// Whether a scan has been loaded since the last [`ObstaclePoints::clear`].
     pub loaded: bool,
+    /// Whether the last scan loaded by [`ObstaclePoints::load_scan`] spans
+    /// the robot's straight-ahead direction (a scanner turned to face
+    /// backwards does not: the field then watches nothing); `None` when it
+    /// had no beams.
+    pub covers_ahead: Option<bool>,
 }
 
 impl ObstaclePoints {
@@ -62,6 +67,14 @@ impl ObstaclePoints {
     /// out; no allocation.
     pub fn load_scan(&mut self, scan: &LaserScan, mount: &Pose, at: Pose) {
         self.clear(at);
+        // Straight ahead of the robot, in the scanner's frame.
+        let ahead = crate::geom::wrap_angle(-crate::geom::heading(mount));
+        self.covers_ahead = match (scan.beams.first(), scan.beams.last()) {
+            (Some(a), Some(b)) => {
+                Some((a.angle.min(b.angle)..=a.angle.max(b.angle)).contains(&ahead))
+            }
+            _ => None,
+        };
         for b in scan.beams.iter().filter(|b| b.valid) {
             let (s, c) = b.angle.sin_cos();
             self.push(mount * Point2::new(b.range * c, b.range * s));
@@ -265,8 +278,18 @@ mod tests {
         assert_eq!(o.len(), 1);
         let f = o.free_ahead(&pose(0.0, 0.0, 0.0), 0.17, 0.03);
         assert!((f - 0.43).abs() < 1e-6, "{f}");
+        assert_eq!(o.covers_ahead, Some(true));
         // Loading again replaces the points.
         o.load_scan(&LaserScan::default(), &mount, pose(0.0, 0.0, 0.0));
         assert!(o.is_empty());
+        assert_eq!(o.covers_ahead, None);
+        // A scanner facing backwards (its 0.0..0.1 rad beams point behind
+        // the robot) does not cover the way ahead.
+        o.load_scan(
+            &scan,
+            &pose(0.0, 0.0, std::f64::consts::PI),
+            pose(0.0, 0.0, 0.0),
+        );
+        assert_eq!(o.covers_ahead, Some(false));
     }
 }

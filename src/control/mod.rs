@@ -327,6 +327,11 @@ impl PathFollower {
         (twist, twist.to_wheels(self.wheel_base))
     }
 
+    /// Whether the protective field is on (`control.guard`).
+    pub fn guards(&self) -> bool {
+        self.params.guard
+    }
+
     /// Whether the last step slowed or stopped for something its path does
     /// not expect ahead (the protective field).
     pub fn held_short(&self) -> bool {

@@ -341,6 +341,7 @@ impl Daemon {
                 scan_timeout: cfg.daemon.scan_timeout,
                 held_since: None,
                 guard: Default::default(),
+                blind_ahead_told: false,
             },
         )?;
         pipeline.spawn(

@@ -1085,6 +1085,8 @@ pub struct ControlStage {
     pub held_since: Option<f64>,
     /// The protective field's stops.
     pub guard: StopCounter,
+    /// Whether the log has said that the scans do not span the way ahead.
+    pub blind_ahead_told: bool,
 }
 
 impl ControlStage {
@@ -1153,6 +1155,15 @@ impl ControlStage {
     /// Counts and logs the follower's stops short of something unplanned
     /// ahead (the protective field).
     fn note_guard(&mut self, now: f64, est: &Pose) {
+        if !self.blind_ahead_told {
+            let covers = self.shared.with_ahead(|a| a.covers_ahead);
+            if covers == Some(false) && self.follower.guards() {
+                self.blind_ahead_told = true;
+                log::warn!(
+                    "control: the scans do not span straight ahead of the robot (robot.scanner_yaw?); the protective field (control.guard) watches nothing"
+                );
+            }
+        }
         let (x, y) = (est.translation.x, est.translation.y);
         match self.guard.note(self.follower.held_short(), now) {
             Some(StopEvent::Began) => {
@@ -1561,6 +1572,7 @@ mod tests {
             scan_timeout: 1.0,
             held_since: None,
             guard: StopCounter::default(),
+            blind_ahead_told: false,
         }
     }
 
@@ -1593,9 +1605,19 @@ mod tests {
         }
         assert_eq!(shared.guard_stops.load(Ordering::Relaxed), 1);
         // The next scan shows the way clear: the robot drives on.
-        shared.with_ahead(|a| a.load_scan(&Default::default(), &mount, Pose::identity()));
+        let mut clear = scan.clone();
+        for b in clear.beams.iter_mut() {
+            b.range = 3.0;
+        }
+        shared.with_ahead(|a| a.load_scan(&clear, &mount, Pose::identity()));
         let w = c.wheels(now + 0.25, 0.05, &here);
         assert!(w.left > 0.0 && w.right > 0.0, "{w:?}");
+        assert!(!c.blind_ahead_told);
+        // A scanner turned to face backwards: said once in the log.
+        let back = crate::geom::pose(0.0, 0.0, std::f64::consts::PI);
+        shared.with_ahead(|a| a.load_scan(&scan, &back, Pose::identity()));
+        c.wheels(now + 0.3, 0.05, &here);
+        assert!(c.blind_ahead_told);
     }
 
     #[test]
