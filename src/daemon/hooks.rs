@@ -116,10 +116,11 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
-        let (lattice, tries, refitted, tried) = self.shared.with_status(|s| {
+        let (lattice, tries, reach, refitted, tried) = self.shared.with_status(|s| {
             (
                 s.lattice,
                 s.tries.clone(),
+                s.reach.clone(),
                 s.refitted_mount,
                 s.contacts_tried.clone(),
             )
@@ -139,6 +140,9 @@ impl DaemonHooks {
             r = r.and_then(|()| cp.put(&l));
         }
         if let Some(t) = tries {
+            r = r.and_then(|()| cp.put(&*t));
+        }
+        if let Some(t) = reach {
             r = r.and_then(|()| cp.put(&*t));
         }
         if let Some(k) = keyframes {

@@ -123,6 +123,9 @@ pub struct Resume {
     /// The planner's tries and give-ups at the checkpoint (none: floor it
     /// failed on gets all its tries again).
     pub tries: Option<crate::plan::PlanTries>,
+    /// Where the planner's robot could once get to, its waits and further
+    /// rounds at the checkpoint (none: counted afresh).
+    pub reach: Option<crate::plan::PlanReach>,
     /// The scan tracker's keyframes at the checkpoint (none: a new local
     /// map is started at the resume pose).
     pub tracker: Option<TrackerState>,
@@ -228,6 +231,7 @@ impl Daemon {
                 s.keyframes = r.tracker.clone().map(Arc::new);
                 s.lattice = r.lattice;
                 s.tries = r.tries.clone().map(Arc::new);
+                s.reach = r.reach.clone().map(Arc::new);
                 if !r.contacts.is_empty() {
                     s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
                 }
@@ -280,6 +284,9 @@ impl Daemon {
         }
         if let Some(l) = setup.resume.as_ref().and_then(|r| r.lattice) {
             planner.restore_lattice(l);
+        }
+        if let Some(r) = setup.resume.as_ref().and_then(|r| r.reach.clone()) {
+            planner.restore_reach(r);
         }
         if let Some(t) = setup.resume.as_ref().and_then(|r| r.tries.clone()) {
             planner.restore_tries(t);
@@ -360,6 +367,7 @@ impl Daemon {
                 seq: 0,
                 updates: 0,
                 tries_published: 0,
+                reach_published: 0,
                 contacts_seen: 0,
                 bump_handled: f64::NEG_INFINITY,
                 contact_settle: cfg.daemon.contact.settle,

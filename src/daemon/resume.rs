@@ -108,6 +108,10 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         cp,
         "planner tries record unreadable, floor given up gets its tries again",
     );
+    let reach = optional(
+        cp,
+        "planner record of places once within reach unreadable, floor walled off before the restart is not waited for",
+    );
     let tracker = optional(cp, "tracker keyframes unreadable, starting a new local map");
     let contacts = optional::<ContactArcs>(
         cp,
@@ -132,6 +136,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         swept,
         lattice,
         tries,
+        reach,
         tracker,
         contacts,
         tried,

@@ -126,6 +126,9 @@ pub struct LiveStatus {
     pub lattice: Option<crate::plan::LatticePhase>,
     /// The planner's tries and give-ups (checkpointed).
     pub tries: Option<std::sync::Arc<crate::plan::PlanTries>>,
+    /// Where the planner's robot could once get to, its waits and further
+    /// rounds (checkpointed).
+    pub reach: Option<std::sync::Arc<crate::plan::PlanReach>>,
     /// The scan tracker's keyframes as of its newest one (checkpointed;
     /// published only when checkpoints are written).
     pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
@@ -188,6 +191,7 @@ impl Default for LiveStatus {
             swept: None,
             lattice: None,
             tries: None,
+            reach: None,
             keyframes: None,
             contacts: None,
             contacts_tried: None,

@@ -701,6 +701,25 @@ impl Stage for MapStage {
     }
 }
 
+/// A planner record to publish: `get`'s, when its `generation` differs
+/// from the one `published` last (which it then becomes); `None` when
+/// unchanged, so the record (a scan of the whole grid) is copied out only
+/// when it changed.
+fn changed<T>(
+    generation: u64,
+    published: &mut u64,
+    get: impl FnOnce() -> Option<T>,
+) -> Option<Arc<T>> {
+    if generation == *published {
+        return None;
+    }
+    let record = get().map(Arc::new);
+    if record.is_some() {
+        *published = generation;
+    }
+    record
+}
+
 /// The plan stage: online cell decomposition and the coverage planner on
 /// each new map snapshot, rate-limited (more so when degraded); tells the
 /// supervisor when nothing reachable is left.
@@ -732,6 +751,9 @@ pub struct PlanStage {
     /// The planner's tries generation last published (see
     /// [`CoveragePlanner::tries_generation`]).
     pub tries_published: u64,
+    /// The planner's reach generation last published (see
+    /// [`CoveragePlanner::reach_generation`]).
+    pub reach_published: u64,
     /// New bumper contacts the planner has been told of.
     pub contacts_seen: u64,
     /// Clock time of the last bump whose contact the planner has seen.
@@ -838,16 +860,23 @@ impl Stage for PlanStage {
         };
         let swept = self.planner.swept().map(Arc::new);
         let lattice = self.planner.lattice();
-        let generation = self.planner.tries_generation();
-        let tries = (generation != self.tries_published)
-            .then(|| self.planner.tries().map(Arc::new))
-            .flatten();
-        if tries.is_some() {
-            self.tries_published = generation;
-        }
+        let planner = &self.planner;
+        let tries = changed(
+            planner.tries_generation(),
+            &mut self.tries_published,
+            || planner.tries(),
+        );
+        let reach = changed(
+            planner.reach_generation(),
+            &mut self.reach_published,
+            || planner.reach(),
+        );
         self.shared.with_status(|s| {
             if tries.is_some() {
                 s.tries = tries;
+            }
+            if reach.is_some() {
+                s.reach = reach;
             }
             s.covered_area = covered;
             if swept.is_some() {

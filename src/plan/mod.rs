@@ -19,7 +19,7 @@ pub mod tour;
 pub mod unbox;
 
 pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
-pub use swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
+pub use swept::{LatticePhase, PlanReach, PlanTries, SweptFloor, TriedCell};
 
 /// Coverage planner settings.
 /// Loaded from the `[plan]` table of the config file; every field is documented

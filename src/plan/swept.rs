@@ -55,6 +55,24 @@ pub struct PlanTries {
     pub retried: bool,
 }
 
+/// Where the robot could once get to with the full clearance, and how
+/// often it waited for walled-off floor and gave given-up floor a further
+/// round, as plain data a daemon checkpoints (encoding in
+/// `pipeline::checkpoint::reach`): after a restart the planner still waits
+/// for floor a person walls off, and does not get its waits and rounds
+/// afresh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanReach {
+    /// The grid geometry the record belongs to.
+    pub frame: Frame,
+    /// One flag per cell, row-major: once within reach.
+    pub ever_reachable: Vec<bool>,
+    /// Waits for walled-off floor so far.
+    pub clear_waits: u32,
+    /// Further rounds of given-up floor so far.
+    pub extra_retries: u32,
+}
+
 impl SweptFloor {
     /// Swept area (m²).
     pub fn area(&self) -> f64 {

@@ -33,6 +33,7 @@ pub mod contacts;
 pub mod keyframes;
 mod lattice;
 pub mod mount;
+mod reach;
 pub mod resume_log;
 mod sections;
 mod swept;

@@ -48,29 +48,45 @@ impl Section for SweptFloor {
 
     fn encode(&self, e: &mut Encoder) {
         e.grid_header(&self.frame.into());
-        let mut bits = vec![0u8; self.covered.len().div_ceil(8)];
-        for (i, _) in self.covered.iter().enumerate().filter(|(_, c)| **c) {
-            bits[i / 8] |= 1 << (i % 8);
-        }
-        e.bytes(&bits);
+        put_flags(e, &self.covered);
     }
 
     fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
         let g = d.grid_header(MAX_CELLS)?;
-        let bits = d.bytes()?;
-        let (w, h, n) = (g.width, g.height, g.cells());
-        if bits.len() != n.div_ceil(8) {
-            return Err(d.error(format!(
-                "{} bytes of swept flags for a {w} x {h} grid",
-                bits.len()
-            )));
-        }
-        let covered = (0..n).map(|i| bits[i / 8] & (1 << (i % 8)) != 0).collect();
+        let covered = take_flags(d, &g, "swept")?;
         Ok(Self {
             frame: (&g).into(),
             covered,
         })
     }
+}
+
+/// Writes one flag per cell as a byte string (u64 length) of one bit per
+/// cell, row-major, least significant bit first.
+pub(super) fn put_flags(e: &mut Encoder, flags: &[bool]) {
+    let mut bits = vec![0u8; flags.len().div_ceil(8)];
+    for (i, _) in flags.iter().enumerate().filter(|(_, c)| **c) {
+        bits[i / 8] |= 1 << (i % 8);
+    }
+    e.bytes(&bits);
+}
+
+/// Reads the flags [`put_flags`] wrote for every cell of grid `g`; `what`
+/// names them in the error.
+pub(super) fn take_flags(
+    d: &mut Decoder<'_>,
+    g: &GridHeader,
+    what: &str,
+) -> Result<Vec<bool>, CheckpointError> {
+    let bits = d.bytes()?;
+    let (w, h, n) = (g.width, g.height, g.cells());
+    if bits.len() != n.div_ceil(8) {
+        return Err(d.error(format!(
+            "{} bytes of {what} flags for a {w} x {h} grid",
+            bits.len()
+        )));
+    }
+    Ok((0..n).map(|i| bits[i / 8] & (1 << (i % 8)) != 0).collect())
 }
 
 #[cfg(test)]

@@ -220,6 +220,7 @@ impl CoveragePlanner {
     pub(super) fn retry_given_up(&mut self) -> bool {
         if self.retried {
             self.extra_retries += 1;
+            self.reach_generation += 1;
         }
         self.retried = true;
         self.retry_at = self.now();

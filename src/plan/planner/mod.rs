@@ -39,7 +39,7 @@ use nalgebra::Point2;
 
 use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::{Axis, Lane, Variant};
-use super::swept::{LatticePhase, PlanTries, SweptFloor, TriedCell};
+use super::swept::{LatticePhase, PlanReach, PlanTries, SweptFloor, TriedCell};
 use super::tour::{lane_tour, TourCosts};
 use super::PlanParams;
 use crate::config::RobotParams;
@@ -335,6 +335,10 @@ pub struct CoveragePlanner {
     tries: Vec<u8>,
     restored: Option<SweptFloor>,
     restored_tries: Option<PlanTries>,
+    restored_reach: Option<PlanReach>,
+    /// Bumped whenever floor first comes within reach or a wait or a
+    /// further round is counted (see [`CoveragePlanner::reach_generation`]).
+    reach_generation: u64,
     /// Bumped whenever tries, give-ups or `retried` change (see
     /// [`CoveragePlanner::tries_generation`]).
     tries_generation: u64,
@@ -521,6 +525,8 @@ impl CoveragePlanner {
             tries: Vec::new(),
             restored: None,
             restored_tries: None,
+            restored_reach: None,
+            reach_generation: 0,
             tries_generation: 0,
             phase: [None; 2],
             boxed_in: 0,
@@ -648,6 +654,9 @@ impl CoveragePlanner {
         if let Some(t) = self.restored_tries.take() {
             self.apply_tries(t);
         }
+        if let Some(r) = self.restored_reach.take() {
+            self.apply_reach(r);
+        }
     }
 
     /// Sets the tries and give-ups of a record of this grid's geometry.
@@ -705,6 +714,52 @@ impl CoveragePlanner {
         } else {
             self.apply_tries(tries);
         }
+    }
+
+    /// Changes whenever the record of [`Self::reach`] changes: a daemon
+    /// copies the record out only then.
+    pub fn reach_generation(&self) -> u64 {
+        self.reach_generation
+    }
+
+    /// Where the robot could once get to, and its waits and further rounds
+    /// so far, for a checkpoint (`None` before the first update).
+    pub fn reach(&self) -> Option<PlanReach> {
+        (!self.ever_reachable.is_empty()).then(|| PlanReach {
+            frame: self.cspace.frame,
+            ever_reachable: self.ever_reachable.clone(),
+            clear_waits: self.clear_waits as u32,
+            extra_retries: self.extra_retries as u32,
+        })
+    }
+
+    /// Restores a record saved by [`Self::reach`], as
+    /// [`Self::restore_tries`] does: applied on the next update when the
+    /// grid geometry is not known yet; a record of another geometry is
+    /// ignored with a warning.
+    pub fn restore_reach(&mut self, reach: PlanReach) {
+        if self.ever_reachable.is_empty() {
+            self.restored_reach = Some(reach);
+        } else {
+            self.apply_reach(reach);
+        }
+    }
+
+    /// Adds a record of this grid's geometry: the places once within reach
+    /// join the planner's, the counts are the larger of the two.
+    fn apply_reach(&mut self, r: PlanReach) {
+        if r.frame != self.cspace.frame || r.ever_reachable.len() != self.ever_reachable.len() {
+            log::warn!(
+                "planner record of places once within reach of a different map geometry ignored"
+            );
+            return;
+        }
+        for (e, &o) in self.ever_reachable.iter_mut().zip(&r.ever_reachable) {
+            *e |= o;
+        }
+        self.clear_waits = self.clear_waits.max(r.clear_waits as usize);
+        self.extra_retries = self.extra_retries.max(r.extra_retries as usize);
+        self.reach_generation += 1;
     }
 
     /// Charges cell `i` one try; at `limit` it is abandoned as a target.
@@ -1236,8 +1291,13 @@ impl CoveragePlanner {
             .set_extra_cost(|i| (if covered[i] { w } else { 0.0 }) + wo * f64::from(fresh[i]));
         self.cspace.distances_from(robot);
         self.compute_targets();
+        let mut grew = false;
         for (e, &r) in self.ever_reachable.iter_mut().zip(&self.reachable_mask) {
+            grew |= r && !*e;
             *e |= r;
+        }
+        if grew {
+            self.reach_generation += 1;
         }
         self.mark_cells(decomp);
         let mut cands = self.cell_candidates(decomp, CellStatus::Final);
@@ -1369,6 +1429,7 @@ impl CoveragePlanner {
                 // slowly, since few beams pass through it.
                 if !waiting {
                     self.clear_waits += 1;
+                    self.reach_generation += 1;
                     let look = (walled_off > 0.0)
                         .then(|| self.look_place(robot, &walled))
                         .flatten();

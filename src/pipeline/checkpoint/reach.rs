@@ -1,0 +1,185 @@
+//! Where the planner's robot could once get to, and its waits and further
+//! rounds ([`PlanReach`]), as checkpoint section `plan.reach`: after a
+//! restart the planner still waits for floor a person walls off (it waits
+//! only for floor once within reach), and does not get its waits and rounds
+//! of given-up floor afresh.
+//!
+//! Payload, version 1 (little-endian): the grid geometry (as
+//! [`super::GridHeader`]), a byte string (u64 length) of one bit per cell,
+//! row-major, least significant bit first (once within reach), then the
+//! waits (u32) and the further rounds (u32) so far.
+
+use super::swept::{put_flags, take_flags, MAX_CELLS};
+use super::{CheckpointError, Decoder, Encoder, Section};
+use crate::plan::PlanReach;
+
+/// Most waits or further rounds a record may hold: far above the planner's
+/// own limits (20 waits, 10 rounds), far below what would wrap.
+const MAX_COUNT: u32 = 1_000_000;
+
+impl Section for PlanReach {
+    const NAME: &'static str = "plan.reach";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        e.grid_header(&self.frame.into());
+        put_flags(e, &self.ever_reachable);
+        e.u32(self.clear_waits);
+        e.u32(self.extra_retries);
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let g = d.grid_header(MAX_CELLS)?;
+        let ever_reachable = take_flags(d, &g, "once-within-reach")?;
+        let clear_waits = d.u32()?;
+        let extra_retries = d.u32()?;
+        for (what, v) in [("waits", clear_waits), ("further rounds", extra_retries)] {
+            if v > MAX_COUNT {
+                return Err(d.error(format!("{v} {what}: more than {MAX_COUNT}")));
+            }
+        }
+        Ok(Self {
+            frame: (&g).into(),
+            ever_reachable,
+            clear_waits,
+            extra_retries,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Point2;
+
+    use super::*;
+    use crate::decomp::Decomposition;
+    use crate::geom::pose;
+    use crate::grid::CellState;
+    use crate::pipeline::checkpoint::Checkpoint;
+    use crate::plan::cspace::Frame;
+    use crate::plan::test_support::{planner, walled_room as room};
+    use crate::plan::{PlanStatus, Task};
+
+    #[test]
+    fn a_resumed_planner_still_waits_for_floor_once_within_reach() {
+        // The walled room, all of it seen and within reach at first.
+        let open = room();
+        let empty = Decomposition::default();
+        let at = pose(0.5, 0.5, 0.0);
+        let mut a = planner();
+        a.set_time(0.0);
+        a.update(&open, &empty, &at, None).unwrap();
+        assert!(a.reach_generation() > 0);
+        let saved = a.reach().unwrap();
+        assert!(saved.ever_reachable.iter().any(|&r| r));
+
+        let mut cp = Checkpoint::new();
+        cp.put(&saved).unwrap();
+        let back = Checkpoint::from_bytes(&cp.to_bytes()).unwrap();
+        let loaded: PlanReach = back.require().unwrap();
+        assert_eq!(loaded, saved);
+
+        // After the restart a wall of people stands across the room at
+        // x = 1.5 m: the far half is walled off. Everything near is swept.
+        let mut shut = room();
+        for y in 0..60 {
+            if let Some(c) = shut.cell_of(&Point2::new(1.5, 0.025 + 0.05 * f64::from(y))) {
+                if shut.state(c) == CellState::Free {
+                    shut.set_state(c, CellState::Occupied);
+                }
+            }
+        }
+        let sweep_near = |p: &mut crate::plan::CoveragePlanner| {
+            for ky in 0..40 {
+                for kx in 0..30 {
+                    p.record_pose(&pose(0.05 * f64::from(kx), 0.05 * f64::from(ky), 0.0));
+                }
+            }
+        };
+        // Without the record, the far half was never within reach: the
+        // resumed planner finishes.
+        let mut forgot = planner();
+        forgot.set_time(0.0);
+        forgot.update(&shut, &empty, &at, None).unwrap();
+        sweep_near(&mut forgot);
+        let mut st = forgot.update(&shut, &empty, &at, None).unwrap();
+        for _ in 0..200 {
+            if matches!(st, PlanStatus::Done(_)) {
+                break;
+            }
+            st = forgot.update(&shut, &empty, &at, None).unwrap();
+        }
+        assert!(matches!(st, PlanStatus::Done(_)), "{st:?}");
+
+        // With it, restored before the first update as on a resume, the
+        // planner waits for the far half instead.
+        let mut b = planner();
+        b.restore_reach(loaded);
+        assert!(b.reach().is_none(), "no grid yet");
+        b.set_time(0.0);
+        b.update(&shut, &empty, &at, None).unwrap();
+        sweep_near(&mut b);
+        let mut st = b.update(&shut, &empty, &at, None).unwrap();
+        let mut waited = false;
+        for _ in 0..200 {
+            waited |= matches!(
+                st,
+                PlanStatus::Working {
+                    task: Task::Wait | Task::Idle,
+                    ..
+                }
+            );
+            if waited || matches!(st, PlanStatus::Done(_)) {
+                break;
+            }
+            st = b.update(&shut, &empty, &at, None).unwrap();
+        }
+        assert!(waited, "{st:?}");
+    }
+
+    #[test]
+    fn bad_records_are_clear_errors() {
+        let frame = Frame {
+            origin: Point2::new(0.0, 0.0),
+            res: 0.05,
+            w: 9,
+            h: 3,
+        };
+        let good = PlanReach {
+            frame,
+            ever_reachable: (0..27).map(|i| i % 4 != 0).collect(),
+            clear_waits: 2,
+            extra_retries: 1,
+        };
+        let mut e = Encoder::new();
+        good.encode(&mut e);
+        let bytes = e.into_bytes();
+        let mut d = Decoder::new(PlanReach::NAME, &bytes);
+        assert_eq!(PlanReach::decode(&mut d).unwrap(), good);
+        for cut in [0, 10, 30, bytes.len() - 1] {
+            let mut d = Decoder::new(PlanReach::NAME, &bytes[..cut]);
+            assert!(PlanReach::decode(&mut d).is_err(), "cut at {cut}");
+        }
+        let wrong = |flags: usize, waits: u32| {
+            let mut e = Encoder::new();
+            e.grid_header(&frame.into());
+            e.bytes(&vec![0xff; flags]);
+            e.u32(waits);
+            e.u32(0);
+            let bytes = e.into_bytes();
+            PlanReach::decode(&mut Decoder::new(PlanReach::NAME, &bytes))
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(
+            wrong(3, 0).contains("once-within-reach flags"),
+            "{}",
+            wrong(3, 0)
+        );
+        assert!(
+            wrong(4, u32::MAX).contains("waits"),
+            "{}",
+            wrong(4, u32::MAX)
+        );
+    }
+}
