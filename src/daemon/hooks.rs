@@ -237,12 +237,17 @@ impl Hooks for DaemonHooks {
     }
 
     fn run_folder_files(&self) -> Vec<(&'static str, String)> {
-        let Some(robot) = &self.robot else {
-            return Vec::new();
-        };
-        self.shared
-            .with_status(|s| super::mount_report::mount_toml(robot, s))
-            .map(|t| vec![(super::mount_report::MOUNT_FILE, t)])
-            .unwrap_or_default()
+        let mut files = vec![(
+            super::events_report::EVENTS_FILE,
+            super::events_report::events_toml(&self.shared),
+        )];
+        if let Some(robot) = &self.robot {
+            files.extend(
+                self.shared
+                    .with_status(|s| super::mount_report::mount_toml(robot, s))
+                    .map(|t| (super::mount_report::MOUNT_FILE, t)),
+            );
+        }
+        files
     }
 }

@@ -11,6 +11,7 @@
 
 pub mod align;
 pub mod contact;
+pub mod events_report;
 pub mod hooks;
 pub mod messages;
 pub mod mount_report;
