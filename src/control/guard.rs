@@ -37,8 +37,6 @@ pub struct ObstaclePoints {
     /// Odometry pose of the robot when the scan was taken (any frame, the
     /// same one as the poses later passed to [`ObstaclePoints::free_ahead`]).
     pub at: Pose,
-    /// Whether a scan has been loaded since the last [`ObstaclePoints::clear`].
-    pub loaded: bool,
     /// Whether the last scan loaded by [`ObstaclePoints::load_scan`] spans
     /// the robot's straight-ahead direction (a scanner turned to face
     /// backwards does not: the field then watches nothing); `None` when it
@@ -51,7 +49,6 @@ impl ObstaclePoints {
     pub fn clear(&mut self, at: Pose) {
         self.points.clear();
         self.at = at;
-        self.loaded = true;
     }
 
     /// Adds a point of the current scan (robot frame, m). Non-finite points
@@ -100,7 +97,7 @@ impl ObstaclePoints {
     /// known ahead: [`WATCH_RANGE`].
     pub fn free_ahead(&self, now: &Pose, radius: f64, side_clearance: f64) -> f64 {
         let half = radius - side_clearance;
-        if !self.loaded || half <= 0.0 {
+        if half <= 0.0 {
             return WATCH_RANGE;
         }
         // The points move into the robot's frame now: the robot has driven

@@ -314,14 +314,9 @@ impl PathFollower {
         dt: f64,
         ahead: Option<(&guard::ObstaclePoints, &Pose)>,
     ) -> (Twist, WheelCmd) {
-        let free = match ahead {
-            Some((points, odom)) if self.params.guard => {
-                points.free_ahead(odom, self.radius, self.params.guard_side_clearance)
-            }
-            _ => f64::INFINITY,
-        };
         self.held_short = false;
-        let twist = self.compute(pose, dt, free);
+        let ahead = ahead.filter(|_| self.params.guard);
+        let twist = self.compute(pose, dt, ahead);
         let twist = self.limit(twist);
         self.last = twist;
         (twist, twist.to_wheels(self.wheel_base))
@@ -358,7 +353,12 @@ impl PathFollower {
         w.max(0.05_f64.min(self.max_turn_rate)) * err.signum()
     }
 
-    fn compute(&mut self, pose: &Pose, dt: f64, free: f64) -> Twist {
+    fn compute(
+        &mut self,
+        pose: &Pose,
+        dt: f64,
+        ahead: Option<(&guard::ObstaclePoints, &Pose)>,
+    ) -> Twist {
         let p: Point2<f64> = pose.translation.vector.into();
         let th = heading(pose);
         // Skip reached waypoints.
@@ -437,6 +437,10 @@ impl PathFollower {
             v = v.min(self.stopping_speed(dist_along, dt));
         }
         // Something ahead that the segment does not reach for: stop short.
+        // Only driving needs the field: it is looked at here, not per step.
+        let free = ahead.map_or(f64::INFINITY, |(points, odom)| {
+            points.free_ahead(odom, self.radius, self.params.guard_side_clearance)
+        });
         if free < dist_along - self.params.guard_slack {
             let cap = self.stopping_speed((free - self.params.guard_gap).max(0.0), dt);
             if cap < v {
