@@ -89,8 +89,22 @@ fn a_room_of_a_gmapping_map_is_covered_online_and_offline() {
             (region.lo.x..=region.hi.x).contains(&x) && (region.lo.y..=region.hi.y).contains(&y)
         );
     }
-    // The rows add up to the path the metrics measured, most of it on lanes.
-    let path = on.metrics.path_length;
+    // The rows add up to the path the metrics measured and the drive back
+    // to the start (its rows marked "home"), most of it on lanes.
+    let path = on.metrics.path_length + on.metrics.home_length;
+    let home_m: f64 = rows
+        .windows(2)
+        .filter(|w| w[1][4] == "home")
+        .map(|w| {
+            ((num(&w[1], 1) - num(&w[0], 1)).powi(2) + (num(&w[1], 2) - num(&w[0], 2)).powi(2))
+                .sqrt()
+        })
+        .sum();
+    assert!(
+        on.metrics.home_length > 0.5 && (home_m - on.metrics.home_length).abs() < 0.05,
+        "{home_m} m of home rows, drive back {} m",
+        on.metrics.home_length
+    );
     assert!(
         (all_m - path).abs() < 0.01 * path,
         "{all_m} m of rows, path {path} m"

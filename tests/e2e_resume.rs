@@ -205,11 +205,13 @@ fn crash_and_resume(name: &str, restart: Restart) {
     } else {
         KILL_AT
     };
+    let mut last_truth;
     let status = loop {
         clock.sleep(SAMPLE_PERIOD);
         let t = clock.now() - t0;
         let truth_pose = base.truth();
         tracker.record(&truth_pose, t);
+        last_truth = truth_pose;
         if recent.len() == RECENT {
             recent.pop_front();
         }
@@ -360,6 +362,14 @@ fn crash_and_resume(name: &str, restart: Restart) {
     );
     assert!(m.coverage >= MIN_COVERAGE, "coverage {:.3}", m.coverage);
     assert_eq!(m.collisions, 0);
+    // The start was checkpointed: the resumed daemon drove back to where
+    // the first one started, by the truth.
+    let from_start = (last_truth.translation.vector - world.start.translation.vector).norm();
+    assert!(
+        from_start <= sweepline::plan::planner::HOME_NEAR + 0.05,
+        "ended {from_start:.3} m from the start\n{log2}"
+    );
+    assert!(log2.contains("back at the start"), "{log2}");
     assert!(
         pose_err[1] <= MAX_RESUMED_POSE_ERROR,
         "pose error after the resume {:.3} m",

@@ -130,6 +130,19 @@ fn daemon_covers_a_small_world_through_the_ptys() {
     assert!(summary.contains(&row), "{row}\n{summary}");
     // The daemon left a checkpoint a restart could resume from.
     assert!(dir.join("state").read_dir().unwrap().next().is_some());
+    // Coverage done, it drove back to where it started (by the truth, not
+    // its own estimate), and said so in the run folder.
+    assert_eq!(r.home, Some(sweepline::plan::HomeOutcome::Back));
+    assert!(
+        r.ended_from_start <= sweepline::plan::planner::HOME_NEAR + 0.05,
+        "ended {:.3} m from the start",
+        r.ended_from_start
+    );
+    let events = std::fs::read_to_string(dir.join("events.toml")).unwrap();
+    assert!(
+        events.contains("drive_back = \"back at the start\""),
+        "{events}"
+    );
 }
 
 /// A robot switched on at an angle to the walls (its map frame is its start

@@ -312,6 +312,12 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
     }
     let _ = writeln!(
         s,
+        "| drive back to the start (not in the figures above) | {} | {} |",
+        home_drive(online),
+        offline.map(home_drive).unwrap_or_default()
+    );
+    let _ = writeln!(
+        s,
         "| cells covered / patches / explorations | {} / {} / {} | {} |",
         online.stats.cells,
         online.stats.patches,
@@ -389,6 +395,23 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
     s
 }
 
+/// The drive back to the start of a run, in a few words.
+fn home_drive(r: &RunResult) -> String {
+    let Some(rep) = r.report else {
+        return "-".into();
+    };
+    if rep.home == crate::plan::HomeOutcome::NotAsked {
+        return rep.home.describe().into();
+    }
+    format!(
+        "{:.1} m, {:.0} s: {}, {:.2} m from it",
+        r.metrics.home_length,
+        r.metrics.home_time,
+        rep.home.describe(),
+        rep.home_distance
+    )
+}
+
 /// The metrics as CSV, one row per run.
 pub fn csv(name: &str, online: &RunResult, offline: Option<&RunResult>) -> String {
     let mut s = String::from(
@@ -430,6 +453,7 @@ pub fn trajectory_csv(run: &RunResult, dt: f64) -> String {
         Motion::Transit => "transit",
         Motion::Explore => "explore",
         Motion::Other => "other",
+        Motion::Home => "home",
     };
     let mut out = String::from("t_s,x_m,y_m,heading_rad,motion,task\n");
     let mut last: Option<(crate::geom::Pose, crate::plan::Motion, u32)> = None;

@@ -35,7 +35,10 @@ pub fn events_toml(shared: &Shared) -> String {
          base_timeouts = {}\n\
          base_link_losses = {}\n\
          base_opens = {}\n\
-         base_deadman_stops = {}\n",
+         base_deadman_stops = {}\n\n\
+         [end]\n\
+         # How the drive back to the start ended (plan.return_home).\n\
+         drive_back = \"{}\"\n",
         n(&shared.guard_stops),
         n(&shared.stuck_paths),
         n(&shared.scan_holds),
@@ -46,6 +49,9 @@ pub fn events_toml(shared: &Shared) -> String {
         base.link_losses,
         base.reconnects,
         base.deadman_stops,
+        shared
+            .with_status(|s| s.home_outcome)
+            .map_or("coverage not finished", |h| h.describe()),
     )
 }
 
@@ -67,5 +73,12 @@ mod tests {
         assert_eq!(e["scan_holds"].as_integer(), Some(0));
         assert_eq!(e["safety_events"].as_integer(), Some(2));
         assert!(text.contains("control.guard"), "{text}");
+        assert_eq!(
+            v["end"]["drive_back"].as_str(),
+            Some("coverage not finished")
+        );
+        shared.with_status(|s| s.home_outcome = Some(crate::plan::HomeOutcome::Back));
+        let v: toml::Value = toml::from_str(&events_toml(&shared)).unwrap();
+        assert_eq!(v["end"]["drive_back"].as_str(), Some("back at the start"));
     }
 }

@@ -116,9 +116,10 @@ impl DaemonHooks {
                 s.contacts.clone(),
             )
         });
-        let (lattice, tries, reach, refitted, tried) = self.shared.with_status(|s| {
+        let (lattice, home, tries, reach, refitted, tried) = self.shared.with_status(|s| {
             (
                 s.lattice,
+                s.home,
                 s.tries.clone(),
                 s.reach.clone(),
                 s.refitted_mount,
@@ -138,6 +139,9 @@ impl DaemonHooks {
         }
         if let Some(l) = lattice {
             r = r.and_then(|()| cp.put(&l));
+        }
+        if let Some(h) = home {
+            r = r.and_then(|()| cp.put(&h));
         }
         if let Some(t) = tries {
             r = r.and_then(|()| cp.put(&*t));

@@ -121,6 +121,9 @@ pub struct Resume {
     /// The phase of the planner's lane lattice at the checkpoint (none: it
     /// is chosen again at the first cover task).
     pub lattice: Option<crate::plan::LatticePhase>,
+    /// Where the robot started (none: a checkpoint written before the
+    /// record existed; the robot drives back to where it was resumed).
+    pub home: Option<crate::plan::HomePlace>,
     /// The planner's tries and give-ups at the checkpoint (none: floor it
     /// failed on gets all its tries again).
     pub tries: Option<crate::plan::PlanTries>,
@@ -231,6 +234,7 @@ impl Daemon {
                 s.grid = Some(Arc::new(r.grid.clone()));
                 s.keyframes = r.tracker.clone().map(Arc::new);
                 s.lattice = r.lattice;
+                s.home = r.home;
                 s.tries = r.tries.clone().map(Arc::new);
                 s.reach = r.reach.clone().map(Arc::new);
                 if !r.contacts.is_empty() {
@@ -285,6 +289,13 @@ impl Daemon {
         }
         if let Some(l) = setup.resume.as_ref().and_then(|r| r.lattice) {
             planner.restore_lattice(l);
+        }
+        match setup.resume.as_ref().map(|r| r.home) {
+            Some(Some(h)) => planner.restore_home(h),
+            Some(None) if cfg.plan.return_home => log::info!(
+                "resume: the checkpoint holds no start (an older build wrote it); once coverage is done the robot drives back to where it was resumed"
+            ),
+            _ => {}
         }
         if let Some(r) = setup.resume.as_ref().and_then(|r| r.reach.clone()) {
             planner.restore_reach(r);

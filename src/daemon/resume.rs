@@ -104,6 +104,10 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
     }
     let swept = optional(cp, "swept-floor record unreadable, covering again");
     let lattice = optional(cp, "lane lattice record unreadable, choosing it again");
+    let home = optional(
+        cp,
+        "start record unreadable, the robot drives back to where it was resumed",
+    );
     let tries = optional(
         cp,
         "planner tries record unreadable, floor given up gets its tries again",
@@ -135,6 +139,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         progress,
         swept,
         lattice,
+        home,
         tries,
         reach,
         tracker,
@@ -193,6 +198,61 @@ pub fn offset_was_fitted(configured: &Pose, driving: &Pose) -> bool {
 mod tests {
     use super::*;
     use crate::geom::pose;
+    use crate::pipeline::checkpoint::{Decoder, Encoder};
+    use crate::plan::HomePlace;
+
+    /// A `plan.home` payload whose start is not a number.
+    struct BadHome;
+
+    impl Section for BadHome {
+        const NAME: &'static str = "plan.home";
+        const VERSION: u16 = 1;
+
+        fn encode(&self, e: &mut Encoder) {
+            for _ in 0..3 {
+                e.f64(f64::NAN);
+            }
+        }
+
+        fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+            for _ in 0..3 {
+                d.f64()?;
+            }
+            Ok(BadHome)
+        }
+    }
+
+    #[test]
+    fn the_start_is_resumed_and_a_missing_or_bad_record_still_resumes_the_run() {
+        let dir =
+            std::env::temp_dir().join(format!("sweepline-resume-home-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let store = CheckpointStore::new(&dir);
+        let beat = heartbeat_store(&dir);
+        let home = HomePlace {
+            x: 0.5,
+            y: 0.4,
+            heading: 0.2,
+        };
+        for case in ["with", "without", "bad"] {
+            let mut cp = Checkpoint::new();
+            cp.put(&RunProgress::default()).unwrap();
+            cp.put(&pose(2.0, 1.0, 0.0)).unwrap();
+            cp.put(&Grid::new(nalgebra::Point2::new(0.0, 0.0), 0.05, 20, 20))
+                .unwrap();
+            match case {
+                "with" => cp.put(&home).unwrap(),
+                "bad" => cp.put(&BadHome).unwrap(),
+                _ => {}
+            }
+            store.save(&cp).unwrap();
+            let r = load(&store, &beat).unwrap_or_else(|| panic!("{case}: not resumed"));
+            let want = (case == "with").then_some(home);
+            assert_eq!(r.home, want, "{case}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn a_refitted_mount_is_resumed_only_while_the_configuration_is_unchanged() {

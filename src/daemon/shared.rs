@@ -129,6 +129,11 @@ pub struct LiveStatus {
     /// Where the planner's robot could once get to, its waits and further
     /// rounds (checkpointed).
     pub reach: Option<std::sync::Arc<crate::plan::PlanReach>>,
+    /// Where the robot started, which it drives back to once coverage is
+    /// done (checkpointed).
+    pub home: Option<crate::plan::HomePlace>,
+    /// How the drive back to the start ended (set when coverage finishes).
+    pub home_outcome: Option<crate::plan::HomeOutcome>,
     /// The scan tracker's keyframes as of its newest one (checkpointed;
     /// published only when checkpoints are written).
     pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
@@ -192,6 +197,8 @@ impl Default for LiveStatus {
             lattice: None,
             tries: None,
             reach: None,
+            home: None,
+            home_outcome: None,
             keyframes: None,
             contacts: None,
             contacts_tried: None,

@@ -32,7 +32,7 @@ use crate::pipeline::checkpoint::{ContactArc, ContactArcs, TriedPlaces};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::supervisor::Control;
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
-use crate::plan::{CoveragePlanner, PlanStatus};
+use crate::plan::{CoveragePlanner, PlanStatus, Task};
 use crate::urg::UrgDriver;
 
 /// The fault of a send to a stage that has gone: expected while shutting
@@ -860,6 +860,7 @@ impl Stage for PlanStage {
         };
         let swept = self.planner.swept().map(Arc::new);
         let lattice = self.planner.lattice();
+        let home = self.planner.home();
         let planner = &self.planner;
         let tries = changed(
             planner.tries_generation(),
@@ -885,14 +886,28 @@ impl Stage for PlanStage {
             if lattice != crate::plan::LatticePhase::default() {
                 s.lattice = Some(lattice);
             }
+            if home.is_some() {
+                s.home = home;
+            }
             s.task = task;
             if let Some(d) = snapshot {
                 s.decomposition = Some(d);
             }
         });
+        // Coverage just done, the way back planned but not yet sent: a
+        // bumper mark walling off floor is taken out before the robot
+        // leaves (after, it would drive back out again).
+        let just_done = match status {
+            PlanStatus::Done(_) => true,
+            PlanStatus::Working {
+                task: Task::Home,
+                new_path: true,
+            } => self.planner.home_plans() == 1,
+            _ => false,
+        };
         match status {
-            PlanStatus::Done(_)
-                if self.probe.walled_floor(
+            _ if just_done
+                && self.probe.walled_floor(
                     &mut self.planner,
                     &self.shared,
                     self.clock.now(),
@@ -907,14 +922,17 @@ impl Stage for PlanStage {
                 });
                 self.shared.done.store(true, Ordering::Relaxed);
                 log::info!(
-                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² behind passages tighter than the clearance, {:.2} m² abandoned, {:.2} m² of leftovers declined, {:.2} m of frontier left unexplored",
+                    "coverage finished: {:.2} m² swept, {:.2} m² unreachable, {:.2} m² behind passages tighter than the clearance, {:.2} m² abandoned, {:.2} m² of leftovers declined, {:.2} m of frontier left unexplored; drive back to the start: {} ({:.2} m from it)",
                     r.covered_area,
                     r.unreachable_area,
                     r.behind_tight_passages,
                     r.abandoned_area,
                     r.declined_area,
-                    r.unexplored_frontier
+                    r.unexplored_frontier,
+                    r.home.describe(),
+                    r.home_distance
                 );
+                self.shared.with_status(|s| s.home_outcome = Some(r.home));
                 self.control.stop("coverage finished");
             }
             PlanStatus::Working { new_path: true, .. } => {

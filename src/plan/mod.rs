@@ -18,8 +18,8 @@ pub(crate) mod test_support;
 pub mod tour;
 pub mod unbox;
 
-pub use planner::{CoveragePlanner, Motion, PlanError, PlanStatus, Task};
-pub use swept::{LatticePhase, PlanReach, PlanTries, SweptFloor, TriedCell};
+pub use planner::{CoveragePlanner, HomeOutcome, Motion, PlanError, PlanStatus, Task};
+pub use swept::{HomePlace, LatticePhase, PlanReach, PlanTries, SweptFloor, TriedCell};
 
 /// Coverage planner settings.
 /// Loaded from the `[plan]` table of the config file; every field is documented
@@ -124,6 +124,11 @@ pub struct PlanParams {
     /// (paths to it blocked again and again by people), the planner waits
     /// as long before another round.
     pub clear_wait: f64,
+    /// Once coverage is done, drive back to where the robot started (its
+    /// dock, or where the operator put it down), facing the start heading,
+    /// before the run ends. The drive back is not part of the coverage
+    /// figures (coverage, overlap, path, time); reports give it apart.
+    pub return_home: bool,
 }
 
 impl Default for PlanParams {
@@ -151,6 +156,7 @@ impl Default for PlanParams {
             leftover_ratio: 10.0,
             surface_hold: 100,
             clear_wait: 60.0,
+            return_home: true,
         }
     }
 }

@@ -17,6 +17,19 @@ pub struct SweptFloor {
     pub covered: Vec<bool>,
 }
 
+/// Where the robot started, in the map frame, as plain data a daemon
+/// checkpoints (section `plan.home`): after a restart the robot still drives
+/// back to where it was put down, not to where it was resumed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HomePlace {
+    /// x (m).
+    pub x: f64,
+    /// y (m).
+    pub y: f64,
+    /// Heading at the start (rad).
+    pub heading: f64,
+}
+
 /// The phase of the planner's lane lattice per lane axis (m across the
 /// lanes; `None`: not fixed yet), as plain data a daemon checkpoints (the
 /// section's encoding lives in `pipeline::checkpoint::lattice`): lanes

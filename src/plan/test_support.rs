@@ -38,3 +38,46 @@ pub(crate) fn planner() -> CoveragePlanner {
     };
     CoveragePlanner::new(&params, &RobotParams::default()).unwrap()
 }
+
+/// Runs `p` in the seen `grid` from `start` to the end of the run with a
+/// perfect follower: every path is driven to its end (the tool recorded
+/// every 2 cm, the robot turned to the final heading), then the planner is
+/// asked again. Returns the report and the tasks in the order planned; at
+/// most `updates` updates.
+pub(crate) fn follow_to_done(
+    p: &mut CoveragePlanner,
+    grid: &Grid,
+    start: crate::geom::Pose,
+    updates: usize,
+) -> Option<(crate::plan::planner::DoneReport, Vec<crate::plan::Task>)> {
+    use crate::plan::PlanStatus;
+    let empty = crate::decomp::Decomposition::default();
+    let mut at = start;
+    let mut tasks = Vec::new();
+    for _ in 0..updates {
+        match p.update(grid, &empty, &at, None).ok()? {
+            PlanStatus::Done(r) => return Some((r, tasks)),
+            PlanStatus::Working { task, .. } => {
+                if tasks.last() != Some(&task) {
+                    tasks.push(task);
+                }
+            }
+        }
+        let (path, heading) = p.path();
+        let (path, heading) = (path.to_vec(), heading);
+        let mut here = Point2::from(at.translation.vector);
+        for q in path {
+            let d = q - here;
+            let n = (d.norm() / 0.02).ceil().max(1.0) as usize;
+            let th = d.y.atan2(d.x);
+            for k in 1..=n {
+                let c = here + d * (k as f64 / n as f64);
+                p.record_pose(&crate::geom::pose(c.x, c.y, th));
+            }
+            here = q;
+        }
+        let th = heading.unwrap_or(crate::geom::heading(&at));
+        at = crate::geom::pose(here.x, here.y, th);
+    }
+    None
+}

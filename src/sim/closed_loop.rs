@@ -229,6 +229,11 @@ pub struct SimReport {
     /// Times the daemon slowed or stopped short of something the scan
     /// showed ahead that its path did not expect (the protective field).
     pub guard_stops: u64,
+    /// How the drive back to the start ended (`None`: coverage did not
+    /// finish).
+    pub home: Option<crate::plan::HomeOutcome>,
+    /// Where the robot ended from where it started, by the ground truth (m).
+    pub ended_from_start: f64,
     /// Bumper contact marks taken out to try the floor they walled off.
     pub marks_taken_out: u64,
     /// The daemon's planner counters at the end (tasks, plans started over).
@@ -802,6 +807,11 @@ fn drive(
         stuck_paths: shared
             .stuck_paths
             .load(std::sync::atomic::Ordering::Relaxed),
+        home: shared.with_status(|s| s.home_outcome),
+        ended_from_start: match (truth.first(), truth.last()) {
+            (Some(a), Some(b)) => (b.translation.vector - a.translation.vector).norm(),
+            _ => 0.0,
+        },
         guard_stops: shared
             .guard_stops
             .load(std::sync::atomic::Ordering::Relaxed),

@@ -109,8 +109,14 @@ pub struct CoverageMetrics {
     /// Number of times the robot disk touched a person walking through the
     /// room (see [`crate::sim::walker`]; 0 in a room nobody walks through).
     pub person_contacts: usize,
-    /// Simulated time (s).
+    /// Simulated time (s), up to the end of coverage (the drive back to
+    /// the start not included).
     pub time: f64,
+    /// Length of the drive back to the start (m; 0 without one): not in
+    /// `path_length`, and sweeping nothing the other figures count.
+    pub home_length: f64,
+    /// Duration of the drive back to the start (s).
+    pub home_time: f64,
 }
 
 /// Accumulates coverage over the executed poses of a run.
@@ -143,6 +149,10 @@ pub struct CoverageTracker {
     touching_person: bool,
     person_contacts: usize,
     time: f64,
+    /// When the drive back to the start began (s); `None` before.
+    home_since: Option<f64>,
+    home_length: f64,
+    home_time: f64,
 }
 
 /// Cells whose centre lies at least `radius` from every non-free cell (the
@@ -284,6 +294,9 @@ impl CoverageTracker {
             touching_person: false,
             person_contacts: 0,
             time: 0.0,
+            home_since: None,
+            home_length: 0.0,
+            home_time: 0.0,
         })
     }
 
@@ -333,8 +346,25 @@ impl CoverageTracker {
 
     /// [`Self::record`], knowing what the robot was doing (`motion`, as part
     /// of the planner's task number `task`), for the overlap breakdown.
+    ///
+    /// From the first [`Motion::Home`] on, the robot is on its way back to
+    /// the start with coverage done: what it drives is counted apart
+    /// (`home_length`, `home_time`), it sweeps nothing, and only its
+    /// collisions still count.
     pub fn record_doing(&mut self, pose: &Pose, time: f64, motion: Motion, task: u32) {
         let p: Point2<f64> = pose.translation.vector.into();
+        if motion == Motion::Home && self.home_since.is_none() {
+            self.home_since = Some(self.time);
+        }
+        if let Some(t0) = self.home_since {
+            if let Some(prev) = self.last {
+                self.home_length += (p - Point2::from(prev.translation.vector)).norm();
+            }
+            self.last = Some(*pose);
+            self.home_time = time - t0;
+            self.check_collision(&p, time, motion);
+            return;
+        }
         let th = heading(pose);
         self.time = time;
         if let Some(prev) = self.last {
@@ -403,7 +433,7 @@ impl CoverageTracker {
                             Motion::Connection => 3,
                             Motion::Transit => 4,
                             Motion::Explore => 5,
-                            Motion::Other => 6,
+                            Motion::Other | Motion::Home => 6,
                         };
                         self.repeats[cause] += 1;
                         self.repeat_cause[j] = cause as u8;
@@ -413,7 +443,12 @@ impl CoverageTracker {
             }
             self.last_seen[j] = time;
         }
-        let hit = !self.disk_free(&p);
+        self.check_collision(&p, time, motion);
+    }
+
+    /// Counts a collision when the robot disk at `p` enters an obstacle.
+    fn check_collision(&mut self, p: &Point2<f64>, time: f64, motion: Motion) {
+        let hit = !self.disk_free(p);
         if begins(&mut self.colliding, hit, &mut self.collisions) {
             log::warn!(
                 "collision: the robot disk entered an obstacle at ({:.3}, {:.3}) m, t = {time:.1} s, while on a {motion:?} motion",
@@ -494,6 +529,8 @@ impl CoverageTracker {
             collisions: self.collisions,
             person_contacts: self.person_contacts,
             time: self.time,
+            home_length: self.home_length,
+            home_time: self.home_time,
         }
     }
 

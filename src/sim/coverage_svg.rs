@@ -332,7 +332,7 @@ fn add_legend<'a>(
 }
 
 /// Motions of [`motions_svg`] with their colour and legend, in drawing order.
-const MOTION_STYLES: [(Motion, &str, &str); 6] = [
+const MOTION_STYLES: [(Motion, &str, &str); 7] = [
     (Motion::Lane, "#252525", "lane"),
     (Motion::FixUp, "#984ea3", "fix-up lane"),
     (Motion::Connection, "#31a354", "connection between lanes"),
@@ -343,6 +343,7 @@ const MOTION_STYLES: [(Motion, &str, &str); 6] = [
         "#e6550d",
         "turns in place, look-around, escape, idle",
     ),
+    (Motion::Home, "#c51b8a", "drive back to the start"),
 ];
 
 /// The path coloured by what the robot was doing (`doing`: per pose of

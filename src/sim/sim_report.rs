@@ -199,6 +199,16 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
         ("overlap", format!("{:.1} %", m.overlap * 100.0)),
         ("path length", format!("{:.1} m", m.path_length)),
         ("turns (> 30°)", format!("{}", m.turns)),
+        (
+            "drive back to the start (not in the figures above); where the robot ended (truth)",
+            format!(
+                "{}; {:.1} m, {:.0} s; {:.2} m from where it started",
+                r.home.map_or("coverage not finished", |h| h.describe()),
+                m.home_length,
+                m.home_time,
+                r.ended_from_start
+            ),
+        ),
         ("collisions (truth)", format!("{}", m.collisions)),
         (
             "contacts with people walking through (truth)",

@@ -1,8 +1,10 @@
 //! The coverage targets shared by the room tests: one online and one
 //! offline lock-step run of a world, checked for finishing, collisions,
-//! coverage and the online/offline path ratio.
+//! coverage, the online/offline path ratio and the drive back to the start.
 
 use sweepline::config::Config;
+use sweepline::plan::planner::HOME_NEAR;
+use sweepline::plan::HomeOutcome;
 use sweepline::sim::lockstep::{run, LockstepOptions, Mode, RunResult};
 use sweepline::sim::world::World;
 
@@ -10,7 +12,8 @@ use sweepline::sim::world::World;
 /// one line of figures, asserts both finished with zero collisions, >= 99 %
 /// coverage of the floor reachable with the safety margin, at least
 /// `online_min` (0.99 offline) of the strictly reachable floor, and the
-/// online path at most `ratio_bound` x the offline one; returns both runs.
+/// online path at most `ratio_bound` x the offline one, and both back
+/// at the start at the end; returns both runs.
 pub fn online_and_offline(
     spec: &str,
     world: &World,
@@ -49,5 +52,17 @@ pub fn online_and_offline(
         o.coverage
     );
     assert!(ratio <= ratio_bound, "{spec}: online/offline path {ratio}");
+    // Coverage done, both drove back to the start (plan.return_home; its
+    // collisions are in the counts above).
+    for (run, r) in [("online", &on), ("offline", &off)] {
+        let home = r.report.map(|d| d.home);
+        assert_eq!(home, Some(HomeOutcome::Back), "{spec}: {run} drive back");
+        let end = r.trajectory.last().unwrap().translation.vector;
+        let from = (end - world.start.translation.vector).norm();
+        assert!(
+            from <= HOME_NEAR,
+            "{spec}: {run} ended {from:.3} m from the start"
+        );
+    }
     (on, off)
 }

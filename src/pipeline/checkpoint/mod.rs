@@ -30,6 +30,7 @@
 
 pub mod codec;
 pub mod contacts;
+mod home;
 pub mod keyframes;
 mod lattice;
 pub mod mount;

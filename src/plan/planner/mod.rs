@@ -48,11 +48,13 @@ use crate::geom::{heading, wrap_angle, Pose, Segment};
 use crate::grid::{CellIndex, CellState, Grid};
 
 mod explore;
+mod home;
 mod order;
 mod regions;
 #[cfg(test)]
 mod tests;
 
+pub use home::{HomeOutcome, HOME_NEAR, HOME_REACH, MAX_HOME_PLANS};
 use order::tour_start;
 
 /// Why the planner cannot work.
@@ -100,6 +102,9 @@ pub enum Task {
     /// Driving to a place near seen floor that obstacles wall off, to wait
     /// there for the way to clear (see [`PlanParams::clear_wait`]).
     Wait,
+    /// Coverage is done: driving back to where the robot started
+    /// (`plan.return_home`).
+    Home,
     /// Nothing reachable is left.
     Done,
 }
@@ -121,6 +126,9 @@ pub enum Motion {
     Transit,
     /// Driving toward unexplored space.
     Explore,
+    /// Driving back to the start once coverage is done (not part of the
+    /// coverage figures: see `plan.return_home`).
+    Home,
 }
 
 /// The planner's answer to one update.
@@ -160,6 +168,11 @@ pub struct DoneReport {
     /// (the far side of furniture in a corner), or given up after
     /// exploration moves that showed nothing new.
     pub unexplored_frontier: f64,
+    /// How the drive back to the start ended.
+    pub home: HomeOutcome,
+    /// Distance (m) from the start where the robot ended (NaN when the
+    /// start is unknown).
+    pub home_distance: f64,
 }
 
 /// Counters of what the planner did.
@@ -396,6 +409,10 @@ pub struct CoveragePlanner {
     clear_waits: usize,
     /// Travel costs between lane ends of the last lane tour (reused buffer).
     tour_costs: Vec<f64>,
+    /// Where the robot started (see [`Self::home`]).
+    home: Option<super::HomePlace>,
+    /// Coverage is done and the robot drives back to the start.
+    homing: Option<home::Homing>,
 }
 
 /// Updates the planner waits, planning nothing, while the space reachable
@@ -545,6 +562,8 @@ impl CoveragePlanner {
             update_count: 0,
             clear_waits: 0,
             tour_costs: Vec::new(),
+            home: None,
+            homing: None,
             region_of: Vec::new(),
             lent_to: Vec::new(),
             floor_owner: [Vec::new(), Vec::new()],
@@ -900,6 +919,7 @@ impl CoveragePlanner {
     /// point of `around` that was given up gets its tries back.
     pub fn reopen(&mut self, around: &[Point2<f64>], radius: f64) {
         self.report = None;
+        self.homing = None;
         self.task = Task::Idle;
         self.task_targets.clear();
         self.explore_goal = None;
@@ -966,6 +986,7 @@ impl CoveragePlanner {
             .index_of(&p)
             .ok_or(PlanError::OutsideMap { x: p.x, y: p.y })?;
         self.updates_in_task += 1;
+        self.note_start(pose);
         let mut replan = progress.is_none() || self.task == Task::Idle;
         if progress.is_none() && self.task == Task::Explore {
             // Arrived: whatever frontier is still in view from here cannot be seen.
@@ -1060,6 +1081,9 @@ impl CoveragePlanner {
                     replan = true;
                 }
             }
+        }
+        if self.homing.is_some() {
+            return self.home_update(pose, robot, progress.is_none(), replan);
         }
         // Floor seen (or made reachable) near the robot during a lane tour
         // joins the tour now, not in a drive back once the tour is done.
@@ -1219,10 +1243,7 @@ impl CoveragePlanner {
         self.task = task;
         self.touring = false;
         self.retour = false;
-        let m = match task {
-            Task::Explore => Motion::Explore,
-            _ => Motion::Other,
-        };
+        let m = home::travel_motion(task);
         self.motions = match task {
             Task::Cover(_) => std::mem::take(&mut self.motions),
             _ => vec![m; path.len()],
@@ -1481,9 +1502,7 @@ impl CoveragePlanner {
                     self.params.way_out_passage
                 );
             }
-            self.report = Some(report);
-            self.set_task(Task::Done, Vec::new(), None);
-            return Ok(PlanStatus::Done(report));
+            return self.coverage_done(report, pose, robot);
         }
         // Look-ahead: the order of the nearest candidates (and the corner
         // each is entered at) that minimises the whole tour, exhaustively.
