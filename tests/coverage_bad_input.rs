@@ -8,7 +8,8 @@ use sweepline::config::Config;
 use sweepline::decomp::Decomposition;
 use sweepline::geom::pose;
 use sweepline::grid::Grid;
-use sweepline::plan::{CoveragePlanner, PlanParams, PlanStatus, Task};
+use sweepline::plan::planner::HOME_REACH;
+use sweepline::plan::{CoveragePlanner, HomeOutcome, PlanParams, PlanStatus, Task};
 use sweepline::sim::lockstep::{run, LockstepError, LockstepOptions, Mode};
 use sweepline::sim::world::World;
 
@@ -103,6 +104,16 @@ fn start_inside_the_inflation_zone_moves_out_first() {
         r.tasks.iter().map(|t| t.task).collect::<Vec<_>>()
     );
     assert!(r.metrics.coverage >= 0.99, "{}", r.metrics.coverage);
+    // Coverage done, it drives back to as near its start as the clearance
+    // allows (the start itself is inside it), without a collision.
+    let done = r.report.expect("a report");
+    assert_eq!(done.home, HomeOutcome::Back);
+    let end = r.trajectory.last().unwrap().translation.vector;
+    let from = (end - world.start.translation.vector).norm();
+    assert!(
+        from > 0.0 && from <= HOME_REACH && (from - done.home_distance).abs() < 0.02,
+        "ended {from:.3} m from the start, report {done:?}"
+    );
 }
 
 #[test]
