@@ -24,7 +24,9 @@ use sweepline::config::Config;
 use sweepline::daemon::resume::HEARTBEAT_FILE;
 use sweepline::geom::{pose, Pose};
 use sweepline::motor::BaseKind;
-use sweepline::pipeline::checkpoint::{CheckpointStore, MountRecord, ResumeLog, RunProgress};
+use sweepline::pipeline::checkpoint::{
+    CheckpointStore, MountRecord, ResumeLog, RunFinished, RunProgress,
+};
 use sweepline::plan::LatticePhase;
 use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
 use sweepline::sim::coverage_metrics::CoverageTracker;
@@ -370,6 +372,11 @@ fn crash_and_resume(name: &str, restart: Restart) {
         "ended {from_start:.3} m from the start\n{log2}"
     );
     assert!(log2.contains("back at the start"), "{log2}");
+    // Its last checkpoint says the run finished: the next start is a new
+    // run, not a resume with nothing left to do.
+    let last = store.load().unwrap().unwrap().checkpoint;
+    let fin = last.get::<RunFinished>().unwrap();
+    assert!(fin.is_some_and(|f| f.elapsed > 0.0), "{fin:?}");
     assert!(
         pose_err[1] <= MAX_RESUMED_POSE_ERROR,
         "pose error after the resume {:.3} m",

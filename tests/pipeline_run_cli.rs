@@ -1,5 +1,6 @@
 //! `sweepline run` as a process: configuration errors name the key, missing
-//! devices are named with the fix, `--check-config` validates only.
+//! devices are named with the fix, `--check-config` validates only, a
+//! finished run is not resumed and `--fresh` starts a new one.
 
 use std::process::Command;
 
@@ -44,18 +45,7 @@ fn a_bad_value_is_named_and_fails() {
 #[test]
 fn missing_devices_are_named_with_the_fix() {
     let d = temp("nodev");
-    let out = sweepline()
-        .args(["run", "--config"])
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml"))
-        .arg("--scanner")
-        .arg(d.join("no-urg"))
-        .arg("--state-dir")
-        .arg(d.join("state"))
-        .env_remove("NOTIFY_SOCKET")
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_log(&d, &d.join("state"), &[]);
     assert!(
         err.contains("scanner device") && err.contains("no-urg"),
         "{err}"
@@ -76,5 +66,65 @@ fn missing_devices_are_named_with_the_fix() {
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("not a character device"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The log of `sweepline run` on the state folder `state` (no devices: it
+/// stops at the device check, after deciding whether to resume), with
+/// `extra` arguments.
+fn run_log(d: &std::path::Path, state: &std::path::Path, extra: &[&str]) -> String {
+    let out = sweepline()
+        .args(["run", "--config"])
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml"))
+        .arg("--scanner")
+        .arg(d.join("no-urg"))
+        .arg("--state-dir")
+        .arg(state)
+        .args(extra)
+        .env_remove("NOTIFY_SOCKET")
+        .env("RUST_LOG", "info")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn a_finished_run_is_not_resumed_and_fresh_starts_a_new_one() {
+    use sweepline::grid::Grid;
+    use sweepline::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunFinished, RunProgress};
+    let d = temp("finished");
+    let state = d.join("state");
+    std::fs::create_dir_all(&state).unwrap();
+    let store = CheckpointStore::new(&state);
+    let mut cp = Checkpoint::new();
+    let progress = RunProgress {
+        sequence: 40,
+        elapsed: 80.0,
+        coverage: 0.4,
+        ..RunProgress::default()
+    };
+    cp.put(&progress).unwrap();
+    cp.put(&sweepline::geom::pose(1.0, 1.0, 0.0)).unwrap();
+    cp.put(&Grid::new(nalgebra::Point2::new(0.0, 0.0), 0.05, 20, 20))
+        .unwrap();
+    // Stopped before it finished: resumed, unless --fresh.
+    store.save(&cp).unwrap();
+    let log = run_log(&d, &state, &[]);
+    assert!(log.contains("resuming"), "{log}");
+    let log = run_log(&d, &state, &["--fresh"]);
+    assert!(
+        log.contains("--fresh: a new run") && !log.contains("resuming"),
+        "{log}"
+    );
+    // Finished: the next start is a new run.
+    cp.put(&RunFinished { elapsed: 700.0 }).unwrap();
+    store.save(&cp).unwrap();
+    let log = run_log(&d, &state, &[]);
+    assert!(
+        log.contains("the last run finished its coverage after 700 s: starting a new run")
+            && !log.contains("resuming"),
+        "{log}"
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -53,6 +53,11 @@ pub struct Args {
     /// robot can cover from where it is switched on is half of it each way.
     #[arg(long, default_value_t = 16.0)]
     pub map_extent: f64,
+    /// Start a new run even if the state folder holds the checkpoint of one
+    /// that was stopped before it finished (the robot was carried to
+    /// another room meanwhile). A finished run is never resumed.
+    #[arg(long)]
+    pub fresh: bool,
 }
 
 /// The state folder: the flag, else the first entry of `$STATE_DIRECTORY`
@@ -99,7 +104,15 @@ pub fn run(args: Args) -> CliResult {
     std::fs::create_dir_all(&dir)
         .map_err(|e| format!("cannot create state folder {}: {e}", dir.display()))?;
     let store = CheckpointStore::new(&dir);
-    let resume = crate::daemon::resume::load(&store, &crate::daemon::resume::heartbeat_store(&dir));
+    let resume = if args.fresh {
+        log::info!(
+            "--fresh: a new run; any checkpoint in {} is not resumed",
+            dir.display()
+        );
+        None
+    } else {
+        crate::daemon::resume::load(&store, &crate::daemon::resume::heartbeat_store(&dir))
+    };
 
     let devices = check_device("scanner", &args.scanner)
         .and_then(|()| check_device("wheel-base", &args.base));

@@ -10,7 +10,9 @@ use std::sync::Arc;
 
 use super::shared::Shared;
 use crate::clock::SharedClock;
-use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress, WrittenAt};
+use crate::pipeline::checkpoint::{
+    Checkpoint, CheckpointStore, RunFinished, RunProgress, WrittenAt,
+};
 use crate::pipeline::clock::Stamp;
 use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::periodic::Every;
@@ -142,6 +144,12 @@ impl DaemonHooks {
         }
         if let Some(h) = home {
             r = r.and_then(|()| cp.put(&h));
+        }
+        if self.shared.done.load(Ordering::Relaxed) {
+            let fin = RunFinished {
+                elapsed: progress.elapsed,
+            };
+            r = r.and_then(|()| cp.put(&fin));
         }
         if let Some(t) = tries {
             r = r.and_then(|()| cp.put(&*t));

@@ -8,7 +8,7 @@ use crate::geom::{heading, pose_error, Pose};
 use crate::grid::Grid;
 use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointError, CheckpointStore, ContactArcs, MountRecord, ProgressMark,
-    ResumeEntry, RunProgress, Section, TriedPlaces, WrittenAt,
+    ResumeEntry, RunFinished, RunProgress, Section, TriedPlaces, WrittenAt,
 };
 
 /// File name of the heartbeat in the state folder: the run's progress and
@@ -63,6 +63,17 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
         log::warn!("latest checkpoint unusable ({why}); using the previous copy");
     }
     let cp = &l.checkpoint;
+    match cp.get::<RunFinished>() {
+        Ok(Some(f)) => {
+            log::info!(
+                "the last run finished its coverage after {:.0} s: starting a new run",
+                f.elapsed
+            );
+            return None;
+        }
+        Ok(None) => {}
+        Err(e) => log::warn!("checkpoint's end-of-run record unreadable ({e}); resuming the run"),
+    }
     let (progress, pose, grid) = match (cp.get::<RunProgress>(), cp.get::<Pose>(), cp.get::<Grid>())
     {
         (Ok(Some(progress)), Ok(Some(pose)), Ok(Some(grid))) => (progress, pose, grid),
@@ -201,6 +212,23 @@ mod tests {
     use crate::pipeline::checkpoint::{Decoder, Encoder};
     use crate::plan::HomePlace;
 
+    /// A `run.finished` payload whose run time is not a number.
+    struct BadFinished;
+
+    impl Section for BadFinished {
+        const NAME: &'static str = "run.finished";
+        const VERSION: u16 = 1;
+
+        fn encode(&self, e: &mut Encoder) {
+            e.f64(f64::NAN);
+        }
+
+        fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+            d.f64()?;
+            Ok(BadFinished)
+        }
+    }
+
     /// A `plan.home` payload whose start is not a number.
     struct BadHome;
 
@@ -223,7 +251,7 @@ mod tests {
     }
 
     #[test]
-    fn the_start_is_resumed_and_a_missing_or_bad_record_still_resumes_the_run() {
+    fn the_start_is_resumed_a_missing_or_bad_record_still_resumes_and_a_finished_run_does_not() {
         let dir =
             std::env::temp_dir().join(format!("sweepline-resume-home-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
@@ -250,6 +278,18 @@ mod tests {
             let r = load(&store, &beat).unwrap_or_else(|| panic!("{case}: not resumed"));
             let want = (case == "with").then_some(home);
             assert_eq!(r.home, want, "{case}");
+            // The same run finished: the next start is a new run.
+            let mut fin = cp.clone();
+            fin.put(&RunFinished { elapsed: 700.0 }).unwrap();
+            store.save(&fin).unwrap();
+            assert!(
+                load(&store, &beat).is_none(),
+                "{case}: a finished run resumed"
+            );
+            // An unreadable end-of-run record: resumed (nothing is lost).
+            cp.put(&BadFinished).unwrap();
+            store.save(&cp).unwrap();
+            assert!(load(&store, &beat).is_some(), "{case}: bad record");
         }
         let _ = std::fs::remove_dir_all(&dir);
     }

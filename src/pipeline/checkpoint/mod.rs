@@ -48,7 +48,7 @@ pub use codec::{crc32, Decoder, Encoder, GridHeader};
 pub use contacts::{ContactArc, ContactArcs, TriedPlaces};
 pub use mount::MountRecord;
 pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
-pub use sections::{RunProgress, WrittenAt};
+pub use sections::{RunFinished, RunProgress, WrittenAt};
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"SWPLCKPT";

@@ -104,6 +104,32 @@ impl Section for WrittenAt {
     }
 }
 
+/// The run finished its coverage (written into its last checkpoints): the
+/// next start is a new run, not a resume of one with nothing left to do.
+/// Payload, version 1: the run time at the finish (f64, s, finite, >= 0).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RunFinished {
+    /// Run time (s) when coverage finished, on the run's own clock.
+    pub elapsed: f64,
+}
+
+impl Section for RunFinished {
+    const NAME: &'static str = "run.finished";
+    const VERSION: u16 = 1;
+
+    fn encode(&self, e: &mut Encoder) {
+        e.f64(self.elapsed);
+    }
+
+    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
+        let elapsed = d.finite("elapsed")?;
+        if elapsed < 0.0 {
+            return Err(d.error(format!("run time {elapsed} is negative")));
+        }
+        Ok(Self { elapsed })
+    }
+}
+
 /// How far a run had got: lets a restarted daemon resume and the report say
 /// how much progress a crash lost.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
