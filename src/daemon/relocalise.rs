@@ -18,6 +18,32 @@ pub const SEARCH_TRANSLATION: f64 = 0.6;
 pub const SEARCH_ROTATION: f64 = 1.2;
 /// Most scan points used (evenly thinned).
 const MAX_POINTS: usize = 240;
+/// Share of the first scan's points that must fall on the restored map's
+/// walls for the scan to fit there.
+pub const MIN_FIT: f64 = 0.5;
+
+/// What the first scan of a resumed run says about where the robot is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ResumeFit {
+    /// It fits best at the checkpointed pose (share of points on walls).
+    InPlace(f64),
+    /// It fits better elsewhere within the search: the robot coasted or
+    /// turned after the checkpoint.
+    Moved(Relocalised),
+    /// It fits nowhere within the search (the best place found, if the scan
+    /// or the map had anything to match): the robot was moved while the
+    /// daemon was down, or the map is not of this room.
+    NoFit(Option<Relocalised>),
+}
+
+/// Judges the result of [`relocalise`] against [`MIN_FIT`].
+pub fn judge(r: Option<Relocalised>) -> ResumeFit {
+    match r {
+        Some(r) if r.score >= MIN_FIT && r.score > r.guess_score => ResumeFit::Moved(r),
+        Some(r) if r.score >= MIN_FIT => ResumeFit::InPlace(r.score),
+        r => ResumeFit::NoFit(r),
+    }
+}
 
 /// Where the search put the scanner.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -170,6 +196,32 @@ mod tests {
         assert!(e < 0.04, "{e} m off: {r:?}");
         assert!((heading(&r.pose) - 0.3).abs() < 0.02, "{r:?}");
         assert!(r.score > 0.9 && r.guess_score < 0.5, "{r:?}");
+    }
+
+    #[test]
+    fn the_first_scan_is_judged_in_place_moved_or_not_fitting() {
+        let g = room();
+        let truth = pose(1.0, 0.8, 0.3);
+        let pts = scan_from(&g, &truth);
+        // At the checkpointed pose: in place (it used to be logged as not
+        // fitting, since nothing beat the guess).
+        match judge(relocalise(&g, &pts, &truth)) {
+            ResumeFit::InPlace(score) => assert!(score > 0.9, "{score}"),
+            j => panic!("{j:?}"),
+        }
+        // Coasted 0.3 m: moved back onto the map.
+        let stale = pose(1.3, 0.8, 0.3);
+        assert!(matches!(
+            judge(relocalise(&g, &pts, &stale)),
+            ResumeFit::Moved(_)
+        ));
+        // Carried 1.5 m away (outside the search): nothing fits.
+        let other = scan_from(&g, &pose(2.6, 1.6, -1.0));
+        match judge(relocalise(&g, &other, &truth)) {
+            ResumeFit::NoFit(Some(r)) => assert!(r.score < MIN_FIT, "{r:?}"),
+            j => panic!("{j:?}"),
+        }
+        assert_eq!(judge(None), ResumeFit::NoFit(None));
     }
 
     #[test]

@@ -197,8 +197,9 @@ impl Stage for LocaliseStage {
         let resuming = self.relocalise_on.is_some();
         if let Some(grid) = self.relocalise_on.take() {
             let guess = self.tracker.pose();
-            match super::relocalise::relocalise(&grid, &self.points, &guess) {
-                Some(r) if r.score >= 0.5 && r.score > r.guess_score => {
+            use super::relocalise::{judge, relocalise, ResumeFit, MIN_FIT};
+            match judge(relocalise(&grid, &self.points, &guess)) {
+                ResumeFit::Moved(r) => {
                     let moved = (r.pose.translation.vector - guess.translation.vector).norm();
                     log::info!(
                         "resume: first scan laid onto the restored map {moved:.3} m from the checkpointed pose ({:.0} % of points on walls there, {:.0} % before)",
@@ -214,9 +215,19 @@ impl Stage for LocaliseStage {
                         self.tracker.set_pose(r.pose);
                     }
                 }
-                r => log::warn!(
-                    "resume: first scan does not fit the restored map ({:?}); keeping the checkpointed pose",
-                    r.map(|r| r.score)
+                ResumeFit::InPlace(score) => log::info!(
+                    "resume: first scan fits the restored map at the checkpointed pose ({:.0} % of points on walls)",
+                    score * 100.0
+                ),
+                ResumeFit::NoFit(r) => log::warn!(
+                    "resume: the first scan fits the restored map nowhere within {} m and {:.0}° of the checkpointed pose ({}; {:.0} % needed). Was the robot moved while the daemon was down? Driving on from the checkpointed pose; if it was moved, stop the daemon and put the robot back where it stopped, or start a new run with `sweepline run --fresh`",
+                    super::relocalise::SEARCH_TRANSLATION,
+                    super::relocalise::SEARCH_ROTATION.to_degrees(),
+                    r.map_or("nothing to match".to_string(), |r| format!(
+                        "at best {:.0} % of its points on walls",
+                        r.score * 100.0
+                    )),
+                    MIN_FIT * 100.0
                 ),
             }
         }
