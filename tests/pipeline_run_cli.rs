@@ -1,6 +1,7 @@
 //! `sweepline run` as a process: configuration errors name the key, missing
 //! devices are named with the fix, `--check-config` validates only, a
-//! finished run is not resumed and `--fresh` starts a new one.
+//! finished run is not resumed and `--fresh` starts a new one, and a new
+//! run keeps the last run's folder as `run.prev`.
 
 use std::process::Command;
 
@@ -117,7 +118,13 @@ fn a_finished_run_is_not_resumed_and_fresh_starts_a_new_one() {
         log.contains("--fresh: a new run") && !log.contains("resuming"),
         "{log}"
     );
-    // Finished: the next start is a new run.
+    // Finished: the next start is a new run, and the last run's reports
+    // are kept as run.prev (replacing the run before).
+    let run = state.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    std::fs::write(run.join("summary.md"), "the last run").unwrap();
+    std::fs::create_dir_all(state.join("run.prev")).unwrap();
+    std::fs::write(state.join("run.prev/summary.md"), "the run before").unwrap();
     cp.put(&RunFinished { elapsed: 700.0 }).unwrap();
     store.save(&cp).unwrap();
     let log = run_log(&d, &state, &[]);
@@ -126,5 +133,9 @@ fn a_finished_run_is_not_resumed_and_fresh_starts_a_new_one() {
             && !log.contains("resuming"),
         "{log}"
     );
+    assert!(log.contains("the last run's reports are kept in"), "{log}");
+    let kept = std::fs::read_to_string(state.join("run.prev/summary.md")).unwrap();
+    assert_eq!(kept, "the last run");
+    assert!(!run.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -73,6 +73,35 @@ pub fn state_dir(flag: Option<&Path>) -> PathBuf {
         .unwrap_or_else(|| PathBuf::from(DEFAULT_STATE_DIR))
 }
 
+/// The run folder in the state folder: metrics, the report, `mount.toml`,
+/// `events.toml`, `resume.toml`.
+pub const RUN_FOLDER: &str = "run";
+
+/// At a new run, the last run's folder `run` is kept as `run.prev` (the
+/// one before is removed): the next day's run does not wipe the report of
+/// the last. A failure is logged; the run goes on.
+pub fn keep_previous_run(run: &Path) {
+    let non_empty = std::fs::read_dir(run).is_ok_and(|mut d| d.next().is_some());
+    if !non_empty {
+        return;
+    }
+    let prev = run.with_extension("prev");
+    let r = match std::fs::remove_dir_all(&prev) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => std::fs::rename(run, &prev),
+    };
+    match r {
+        Ok(()) => log::info!(
+            "a new run: the last run's reports are kept in {}",
+            prev.display()
+        ),
+        Err(e) => log::warn!(
+            "a new run: cannot keep the last run's reports as {} ({e}); they are overwritten",
+            prev.display()
+        ),
+    }
+}
+
 /// Checks that a serial device exists and is a character device.
 fn check_device(what: &str, path: &Path) -> Result<(), String> {
     use std::os::unix::fs::FileTypeExt;
@@ -113,6 +142,9 @@ pub fn run(args: Args) -> CliResult {
     } else {
         crate::daemon::resume::load(&store, &crate::daemon::resume::heartbeat_store(&dir))
     };
+    if resume.is_none() {
+        keep_previous_run(&dir.join(RUN_FOLDER));
+    }
 
     let devices = check_device("scanner", &args.scanner)
         .and_then(|()| check_device("wheel-base", &args.base));
@@ -155,7 +187,7 @@ pub fn run(args: Args) -> CliResult {
     })?;
     let _signals = SignalForwarder::install(daemon.control())
         .map_err(|e| format!("cannot install signal handlers: {e}"))?;
-    let mut hooks = RunFolderHooks::new(daemon.hooks(), &dir.join("run"), &cfg.pipeline)
+    let mut hooks = RunFolderHooks::new(daemon.hooks(), &dir.join(RUN_FOLDER), &cfg.pipeline)
         .with_resume(daemon.resume_entry());
     let outcome = daemon.run(&mut hooks);
     log::info!("stopped: {}", outcome.reason);

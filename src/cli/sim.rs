@@ -140,7 +140,8 @@ pub fn run(args: Args) -> CliResult {
     let m = &r.metrics;
     println!(
         "done in {:.1} s wall ({:.0} s simulated): {} — coverage {:.2} % of {:.2} m² reachable, \
-         path {:.1} m, {} turns, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°",
+         path {:.1} m, {} turns, overlap {:.1} %, pose RMSE {:.1} mm / {:.2}°; drive back: {}, \
+         ended {:.2} m from the start",
         r.wall,
         r.sim_time,
         r.reason,
@@ -150,7 +151,9 @@ pub fn run(args: Args) -> CliResult {
         m.turns,
         m.overlap * 100.0,
         r.position_rmse * 1e3,
-        r.heading_rmse.to_degrees()
+        r.heading_rmse.to_degrees(),
+        r.home.map_or("coverage not finished", |h| h.describe()),
+        r.ended_from_start
     );
     println!(
         "report: {}/summary.md (pictures map.svg, cells.svg, path.svg)",
