@@ -591,6 +591,41 @@ mod tests {
     }
 
     #[test]
+    fn the_drive_back_to_the_start_is_counted_apart_and_sweeps_nothing() {
+        let w = World::parse(ROOM).unwrap();
+        let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
+        let mut k = 0.0;
+        for i in 0..=100 {
+            t.record_doing(&pose(0.5 + i as f64 * 0.01, 0.5, 0.0), k, Motion::Lane, 1);
+            k += 0.1;
+        }
+        let before = t.metrics();
+        // Back over the lane and on over unswept floor, then into the box.
+        let back: Vec<Pose> = (0..=100)
+            .map(|i| pose(1.5 - i as f64 * 0.01, 0.5, std::f64::consts::PI))
+            .chain((1..=50).map(|i| pose(0.5, 0.5 + i as f64 * 0.01, 1.57)))
+            .collect();
+        for (i, p) in back.iter().enumerate() {
+            // Turning at the end of the path is recorded as another motion:
+            // still the drive back.
+            let m = if i > 140 { Motion::Other } else { Motion::Home };
+            t.record_doing(p, k, m, 2);
+            k += 0.1;
+        }
+        let m = t.metrics();
+        assert_eq!(m.covered_area, before.covered_area);
+        assert_eq!(m.overlap, before.overlap);
+        assert_eq!(m.path_length, before.path_length);
+        assert_eq!(m.time, before.time);
+        assert!((m.home_length - 1.5).abs() < 0.02, "{}", m.home_length);
+        assert!((m.home_time - 15.1).abs() < 0.05, "{}", m.home_time);
+        assert_eq!(m.collisions, 0);
+        // Its collisions still count.
+        t.record_doing(&pose(1.6, 1.5, 0.0), k, Motion::Home, 2);
+        assert_eq!(t.metrics().collisions, 1);
+    }
+
+    #[test]
     fn driving_back_counts_overlap_and_a_turn() {
         let w = World::parse(ROOM).unwrap();
         let mut t = CoverageTracker::new(&w, 0.17, 0.3, &w.start).unwrap();
