@@ -139,3 +139,27 @@ fn a_finished_run_is_not_resumed_and_fresh_starts_a_new_one() {
     assert!(!run.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn a_last_run_folder_that_cannot_be_kept_is_logged_and_the_run_goes_on() {
+    let d = temp("keepfail");
+    let state = d.join("state");
+    let run = state.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    std::fs::write(run.join("summary.md"), "the last run").unwrap();
+    // Something that is not a folder stands where run.prev would go.
+    std::fs::write(state.join("run.prev"), "not a folder").unwrap();
+    let log = run_log(&d, &state, &["--fresh"]);
+    assert!(
+        log.contains("cannot keep the last run's reports as") && log.contains("overwritten"),
+        "{log}"
+    );
+    // Nothing was lost on the way: the last run's folder is where it was,
+    // and the start went on to the device check.
+    assert_eq!(
+        std::fs::read_to_string(run.join("summary.md")).unwrap(),
+        "the last run"
+    );
+    assert!(log.contains("scanner device"), "{log}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
