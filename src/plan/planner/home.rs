@@ -10,8 +10,9 @@
 
 use nalgebra::Point2;
 
-use super::{CoveragePlanner, DoneReport, Motion, PlanError, PlanStatus, Task};
+use super::{cells_within, CoveragePlanner, DoneReport, Motion, PlanError, PlanStatus, Task};
 use crate::geom::{heading, Pose};
+use crate::plan::cspace::disk;
 use crate::plan::HomePlace;
 
 /// A robot this near its start (m) when coverage is done is home already:
@@ -108,9 +109,7 @@ impl CoveragePlanner {
     ) -> Result<PlanStatus, PlanError> {
         if !self.params.return_home || self.home.is_none() {
             let p: Point2<f64> = pose.translation.vector.into();
-            let mut report = report;
-            report.home_distance = self.distance_to_start(&p);
-            return Ok(self.finish(report));
+            return Ok(self.finish(report, HomeOutcome::NotAsked, &p));
         }
         self.homing = Some(Homing {
             report,
@@ -165,16 +164,8 @@ impl CoveragePlanner {
             return Ok(self.home_ends(HomeOutcome::GaveUp, &p));
         }
         if !self.cspace.traversable[robot] {
-            self.log_escape_cause(&p);
-            if let Some(path) = self.escape_path(robot) {
-                self.stats.escapes += 1;
-                self.set_task(Task::Escape, path, None);
-                return Ok(PlanStatus::Working {
-                    task: Task::Escape,
-                    new_path: true,
-                });
-            }
-            return Err(PlanError::Trapped { x: p.x, y: p.y });
+            // Coverage is done: there is no task to forgive.
+            return self.escape(&p, robot, false);
         }
         // Plain distance: the drive back sweeps nothing that counts.
         self.cspace.set_extra_cost(|_| 0.0);
@@ -247,22 +238,14 @@ impl CoveragePlanner {
         if let Some(i) = f.index_of(at).filter(|&i| reachable(i)) {
             return Some(i);
         }
-        let r = (HOME_REACH / f.res).ceil() as i64;
-        let (cx, cy) = (
-            ((at.x - f.origin.x) / f.res).floor() as i64,
-            ((at.y - f.origin.y) / f.res).floor() as i64,
-        );
+        // Offsets one cell wider than the reach: the start is anywhere in
+        // its cell; `cells_within` keeps the centres within the reach.
+        let offsets = disk(HOME_REACH + f.res, f.res);
         let mut best: Option<(f64, usize)> = None;
-        for y in cy - r..=cy + r {
-            for x in cx - r..=cx + r {
-                if x < 0 || y < 0 || x >= f.w as i64 || y >= f.h as i64 {
-                    continue;
-                }
-                let i = y as usize * f.w + x as usize;
-                let d = (f.centre(i) - at).norm();
-                if d <= HOME_REACH && reachable(i) && best.is_none_or(|(b, _)| d < b) {
-                    best = Some((d, i));
-                }
+        for i in cells_within(f, at, &offsets, HOME_REACH) {
+            let d = (f.centre(i) - at).norm();
+            if reachable(i) && best.is_none_or(|(b, _)| d < b) {
+                best = Some((d, i));
             }
         }
         best.map(|(_, i)| i)
@@ -302,10 +285,7 @@ impl CoveragePlanner {
         let Some(h) = self.homing.take() else {
             return self.driving_on();
         };
-        let mut report = h.report;
-        report.home = outcome;
-        report.home_distance = self.distance_to_start(p);
-        self.finish(report)
+        self.finish(h.report, outcome, p)
     }
 
     /// The status of an update that keeps the current path.
@@ -322,8 +302,16 @@ impl CoveragePlanner {
             .map_or(f64::NAN, |s| (p - Point2::new(s.x, s.y)).norm())
     }
 
-    /// Ends the run with `report`.
-    pub(super) fn finish(&mut self, report: DoneReport) -> PlanStatus {
+    /// Ends the run with `report`, the drive back ended by `outcome` with
+    /// the robot at `p`.
+    fn finish(
+        &mut self,
+        mut report: DoneReport,
+        outcome: HomeOutcome,
+        p: &Point2<f64>,
+    ) -> PlanStatus {
+        report.home = outcome;
+        report.home_distance = self.distance_to_start(p);
         self.report = Some(report);
         self.set_task(Task::Done, Vec::new(), None);
         PlanStatus::Done(report)

@@ -1286,20 +1286,7 @@ impl CoveragePlanner {
             return working(Task::LookAround);
         }
         if !self.cspace.traversable[robot] {
-            self.log_escape_cause(&p);
-            if let Some(path) = self.escape_path(robot) {
-                let forgive = self.may_forgive();
-                // The robot was pushed into an inflation zone (a cell seen
-                // occupied next to it, tracking error): the task it was on is
-                // not at fault, so its floor is not charged a try.
-                if forgive {
-                    self.forgive_task();
-                }
-                self.stats.escapes += 1;
-                self.set_task(Task::Escape, path, None);
-                return working(Task::Escape);
-            }
-            return Err(PlanError::Trapped { x: p.x, y: p.y });
+            return self.escape(&p, robot, true);
         }
         // Travel over swept floor sweeps it again (the tool is always on):
         // transits and the choice of the next cell prefer unswept floor
@@ -1830,6 +1817,32 @@ impl CoveragePlanner {
             p.y,
             self.cspace.inflation()
         );
+    }
+
+    /// Plans the escape of the robot at `p` (cell `robot`) out of an
+    /// inflation zone it finds itself in, or fails with
+    /// [`PlanError::Trapped`]. With `forgive`, the task it was on is not at
+    /// fault (a cell seen occupied next to it, tracking error): its floor
+    /// is not charged a try, up to a bound.
+    fn escape(
+        &mut self,
+        p: &Point2<f64>,
+        robot: usize,
+        forgive: bool,
+    ) -> Result<PlanStatus, PlanError> {
+        self.log_escape_cause(p);
+        let Some(path) = self.escape_path(robot) else {
+            return Err(PlanError::Trapped { x: p.x, y: p.y });
+        };
+        if forgive && self.may_forgive() {
+            self.forgive_task();
+        }
+        self.stats.escapes += 1;
+        self.set_task(Task::Escape, path, None);
+        Ok(PlanStatus::Working {
+            task: Task::Escape,
+            new_path: true,
+        })
     }
 
     /// Where the robot at cell `robot`, out of the traversable space,
