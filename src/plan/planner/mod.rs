@@ -620,7 +620,7 @@ impl CoveragePlanner {
 
     /// Tells the planner the time (s, any origin, not going back): the
     /// clock its waits are timed by (see [`PlanParams::clear_wait`]).
-    /// Without it, each update counts [`UNTIMED_UPDATE`] seconds.
+    /// Without it, each update counts `UNTIMED_UPDATE` seconds.
     pub fn set_time(&mut self, now: f64) {
         if now.is_finite() {
             self.clock = Some(now);

@@ -1,0 +1,507 @@
+//! The localise stage: intensity-ICP of each scan, and the mount and wheel
+//! checks of the first drive.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use super::gone;
+use crate::daemon::align::{AlignStep, MAX_ALIGN_SCANS, MIN_AGREEMENT, MIN_WALL_EVIDENCE};
+use crate::daemon::messages::{MapMsg, PoseFix, ScanMsg};
+use crate::daemon::offset_check::{
+    OffsetFit, OFFSET_FIT_MAX, OFFSET_STOP_UNFITTED, OFFSET_TOLERANCE,
+};
+use crate::daemon::shared::Shared;
+use crate::daemon::travel_check::{
+    TravelFit, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
+};
+use crate::daemon::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
+use crate::geom::{heading, IPoint, Pose};
+use crate::grid::Grid;
+use crate::icp::{Outcome, Tracker};
+use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
+
+/// The localise stage: intensity-ICP of each newest scan against the
+/// tracker's local map with the odometry prior; a rejected or failed match
+/// falls back to the odometry prediction (counted) and is kept out of the map.
+pub struct LocaliseStage {
+    /// The scan-to-map tracker (scanner poses).
+    pub tracker: Tracker,
+    /// Scans in.
+    pub rx: Rx<ScanMsg>,
+    /// Pose fixes to control.
+    pub to_control: Tx<PoseFix>,
+    /// Registered scans to the map.
+    pub to_map: Tx<MapMsg>,
+    /// Shared state.
+    pub shared: Arc<Shared>,
+    /// Pose of the scanner in the robot frame: the configured (or resumed)
+    /// one, refitted by the offset and travel checks (see
+    /// [`crate::daemon::offset_check`], [`crate::daemon::travel_check`]).
+    pub mount: Pose,
+    /// Distance between the wheels (m, `robot.wheel_base`), for the
+    /// turn check's warning.
+    pub wheel_base: f64,
+    /// Wheel radius (m, `robot.wheel_radius`), for the travel check's
+    /// warning.
+    pub wheel_radius: f64,
+    /// Whether offset and yaw errors the checks measure are taken into the
+    /// mount for the rest of the run (`daemon.fit_scanner_mount`).
+    pub fit_mount: bool,
+    /// Reused point buffer.
+    pub points: Vec<IPoint>,
+    /// The restored map of a resumed run: the first scan is laid onto it
+    /// (see [`crate::daemon::relocalise`]) before tracking starts.
+    pub relocalise_on: Option<Arc<Grid>>,
+    /// Whether to publish the tracker's keyframes for checkpoints (each
+    /// time one is added).
+    pub publish_keyframes: bool,
+    /// Stamp of the previous scan localised (s).
+    pub last_stamp: Option<f64>,
+    /// At a fresh start, until decided: turns the map frame to the walls
+    /// of the first scans before tracking starts (see [`crate::daemon::align`]).
+    pub align: Option<crate::daemon::align::WallAlign>,
+    /// Whether the scans turn with the wheels (a wrong scanner mount).
+    pub turn_check: crate::daemon::turn_check::TurnCheck,
+    /// Whether the scans move along the robot's heading (a wrong yaw).
+    pub travel_check: crate::daemon::travel_check::TravelCheck,
+    /// Whether the scanner circles the axle at its configured offset when
+    /// the robot turns in place (a wrong offset).
+    pub offset_check: crate::daemon::offset_check::OffsetCheck,
+    /// The mount's offset was refitted by the offset check (in this run, or
+    /// before the checkpoint it resumed from).
+    pub offset_fitted: bool,
+}
+
+impl LocaliseStage {
+    /// Drives with `mount` from now on (a check refitted it); returns the
+    /// robot's pose under it, the scanner at `scanner`. The scanner's
+    /// odometry jumps with the mount: the motion prior starts over.
+    fn refit_mount(&mut self, mount: Pose, scanner: &Pose) -> Pose {
+        self.mount = mount;
+        self.tracker.set_pose(*scanner);
+        self.shared.with_status(|s| s.refitted_mount = Some(mount));
+        scanner * mount.inverse()
+    }
+}
+
+/// A scan further than this many scan intervals after the previous one
+/// follows a gap (lost or skipped scans).
+const GAP_INTERVALS: f64 = 1.5;
+
+/// A gap at least this long (s) is logged.
+const GAP_LOGGED: f64 = 1.0;
+
+impl Stage for LocaliseStage {
+    type Work = ScanMsg;
+
+    fn wait(&mut self, timeout: Duration) -> Poll<ScanMsg> {
+        match self.rx.recv_timeout(timeout) {
+            Recv::Msg(m) => match self.rx.try_recv_newest() {
+                Recv::Msg(newer) => Poll::Work(newer),
+                _ => Poll::Work(m),
+            },
+            Recv::Empty => Poll::Idle,
+            Recv::Closed => Poll::Done,
+        }
+    }
+
+    fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        ctx.note_age(msg.t0);
+        msg.scan.points_into(&mut self.points);
+        self.shared
+            .with_ahead(|a| a.load_scan(&msg.scan, &self.mount, msg.odom));
+        let resuming = self.relocalise_on.is_some();
+        if let Some(grid) = self.relocalise_on.take() {
+            let guess = self.tracker.pose();
+            use crate::daemon::relocalise::{judge, relocalise, ResumeFit, MIN_FIT};
+            match judge(relocalise(&grid, &self.points, &guess)) {
+                ResumeFit::Moved(r) => {
+                    let moved = (r.pose.translation.vector - guess.translation.vector).norm();
+                    log::info!(
+                        "resume: first scan laid onto the restored map {moved:.3} m from the checkpointed pose ({:.0} % of points on walls there, {:.0} % before)",
+                        r.score * 100.0,
+                        r.guess_score * 100.0
+                    );
+                    if self.tracker.map().is_empty() {
+                        self.tracker = Tracker::new(self.tracker.params().clone(), r.pose)
+                            .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
+                    } else {
+                        // The restored keyframes stay: the first scan is
+                        // matched against them from here.
+                        self.tracker.set_pose(r.pose);
+                    }
+                }
+                ResumeFit::InPlace(score) => log::info!(
+                    "resume: first scan fits the restored map at the checkpointed pose ({:.0} % of points on walls)",
+                    score * 100.0
+                ),
+                ResumeFit::NoFit(r) => log::warn!(
+                    "resume: the first scan fits the restored map nowhere within {} m and {:.0}° of the checkpointed pose ({}; {:.0} % needed). Was the robot moved while the daemon was down? Driving on from the checkpointed pose; if it was moved, stop the daemon and put the robot back where it stopped, or start a new run with `sweepline run --fresh`",
+                    crate::daemon::relocalise::SEARCH_TRANSLATION,
+                    crate::daemon::relocalise::SEARCH_ROTATION.to_degrees(),
+                    r.map_or("nothing to match".to_string(), |r| format!(
+                        "at best {:.0} % of its points on walls",
+                        r.score * 100.0
+                    )),
+                    MIN_FIT * 100.0
+                ),
+            }
+        }
+        if let Some(al) = self.align.as_mut() {
+            let scanner = self.tracker.pose();
+            match al.step(&self.points, heading(&scanner)) {
+                // Nothing is tracked (the robot waits for a plan) until the
+                // frame is decided: at most MAX_ALIGN_SCANS scans.
+                AlignStep::NotYet => return Ok(()),
+                AlignStep::GiveUp => {
+                    log::warn!(
+                        "map frame: the first {MAX_ALIGN_SCANS} scans show no rectilinear walls (not {MIN_WALL_EVIDENCE} m of wall lines, {:.0} % of all, along one pair of axes); the frame stays the start pose, lanes may cross the walls at an angle",
+                        MIN_AGREEMENT * 100.0
+                    );
+                    self.shared.with_status(|s| s.frame_turn = Some(0.0));
+                }
+                AlignStep::Turn {
+                    turn,
+                    evidence,
+                    agreement,
+                } => {
+                    // Turned about the robot's own position.
+                    let turned = scanner * self.mount.inverse() * crate::geom::pose(0.0, 0.0, turn);
+                    self.tracker = Tracker::new(self.tracker.params().clone(), turned * self.mount)
+                        .map_err(|e| StageFault::Fatal(format!("tracker: {e}")))?;
+                    log::info!(
+                        "map frame turned {:+.1}° to lie along the walls ({evidence:.1} m of wall lines along the axes in the first scan, {:.0} % of all); start heading {:.1}°",
+                        turn.to_degrees(),
+                        agreement * 100.0,
+                        heading(&turned).to_degrees()
+                    );
+                    self.shared.with_status(|s| {
+                        s.frame_turn = Some(turn);
+                        s.pose = turned;
+                    });
+                }
+            }
+            self.align = None;
+        }
+        if let Some(prev) = self.last_stamp {
+            let gap = msg.stamp - prev;
+            if msg.interval > 0.0 && gap > GAP_INTERVALS * msg.interval {
+                self.tracker.note_gap();
+                if gap >= GAP_LOGGED {
+                    log::info!(
+                        "localise: {gap:.1} s since the previous scan; the odometry carries the pose across"
+                    );
+                }
+            }
+        }
+        self.last_stamp = Some(msg.stamp);
+        let before = self.tracker.pose();
+        let restored = self.tracker.map().len();
+        let robot_odom = msg.odom;
+        // The keyframe (a k-d tree rebuild) is added after the pose is handed on.
+        let step = self
+            .tracker
+            .step_deferred(&self.points, Some(&(robot_odom * self.mount)));
+        let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        if resuming {
+            let how = match step.outcome {
+                Outcome::Matched(q) => format!(
+                    "matched ({} pairs, residual {:.1} mm)",
+                    q.pairs,
+                    q.residual_rms * 1e3
+                ),
+                Outcome::First => "(none) started a new local map".into(),
+                Outcome::Failed(e) => format!("failed ({e})"),
+                Outcome::Rejected(r, _) => format!("rejected ({r:?})"),
+            };
+            log::info!(
+                "resume: first scan against {restored} restored keyframe(s) {how}, {:.3} m from its start pose",
+                (step.pose.translation.vector - before.translation.vector).norm()
+            );
+        }
+        let mut robot = step.pose * self.mount.inverse();
+        match self.turn_check.step(&self.points, &robot_odom) {
+            TurnVerdict::Undecided => {}
+            TurnVerdict::Agree { ratio } => {
+                log::info!(
+                    "scans and wheels agree on the first quarter turn (the scans turned {:.0} % of the wheels' turn)",
+                    ratio * 100.0
+                );
+                if !(TURN_SCALE_WARN.0..=TURN_SCALE_WARN.1).contains(&ratio) {
+                    log::warn!(
+                        "the wheels' turn is off: the scans turned {:.0} % of it; robot.wheel_base is {:.3} m, the scans fit {:.3} m if robot.wheel_radius is right (see the first metre's scale; or the wheels slip when turning)",
+                        ratio * 100.0,
+                        self.wheel_base,
+                        fitting_wheel_base(ratio, self.wheel_base)
+                    );
+                }
+                self.shared.with_status(|s| s.turn_ratio = Some(ratio));
+            }
+            TurnVerdict::Disagree { scans, wheels } => {
+                self.shared
+                    .with_status(|s| s.turn_ratio = Some(scans / wheels));
+                // Mapping on, with the pose turning the wrong way, would
+                // build a map of nothing and drive blind: stop instead.
+                return Err(StageFault::Fatal(format!(
+                    "scans and wheels disagree: over the first quarter turn the wheels turned {:+.0}° and the walls in the scans {:+.0}°; is the scanner mounted upside down (robot.scanner_upside_down), or are the left and right wheels swapped (motor.roboclaw.m1_is_left)? Stopping: the pose cannot be trusted",
+                    wheels.to_degrees(),
+                    scans.to_degrees()
+                )));
+            }
+        }
+        if let Some(fit) = self
+            .offset_check
+            .step(matched.then_some(&step.pose), &robot_odom)
+        {
+            self.shared.with_status(|s| s.offset_fit = Some(fit));
+            if check_offset(&fit, &self.mount, self.fit_mount)? {
+                let yaw = heading(&self.mount);
+                robot = self.refit_mount(
+                    crate::geom::pose(fit.offset.x, fit.offset.y, yaw),
+                    &step.pose,
+                );
+                self.offset_fitted = true;
+            }
+        }
+        if let Some(fit) = self
+            .travel_check
+            .step(matched.then_some(&robot), &robot_odom)
+        {
+            self.shared.with_status(|s| s.travel_fit = Some(fit));
+            if check_travel(&fit, self.wheel_radius, self.fit_mount)? {
+                // Turned about the scanner's own position: the scans (and
+                // the map) stay; the robot's heading in it moves. An
+                // offset fitted under the old yaw was turned by the error
+                // too (see `offset_check`): it turns back.
+                let m = self.mount;
+                let t = if self.offset_fitted {
+                    nalgebra::Rotation2::new(-fit.angle) * m.translation.vector
+                } else {
+                    m.translation.vector
+                };
+                let refitted = crate::geom::pose(t.x, t.y, heading(&m) - fit.angle);
+                robot = self.refit_mount(refitted, &step.pose);
+            }
+        }
+        self.shared.with_status(|s| {
+            s.scans += 1;
+            if !matched {
+                s.fallbacks += 1;
+            }
+        });
+        if matched {
+            self.shared.note_fix(msg.stamp, robot);
+        }
+        let fix = PoseFix {
+            t0: msg.t0,
+            stamp: msg.stamp,
+            pose: robot,
+            odom: robot_odom,
+            matched,
+        };
+        ctx.hand_off();
+        if self.to_control.send(fix).is_err() {
+            return gone(&self.shared, "control");
+        }
+        if matched {
+            let _ = self.to_map.send(MapMsg::Scan {
+                pose: step.pose,
+                scan: msg.scan,
+            });
+        }
+        self.tracker.finish_keyframe();
+        if step.keyframe && self.publish_keyframes {
+            let kf = Arc::new(self.tracker.state());
+            self.shared.with_status(|s| s.keyframes = Some(kf));
+        }
+        Ok(())
+    }
+}
+
+/// What a mount check's measured error calls for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum MountCall {
+    /// Within the check's tolerance: the mount stands.
+    Agrees,
+    /// Off, and the mount may be refitted: refit it (with a warning).
+    Refit,
+    /// Off, the fit turned off: warn only.
+    Warn,
+    /// Too far off to drive by: stop the daemon.
+    Stop,
+}
+
+/// The call for a mount error `error` against a check's `tolerance`, the
+/// largest error it refits (`fit_max`) and the largest it lets pass with
+/// the fit off (`stop_unfitted`); `may_fit` is `daemon.fit_scanner_mount`.
+fn mount_call(
+    error: f64,
+    tolerance: f64,
+    fit_max: f64,
+    stop_unfitted: f64,
+    may_fit: bool,
+) -> MountCall {
+    let limit = if may_fit { fit_max } else { stop_unfitted };
+    if error <= tolerance {
+        MountCall::Agrees
+    } else if error > limit {
+        MountCall::Stop
+    } else if may_fit {
+        MountCall::Refit
+    } else {
+        MountCall::Warn
+    }
+}
+
+/// Judges the scanner offset fitted from turning in place (see
+/// [`crate::daemon::offset_check`]) against the `mount` driven with: logs it, and
+/// says whether the offset is to be refitted (`may_fit`: allowed to), or
+/// stops the daemon when it is too far off to drive by.
+fn check_offset(fit: &OffsetFit, mount: &Pose, may_fit: bool) -> Result<bool, StageFault> {
+    let (t, c) = (fit.offset, mount.translation.vector);
+    let error = (t - c).norm();
+    let what = format!(
+        "turning in place over {:.0}° the scanner circled the axle at ({:.3}, {:.3}) m (ahead, left)",
+        fit.turned.to_degrees(),
+        t.x,
+        t.y
+    );
+    let fix = format!(
+        "robot.scanner_offset_x, robot.scanner_offset_y are ({:.3}, {:.3}) m, {:.1} cm off",
+        c.x,
+        c.y,
+        error * 100.0
+    );
+    let call = mount_call(
+        error,
+        OFFSET_TOLERANCE,
+        OFFSET_FIT_MAX,
+        OFFSET_STOP_UNFITTED,
+        may_fit,
+    );
+    match call {
+        MountCall::Agrees => log::info!(
+            "scanner offset agrees: {what}, {:.1} cm from the configured one",
+            error * 100.0
+        ),
+        MountCall::Stop => {
+            return Err(StageFault::Fatal(format!(
+                "the scanner is not where the configuration says: {what}; {fix}{}. Stopping: the position cannot be trusted",
+                if may_fit {
+                    ", too far off to be a measuring error"
+                } else {
+                    ""
+                }
+            )))
+        }
+        MountCall::Refit => log::warn!(
+            "{what}; {fix}: driving with the fitted offset for this run (set it in the configuration)"
+        ),
+        MountCall::Warn => log::warn!("{what}; {fix} (daemon.fit_scanner_mount is off)"),
+    }
+    Ok(call == MountCall::Refit)
+}
+
+/// A travel direction (rad) off the heading by more than this is driving
+/// backward: the scanner faces backward, or the odometry counts backward.
+const BACKWARD: f64 = 3.0 * std::f64::consts::FRAC_PI_4;
+
+/// Judges the scans' travel against the wheels' (see
+/// [`crate::daemon::travel_check`]): logs it, warns of a wheel scale off (the
+/// configured `wheel_radius` beside the one that fits), and says whether
+/// the mount's yaw is to be refitted (`may_fit`: allowed to), or stops the
+/// daemon when the yaw is too far off to drive by.
+fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<bool, StageFault> {
+    let (deg, dist) = (fit.angle.to_degrees(), fit.driven);
+    let what = format!(
+        "over the first {dist:.1} m driven straight the scans moved {deg:+.1}° off the robot's heading and {:.0} % of the wheels' distance",
+        fit.scale * 100.0
+    );
+    if !(SCALE_WARN.0..=SCALE_WARN.1).contains(&fit.scale) {
+        log::warn!(
+            "{what}: the wheel odometry's scale is off; robot.wheel_radius is {wheel_radius:.4} m, the scans fit {:.4} m (or the encoder counts per revolution are off, or the wheels slip)",
+            wheel_radius * fit.scale
+        );
+    }
+    let error = fit.angle.abs();
+    let suggest = fit.fitting_yaw();
+    let fix = format!(
+        "the robot drives with robot.scanner_yaw = {:.3} rad ({:+.1}°), the scans fit {suggest:.3} rad ({:+.1}°)",
+        fit.yaw,
+        fit.yaw.to_degrees(),
+        suggest.to_degrees()
+    );
+    let call = mount_call(
+        error,
+        YAW_TOLERANCE,
+        YAW_FIT_MAX,
+        YAW_STOP_UNFITTED,
+        may_fit,
+    );
+    match call {
+        MountCall::Agrees => {
+            log::info!("scans and wheels agree on the direction of travel: {what}")
+        }
+        MountCall::Stop => {
+            // Steering by a heading that far off drives the body crabwise
+            // along every lane, into the walls the margins assume clear.
+            let why = if error > BACKWARD {
+                // Odometry counting backward looks the same as a scanner
+                // facing backward: both make the scans move against the wheels.
+                ", or the wheel odometry counts backward (encoder polarity)"
+            } else if may_fit {
+                ", too far off to be a mounting tolerance"
+            } else {
+                ""
+            };
+            return Err(StageFault::Fatal(format!(
+                "scans and wheels disagree on the direction of travel: {what}; {fix}{why}. Stopping: the heading cannot be trusted"
+            )));
+        }
+        MountCall::Refit => log::warn!(
+            "{what}: the scanner's mount yaw is off; {fix}: driving with {suggest:.3} rad for this run (set it in the configuration)"
+        ),
+        MountCall::Warn => log::warn!(
+            "{what}: the scanner's mount yaw is off; {fix} (daemon.fit_scanner_mount is off)"
+        ),
+    }
+    Ok(call == MountCall::Refit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(deg: f64) -> TravelFit {
+        TravelFit {
+            angle: deg.to_radians(),
+            scale: 1.0,
+            driven: 1.0,
+            yaw: 0.2,
+        }
+    }
+
+    #[test]
+    fn a_yaw_error_is_refitted_when_allowed_and_stops_the_daemon_beyond_the_limits() {
+        // Within the measurement's noise: nothing to do, fitting or not.
+        assert_eq!(check_travel(&fit(0.8), 0.036, true), Ok(false));
+        assert_eq!(check_travel(&fit(-0.8), 0.036, false), Ok(false));
+        // A mounting tolerance: refitted, or (not allowed) a warning up to 3°.
+        assert_eq!(check_travel(&fit(4.0), 0.036, true), Ok(true));
+        assert_eq!(check_travel(&fit(-19.0), 0.036, true), Ok(true));
+        assert_eq!(check_travel(&fit(2.5), 0.036, false), Ok(false));
+        // Too far off: the daemon stops, naming the key and the value that fits.
+        for (deg, may_fit) in [(4.0, false), (-25.0, true), (90.0, true), (179.0, true)] {
+            match check_travel(&fit(deg), 0.036, may_fit) {
+                Err(StageFault::Fatal(m)) => {
+                    let yaw = crate::geom::wrap_angle(0.2 - deg.to_radians());
+                    let want = format!("the scans fit {yaw:.3} rad");
+                    assert!(m.contains("robot.scanner_yaw") && m.contains(&want), "{m}");
+                    // Travel against the wheels may be the odometry's sign.
+                    assert_eq!(m.contains("counts backward"), deg > 135.0, "{m}");
+                }
+                r => panic!("{deg}° (fit {may_fit}): {r:?}"),
+            }
+        }
+    }
+}
