@@ -1,5 +1,6 @@
 //! Unit tests of the planner.
 
+use super::cover::splice;
 use super::regions::{drop_specks, four_neighbours_in};
 use super::*;
 

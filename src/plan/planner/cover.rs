@@ -1,0 +1,223 @@
+//! Covering lanes: the tour lane by lane through all the cells left, the
+//! path through a task's lanes, and the transits spliced to their ends.
+
+use nalgebra::Point2;
+
+use super::*;
+use crate::plan::cspace::CSpace;
+use crate::plan::lanes::Lane;
+use crate::plan::tour::{lane_tour, TourCosts};
+
+impl CoveragePlanner {
+    /// Drives the lanes of the nearest candidates (all of each, up to
+    /// `plan.tour_max_lanes` in all) in one tour ordered lane by lane (see
+    /// [`crate::plan::tour`]); `cands` sorted nearest first, not empty, and
+    /// [`CSpace::dist`] holding the travel cost from the robot.
+    pub(super) fn take_lane_tour(&mut self, cands: &[Candidate]) -> PlanStatus {
+        self.toured = true;
+        let mut pooled: Vec<Lane> = Vec::new();
+        let mut region: Vec<usize> = Vec::new();
+        let mut taken = 0;
+        for (k, c) in cands.iter().enumerate() {
+            let ls = &c.variants[0].lanes;
+            if k > 0 && pooled.len() + ls.len() > self.params.tour_max_lanes {
+                break;
+            }
+            pooled.extend_from_slice(ls);
+            region.extend(std::iter::repeat_n(k, ls.len()));
+            taken = k + 1;
+        }
+        let f = self.cspace.frame;
+        let ends: Vec<usize> = pooled
+            .iter()
+            .flat_map(|l| [l.a, l.b])
+            .map(|p| f.index_of(&p).unwrap_or(usize::MAX))
+            .collect();
+        let start: Vec<f64> = ends
+            .iter()
+            .map(|&i| self.cspace.dist.get(i).copied().unwrap_or(f64::INFINITY))
+            .collect();
+        let mut between = std::mem::take(&mut self.tour_costs);
+        self.cspace.travel_linked(&ends, &mut between);
+        let tour = lane_tour(&TourCosts {
+            start: &start,
+            between: &between,
+        });
+        self.tour_costs = between;
+        let lanes: Vec<Lane> = tour
+            .iter()
+            .map(|&(k, rev)| if rev { pooled[k].reversed() } else { pooled[k] })
+            .collect();
+        // A lane of another region than the lane before is reached by a transit.
+        let new_region: Vec<bool> = tour
+            .iter()
+            .enumerate()
+            .map(|(i, &(k, _))| i == 0 || region[k] != region[tour[i - 1].0])
+            .collect();
+        if log::log_enabled!(log::Level::Debug) {
+            log::debug!(
+                "task {}: one tour through {taken} regions, lanes {}",
+                self.stats.tasks + 1,
+                describe_lanes(&lanes)
+            );
+        }
+        let (path, motions) = self.cover_path(&lanes, &new_region);
+        self.motions = motions;
+        let pooled_cands = &cands[..taken];
+        for id in pooled_cands.iter().filter_map(|c| c.cell) {
+            self.count_cell(id);
+        }
+        if !self.retour {
+            self.stats.patches += pooled_cands.iter().filter(|c| c.cell.is_none()).count();
+            self.stats.lanes += lanes.len();
+        }
+        self.planned_lanes = lanes.len();
+        // Every pooled region's lanes are driven whole: what they leave
+        // uncovered is charged a try as a region's task would be.
+        self.split_task = false;
+        let first = tour.first().map_or(0, |&(k, _)| region[k]);
+        let task = Task::Cover(cands[first].cell);
+        self.set_task(task, path, None);
+        self.touring = true;
+        let firsts = &pooled_cands[first].targets;
+        self.tour_first = firsts.len();
+        self.task_targets = firsts
+            .iter()
+            .chain(
+                pooled_cands
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, _)| k != first)
+                    .flat_map(|(_, c)| c.targets.iter()),
+            )
+            .copied()
+            .collect();
+        PlanStatus::Working {
+            task,
+            new_path: true,
+        }
+    }
+
+    /// Clears the targets within reach of `ls` (the lanes of a region
+    /// pooled into a lane tour): a region after it then lays no lane for
+    /// floor the earlier one's lanes sweep (two regions sharing a border
+    /// row would each drive a lane along it).
+    pub(super) fn clear_targets_along(&mut self, ls: &[Lane]) {
+        let f = self.cspace.frame;
+        let radius = self.reach + f.res * 0.5;
+        for l in ls {
+            let n = ((l.length() / (f.res * 0.5)).ceil() as usize).max(1);
+            for k in 0..=n {
+                let p = l.a + (l.b - l.a) * (k as f64 / n as f64);
+                for j in cells_within(f, &p, &self.reach_disk, radius) {
+                    self.targets[j] = false;
+                }
+            }
+        }
+    }
+
+    /// Transit to the first lane, then the lanes joined by straight
+    /// connections where clear, A* elsewhere; with the motion toward each
+    /// waypoint. A lane marked in `new_region` (by index; none when empty)
+    /// is reached by a transit rather than a connection.
+    pub(super) fn cover_path(
+        &self,
+        ls: &[Lane],
+        new_region: &[bool],
+    ) -> (Vec<Point2<f64>>, Vec<Motion>) {
+        let f = self.cspace.frame;
+        let mut path = Vec::new();
+        let mut motions = Vec::new();
+        let Some(first) = ls.first() else {
+            return (path, motions);
+        };
+        if let Some(entry) = f.index_of(&first.a) {
+            if let Some(t) = self.cspace.path_to(entry) {
+                let t = splice(&self.cspace, None, t, &first.a);
+                motions.resize(t.len(), Motion::Transit);
+                path.extend(t);
+            }
+        }
+        let mut prev: Option<Point2<f64>> = None;
+        for (k, l) in ls.iter().enumerate() {
+            let join = if prev.is_some() && !new_region.get(k).copied().unwrap_or(false) {
+                Motion::Connection
+            } else {
+                Motion::Transit
+            };
+            if let Some(q) = prev {
+                if !self.cspace.segment_clear(&q, &l.a) {
+                    if let (Some(a), Some(b)) = (f.index_of(&q), f.index_of(&l.a)) {
+                        if let Some(t) = self.cspace.astar(a, b) {
+                            let t = splice(&self.cspace, Some(&q), t, &l.a);
+                            motions.resize(motions.len() + t.len(), join);
+                            path.extend(t);
+                        }
+                    }
+                }
+            }
+            path.push(l.a);
+            motions.push(join);
+            path.push(l.b);
+            motions.push(if l.fixup { Motion::FixUp } else { Motion::Lane });
+            prev = Some(l.b);
+        }
+        // Drop repeated waypoints (and their motions).
+        let mut k = 0;
+        for i in 0..path.len() {
+            if k > 0 && (path[i] - path[k - 1]).norm() < 1e-9 {
+                continue;
+            }
+            path[k] = path[i];
+            motions[k] = motions[i];
+            k += 1;
+        }
+        path.truncate(k);
+        motions.truncate(k);
+        (path, motions)
+    }
+}
+
+/// Lanes as `(x, y)->(x, y)` (m) for the debug log, fix-ups marked.
+pub(super) fn describe_lanes(lanes: &[Lane]) -> String {
+    let list: Vec<String> = lanes
+        .iter()
+        .map(|l| {
+            let f = if l.fixup { " fix-up" } else { "" };
+            format!(
+                "({:.2}, {:.2})->({:.2}, {:.2}){f}",
+                l.a.x, l.a.y, l.b.x, l.b.y
+            )
+        })
+        .collect();
+    list.join(", ")
+}
+
+/// The waypoints between `from` (`None`: the robot, where the path starts)
+/// and `to` of a searched path `t` (cell centres from `from`'s cell to
+/// `to`'s): `t` without its first and last centre where the straight
+/// segment from `from`, or to `to`, stays on traversable cells. Lane ends
+/// lie off the cell centres: a segment cut short past a centre may come
+/// closer to a wall than the search did.
+pub(super) fn splice(
+    cs: &CSpace,
+    from: Option<&Point2<f64>>,
+    mut t: Vec<Point2<f64>>,
+    to: &Point2<f64>,
+) -> Vec<Point2<f64>> {
+    if t.len() < 2 {
+        return Vec::new();
+    }
+    if from.is_none_or(|q| cs.segment_clear(q, &t[1])) {
+        t.remove(0);
+    }
+    let before_last = if t.len() >= 2 {
+        Some(t[t.len() - 2])
+    } else {
+        from.copied()
+    };
+    if before_last.is_none_or(|p| cs.segment_clear(&p, to)) {
+        t.pop();
+    }
+    t
+}
