@@ -15,6 +15,7 @@ use super::world_args::WorldArgs;
 use super::CliResult;
 use crate::config::Config;
 use crate::motor::BaseKind;
+use crate::plan::HomeOutcome;
 use crate::sim::closed_loop::{self, SimOptions};
 
 /// Default world of `sweepline sim`.
@@ -152,7 +153,7 @@ pub fn run(args: Args) -> CliResult {
         m.overlap * 100.0,
         r.position_rmse * 1e3,
         r.heading_rmse.to_degrees(),
-        r.home.map_or("coverage not finished", |h| h.describe()),
+        HomeOutcome::describe_run(r.home),
         r.ended_from_start
     );
     println!(

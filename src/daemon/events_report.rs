@@ -6,6 +6,7 @@
 use std::sync::atomic::Ordering;
 
 use super::shared::Shared;
+use crate::plan::HomeOutcome;
 
 /// Name of the file in the run folder.
 pub const EVENTS_FILE: &str = "events.toml";
@@ -49,9 +50,7 @@ pub fn events_toml(shared: &Shared) -> String {
         base.link_losses,
         base.reconnects,
         base.deadman_stops,
-        shared
-            .with_status(|s| s.home_outcome)
-            .map_or("coverage not finished", |h| h.describe()),
+        HomeOutcome::describe_run(shared.with_status(|s| s.home_outcome)),
     )
 }
 

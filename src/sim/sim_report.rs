@@ -16,6 +16,7 @@ use super::coverage_svg;
 use crate::daemon::Shared;
 use crate::geom::{heading, Pose};
 use crate::grid::{CellState, Grid};
+use crate::plan::HomeOutcome;
 
 fn polyline(poses: &[Pose], g: &Grid, scale: f64, colour: &str) -> Polyline {
     let (o, h) = (g.origin(), g.height() as f64 * g.resolution());
@@ -203,7 +204,7 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             "drive back to the start (not in the figures above); where the robot ended (truth)",
             format!(
                 "{}; {:.1} m, {:.0} s; {:.2} m from where it started",
-                r.home.map_or("coverage not finished", |h| h.describe()),
+                HomeOutcome::describe_run(r.home),
                 m.home_length,
                 m.home_time,
                 r.ended_from_start

@@ -53,6 +53,13 @@ impl HomeOutcome {
             HomeOutcome::GaveUp => "gave up: the way back was blocked again and again",
         }
     }
+
+    /// [`Self::describe`] of a run's outcome, or "coverage not finished"
+    /// when the run ended before its coverage did (no drive back began):
+    /// the words every report uses.
+    pub fn describe_run(outcome: Option<Self>) -> &'static str {
+        outcome.map_or("coverage not finished", Self::describe)
+    }
 }
 
 /// The planner's state while it drives back.
