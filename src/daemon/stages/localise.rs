@@ -47,6 +47,10 @@ pub struct LocaliseStage {
     /// Whether offset and yaw errors the checks measure are taken into the
     /// mount for the rest of the run (`daemon.fit_scanner_mount`).
     pub fit_mount: bool,
+    /// Least information a match's weakest direction must hold
+    /// ([`crate::icp::Quality::min_eigenvalue`]) for its scan to count in
+    /// the offset and yaw checks (see [`pins_the_pose`]).
+    pub check_min_information: f64,
     /// Reused point buffer.
     pub points: Vec<IPoint>,
     /// The restored map of a resumed run: the first scan is laid onto it
@@ -203,6 +207,7 @@ impl Stage for LocaliseStage {
             .tracker
             .step_deferred(&self.points, Some(&(robot_odom * self.mount)));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        let pinned = pins_the_pose(&step.outcome, self.check_min_information);
         if resuming {
             let how = match step.outcome {
                 Outcome::Matched(q) => format!(
@@ -251,7 +256,7 @@ impl Stage for LocaliseStage {
         }
         if let Some(fit) = self
             .offset_check
-            .step(matched.then_some(&step.pose), &robot_odom)
+            .step(pinned.then_some(&step.pose), &robot_odom)
         {
             self.shared.with_status(|s| s.offset_fit = Some(fit));
             if check_offset(&fit, &self.mount, self.fit_mount)? {
@@ -265,7 +270,7 @@ impl Stage for LocaliseStage {
         }
         if let Some(fit) = self
             .travel_check
-            .step(matched.then_some(&robot), &robot_odom)
+            .step(pinned.then_some(&robot), &robot_odom)
         {
             self.shared.with_status(|s| s.travel_fit = Some(fit));
             if check_travel(&fit, self.wheel_radius, self.fit_mount)? {
@@ -315,6 +320,30 @@ impl Stage for LocaliseStage {
             self.shared.with_status(|s| s.keyframes = Some(kf));
         }
         Ok(())
+    }
+}
+
+/// How many times the information the matcher calls degenerate
+/// (`icp.degeneracy_threshold`) a match's weakest direction must hold for
+/// its scan to count in the mount checks. In the middle of a large room,
+/// with two walls beyond the scanner's 5.6 m, matches that are not
+/// degenerate (0.05-0.09 at the default 0.02) still let the position
+/// slide a few centimetres along their weak direction: the first metre
+/// read up to 3.9° of yaw error and 2 cm of offset on a scanner mounted
+/// right, so the daemon refitted a good mount or stopped. In the
+/// floor-plan rooms and the bench room matches hold 0.15 or more.
+pub const CHECK_INFORMATION_FACTOR: f64 = 6.0;
+
+/// Whether the scan of `outcome` counts in the mount checks: the first
+/// scan (the start pose itself), or a match whose weakest direction holds
+/// at least `min_information`. Other scans break the checks' chains (as
+/// unmatched scans do), so a check is made only over scans that pin the
+/// pose down: later in the run, nearer the walls, where the start does not.
+pub fn pins_the_pose(outcome: &Outcome, min_information: f64) -> bool {
+    match outcome {
+        Outcome::First => true,
+        Outcome::Matched(q) => q.min_eigenvalue >= min_information,
+        Outcome::Failed(_) | Outcome::Rejected(..) => false,
     }
 }
 
@@ -471,6 +500,36 @@ fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<boo
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_the_start_and_matches_that_pin_the_pose_down_count_in_the_mount_checks() {
+        let q = |min_eigenvalue: f64| crate::icp::Quality {
+            pairs: 200,
+            inlier_ratio: 1.0,
+            residual_rms: 0.002,
+            iterations: 5,
+            converged: true,
+            min_eigenvalue,
+            degenerate: false,
+            weak_direction: nalgebra::Vector3::y(),
+            covariance: None,
+            correction_translation: 0.0,
+            correction_rotation: 0.0,
+        };
+        let least = 0.02 * CHECK_INFORMATION_FACTOR;
+        assert!(pins_the_pose(&Outcome::First, least));
+        // The bench and floor-plan rooms' matches (0.15-0.28) count; the
+        // middle of the large room's (0.05-0.09, not degenerate) do not.
+        assert!(pins_the_pose(&Outcome::Matched(q(0.18)), least));
+        assert!(!pins_the_pose(&Outcome::Matched(q(0.07)), least));
+        let low = crate::icp::Rejection::LowInlierRatio {
+            ratio: 0.2,
+            min: 0.5,
+        };
+        assert!(!pins_the_pose(&Outcome::Rejected(low, q(0.3)), least));
+        let failed = crate::icp::IcpError::EmptyScan;
+        assert!(!pins_the_pose(&Outcome::Failed(failed), least));
+    }
 
     fn fit(deg: f64) -> TravelFit {
         TravelFit {
