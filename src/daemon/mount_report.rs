@@ -42,7 +42,7 @@ pub fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
             );
         }
         None => {
-            s += "# scanner_offset_x, scanner_offset_y: no half turn in place with matched scans\n"
+            s += "# scanner_offset_x, scanner_offset_y: no half turn in place over scans that pin the pose down (matched, firm in every direction)\n"
         }
     }
     match travel {
@@ -56,7 +56,7 @@ pub fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
                 f.scale * 100.0
             );
         }
-        None => s += "# scanner_yaw: no metre driven straight with matched scans\n",
+        None => s += "# scanner_yaw: no metre driven straight over scans that pin the pose down (matched, firm in every direction)\n",
     }
     if let Some(f) = travel {
         // A comment only: one metre measures the scale to a percent or two.
