@@ -261,6 +261,18 @@ fn hostile_inputs_name_the_key_or_line() {
             &["surface_hold", "u32"],
         ),
         (
+            // It also sets how firm a match must be to count in the mount
+            // checks (6 x this): a bad value must not reach them.
+            "a negative degeneracy threshold",
+            "[icp]\ndegeneracy_threshold = -0.02\n".into(),
+            &["icp.degeneracy_threshold", ">= 0"],
+        ),
+        (
+            "a NaN degeneracy threshold",
+            "[icp]\ndegeneracy_threshold = nan\n".into(),
+            &["icp.degeneracy_threshold"],
+        ),
+        (
             "unknown contact key",
             "[daemon.contact]\nbearing = 0.5\n".into(),
             &["bearing", "side_bearing"],
