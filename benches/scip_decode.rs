@@ -1,5 +1,5 @@
 //! Decoding one full 682-step URG-04LX MD scan: bytes → framer → checksums →
-//! typed reply → values (and → `LaserScan`). Prints its own median/p99 over
+//! typed reply → values (and → `LaserScan`, and deskewed). Prints its own median/p99 over
 //! 10,000 timed runs before criterion's estimate.
 //!
 //! `cargo bench --bench scip_decode -- --warm-up-time 1 --measurement-time 3`
@@ -138,6 +138,16 @@ fn main() {
     percentiles("md_scan_682 to LaserScan (bytes -> LaserScan)", || {
         decode_fill(&mut dec, black_box(&bytes), &params, &mut out)
     });
+    // The same scan deskewed as the daemon does for a robot turning at
+    // 0.78 rad/s and driving at 0.226 m/s (the scan decoded again each
+    // time: deskewing clears its beam timing).
+    let mount = sweepline::geom::pose(0.1, 0.0, 0.0);
+    let motion = sweepline::geom::pose(0.0226, 0.0009, 0.078);
+    percentiles("md_scan_682 to LaserScan, deskewed", || {
+        let n = decode_fill(&mut dec, black_box(&bytes), &params, &mut out);
+        sweepline::daemon::stages::deskew(&mut out, &motion, &mount);
+        n
+    });
     if let Some(gd) = real_gd_reply() {
         percentiles("real URG-04LX GD capture to LaserScan", || {
             decode_fill(&mut dec, black_box(&gd), &params, &mut out)
@@ -152,6 +162,12 @@ fn main() {
     });
     g.bench_function("md_scan_682_to_laserscan", |b| {
         b.iter(|| decode_fill(&mut dec, black_box(&bytes), &params, &mut out))
+    });
+    g.bench_function("md_scan_682_to_laserscan_deskewed", |b| {
+        b.iter(|| {
+            decode_fill(&mut dec, black_box(&bytes), &params, &mut out);
+            sweepline::daemon::stages::deskew(&mut out, &motion, &mount);
+        })
     });
     g.finish();
     c.final_summary();

@@ -201,6 +201,11 @@ fn urg_04lx_typed_values() {
             assert!((ls.beams[0].angle - (44.0 - 384.0) * step).abs() < 1e-12);
             assert!((ls.beams[681].angle - (725.0 - 384.0) * step).abs() < 1e-12);
             assert!(ls.beams.iter().all(|b| b.valid || b.intensity == 0.0));
+            // 600 rpm, 1024 steps a turn: the 682 beams swept one step
+            // (97.7 µs) apart, 66.5 ms from the first to the last.
+            assert_eq!(ls.first_beam_time, 0.0);
+            assert!((ls.beam_interval - 0.1 / 1024.0).abs() < 1e-15);
+            assert!((ls.beam_time(681) - 681.0 * 0.1 / 1024.0).abs() < 1e-12);
         }
         other => panic!("reply {i}: unexpected {other:?}"),
     });

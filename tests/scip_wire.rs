@@ -978,6 +978,11 @@ fn clustered_beams_point_at_the_centre_of_their_steps() {
         assert!((ls.beams[0].angle - (45.0 - 384.0) * inc).abs() < 1e-12);
         // The last value covers step 725 alone.
         assert!((ls.beams[227].angle - (725.0 - 384.0) * inc).abs() < 1e-12);
+        // Three steps a beam, each beam at its middle step: 97.7 µs after
+        // the first step, then 293 µs apart.
+        let tps = params.time_per_step();
+        assert!((ls.first_beam_time - tps).abs() < 1e-15);
+        assert!((ls.beam_interval - 3.0 * tps).abs() < 1e-15);
         assert!(ls
             .beams
             .iter()

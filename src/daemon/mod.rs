@@ -431,6 +431,7 @@ impl Daemon {
                 fit_mount: cfg.daemon.fit_scanner_mount,
                 check_min_information: cfg.icp.degeneracy_threshold
                     * stages::CHECK_INFORMATION_FACTOR,
+                deskew: cfg.daemon.deskew_scans,
                 points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
                 publish_keyframes: setup.state_dir.is_some(),

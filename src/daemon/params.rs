@@ -49,6 +49,12 @@ pub struct DaemonParams {
     /// stop the daemon above 3 cm or 3° (see [`super::offset_check`],
     /// [`super::travel_check`]).
     pub fit_scanner_mount: bool,
+    /// Move every beam of a scan to where the scanner was at the scan's
+    /// stamp, by the wheel odometry's motion, before matching and mapping:
+    /// the scanner measures its beams one after another (the URG-04LX's
+    /// sweep takes 67 ms), and a robot turning at 0.78 rad/s turns 3° in
+    /// that time (see [`crate::scan::LaserScan::deskew`]).
+    pub deskew_scans: bool,
     /// Bumper contact marks.
     pub contact: ContactParams,
 }
@@ -61,6 +67,7 @@ impl Default for DaemonParams {
             plan_interval: PLAN_INTERVAL,
             align_to_walls: true,
             fit_scanner_mount: true,
+            deskew_scans: true,
             contact: ContactParams::default(),
         }
     }

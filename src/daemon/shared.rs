@@ -8,6 +8,7 @@ use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
+use crate::daemon::messages::MOTION_WINDOW;
 use crate::geom::{carried, heading, interpolate, pose, Pose};
 
 /// How many odometry samples are kept for looking up the pose at a scan's time.
@@ -58,6 +59,15 @@ impl OdomLog {
             .back()
             .map(|s| s.1)
             .unwrap_or_else(Pose::identity)
+    }
+
+    /// The robot's motion over the [`MOTION_WINDOW`] that ends at clock
+    /// time `end`, or at the newest reading if that is earlier (in its frame
+    /// at the window's start): its velocity then.
+    pub fn motion_until(&self, end: f64) -> Pose {
+        let newest = lock(&self.inner).back().map_or(end, |s| s.0);
+        let end = end.min(newest);
+        self.at(end - MOTION_WINDOW).inverse() * self.at(end)
     }
 
     /// The odometry pose at clock time `t`, interpolated between the two

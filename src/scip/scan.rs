@@ -279,6 +279,8 @@ pub fn fill_laser_scan(
     out.beams.clear();
     out.stamp = stamp;
     out.seq = seq;
+    out.first_beam_time = 0.0;
+    out.beam_interval = 0.0;
     let family = params.family();
     let step_angle = params.step_angle();
     let front = f64::from(params.afrt);
@@ -300,6 +302,14 @@ pub fn fill_laser_scan(
             intensity,
             valid,
         };
+        if out.beams.is_empty() {
+            // Beams are measured one step after another from AMIN; the
+            // stamp is the time of the first step measured.
+            let tps = params.time_per_step();
+            out.first_beam_time =
+                params.time_of_step(centre) - params.time_of_step(f64::from(v.step));
+            out.beam_interval = f64::from(v.steps) * tps;
+        }
         out.beams.push(beam).map_err(|_| ScanError::TooManyBeams)?;
     }
     Ok(out.beams.len())

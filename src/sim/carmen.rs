@@ -116,6 +116,8 @@ impl LaserRecord {
             stamp: self.stamp,
             seq,
             beams: heapless::Vec::new(),
+            // The logs do not say when each beam was measured.
+            ..LaserScan::default()
         };
         let with_rem = self.remissions.len() == self.ranges.len();
         for (i, &r) in self.ranges.iter().enumerate().take(MAX_BEAMS) {

@@ -415,7 +415,7 @@ impl WorldScene {
 }
 
 impl Scene for WorldScene {
-    fn sample(&mut self, t: f64, angles: &[f64], out: &mut [Echo]) {
+    fn sample(&mut self, t: f64, step_time: f64, angles: &[f64], out: &mut [Echo]) {
         // The base emulator's true pose is the one it reached at its last
         // kinematics step, which may be before or after the scan's own time
         // `t` (the two emulator threads run independently): carry it to `t`
@@ -427,14 +427,16 @@ impl Scene for WorldScene {
         if let Ok(mut g) = self.seen.lock() {
             g.push((t, p));
         }
-        let sensor = p * self.mount;
-        let th = heading(&sensor);
-        let o = Point2::from(sensor.translation.vector);
         let turn = if self.upside_down { -1.0 } else { 1.0 };
         self.bodies.clear();
         self.bodies
             .extend_from_slice(lock_crowd(&self.crowd).bodies());
-        for (a, e) in angles.iter().zip(out.iter_mut()) {
+        for (k, (a, e)) in angles.iter().zip(out.iter_mut()).enumerate() {
+            // Each beam from where the sensor is when it is measured.
+            let at_beam = integrate(&p, &twist, k as f64 * step_time);
+            let sensor = at_beam * self.mount;
+            let th = heading(&sensor);
+            let o = Point2::from(sensor.translation.vector);
             *e = match cast_ray_among(&self.world, &self.bodies, &o, th + turn * a, URG_RANGE) {
                 Some(hit) => {
                     let r = hit.range + self.noise * self.gauss();

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use super::gone;
 use crate::daemon::align::{AlignStep, MAX_ALIGN_SCANS, MIN_AGREEMENT, MIN_WALL_EVIDENCE};
-use crate::daemon::messages::{MapMsg, PoseFix, ScanMsg};
+use crate::daemon::messages::{MapMsg, PoseFix, ScanMsg, MOTION_WINDOW};
 use crate::daemon::offset_check::{
     OffsetFit, OFFSET_FIT_MAX, OFFSET_STOP_UNFITTED, OFFSET_TOLERANCE,
 };
@@ -15,10 +15,11 @@ use crate::daemon::travel_check::{
     TravelFit, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
 };
 use crate::daemon::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
-use crate::geom::{heading, IPoint, Pose};
+use crate::geom::{heading, interpolate, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
+use crate::scan::LaserScan;
 
 /// The localise stage: intensity-ICP of each newest scan against the
 /// tracker's local map with the odometry prior; a rejected or failed match
@@ -51,6 +52,9 @@ pub struct LocaliseStage {
     /// ([`crate::icp::Quality::min_eigenvalue`]) for its scan to count in
     /// the offset and yaw checks (see [`pins_the_pose`]).
     pub check_min_information: f64,
+    /// Whether scans are deskewed by the odometry's motion before use
+    /// (`daemon.deskew_scans`).
+    pub deskew: bool,
     /// Reused point buffer.
     pub points: Vec<IPoint>,
     /// The restored map of a resumed run: the first scan is laid onto it
@@ -109,8 +113,11 @@ impl Stage for LocaliseStage {
         }
     }
 
-    fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, mut msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         ctx.note_age(msg.t0);
+        if self.deskew {
+            deskew(&mut msg.scan, &msg.motion, &self.mount);
+        }
         msg.scan.points_into(&mut self.points);
         self.shared
             .with_ahead(|a| a.load_scan(&msg.scan, &self.mount, msg.odom));
@@ -323,6 +330,16 @@ impl Stage for LocaliseStage {
     }
 }
 
+/// Moves the beams of `scan` to where the scanner was at its stamp, for a
+/// robot that moved by `motion` (its odometry over the
+/// [`MOTION_WINDOW`] before the stamp, in its frame then) at a steady
+/// velocity, with the scanner at `mount` on it.
+pub fn deskew(scan: &mut LaserScan, motion: &Pose, mount: &Pose) {
+    let back = mount.inverse();
+    let still = Pose::identity();
+    scan.deskew(|tau| back * interpolate(&still, motion, tau / MOTION_WINDOW) * mount);
+}
+
 /// How many times the information the matcher calls degenerate
 /// (`icp.degeneracy_threshold`) a match's weakest direction must hold for
 /// its scan to count in the mount checks. In the middle of a large room,
@@ -500,6 +517,56 @@ fn check_travel(fit: &TravelFit, wheel_radius: f64, may_fit: bool) -> Result<boo
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scan_swept_while_turning_in_place_is_moved_to_the_stamp_through_the_mount() {
+        use crate::scan::Beam;
+        // Scanner 0.12 m ahead of the axle, the robot turning in place at
+        // 0.78 rad/s; beams 97.7 µs apart over 67 ms.
+        let mount = crate::geom::pose(0.12, 0.0, 0.0);
+        let w = 0.78;
+        let robot_at = |tau: f64| crate::geom::pose(0.0, 0.0, w * tau);
+        let dt = 0.1 / 1024.0;
+        // A square room 4 m across around the axle, in the robot's frame at
+        // the stamp: from inside, a ray leaves it through the nearest of the
+        // four walls ahead.
+        let leave = |o: nalgebra::Vector2<f64>, d: nalgebra::Vector2<f64>| {
+            [(o.x, d.x), (o.y, d.y)]
+                .iter()
+                .flat_map(|&(p, v)| [(2.0 - p) / v, (-2.0 - p) / v])
+                .filter(|t| *t > 0.0)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut scan = LaserScan {
+            beam_interval: dt,
+            ..LaserScan::default()
+        };
+        let mut truth = Vec::new();
+        for k in 0..682 {
+            let tau = k as f64 * dt;
+            let sensor = robot_at(tau) * mount;
+            // The beam's direction in the world, then where it hits.
+            let a = -2.08 + k as f64 * (std::f64::consts::TAU / 1024.0);
+            let origin = sensor.translation.vector;
+            let dir = sensor.rotation * nalgebra::Vector2::new(a.cos(), a.sin());
+            let r = leave(origin, dir);
+            let hit = nalgebra::Point2::from(origin + dir * r);
+            truth.push(mount.inverse() * hit);
+            scan.beams.push(Beam::hit(a, r)).unwrap();
+        }
+        let worst = |s: &LaserScan| {
+            let mut pts = Vec::new();
+            s.points_into(&mut pts);
+            pts.iter()
+                .zip(&truth)
+                .map(|(p, t)| (p.xy() - t).norm())
+                .fold(0.0, f64::max)
+        };
+        assert!(worst(&scan) > 0.08, "{}", worst(&scan));
+        // The odometry's motion over the window: a tenth of a second of the turn.
+        deskew(&mut scan, &robot_at(MOTION_WINDOW), &mount);
+        assert!(worst(&scan) < 1e-6, "{}", worst(&scan));
+    }
 
     #[test]
     fn only_the_start_and_matches_that_pin_the_pose_down_count_in_the_mount_checks() {

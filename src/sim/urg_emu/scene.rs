@@ -26,8 +26,11 @@ pub enum Echo {
 /// A world the emulated scanner looks into.
 pub trait Scene: Send {
     /// Fills `out[i]` with the echo of the beam at `angles[i]` (rad, sensor
-    /// frame, counter-clockwise, 0 = front) at time `t` (s, emulator clock).
-    fn sample(&mut self, t: f64, angles: &[f64], out: &mut [Echo]);
+    /// frame, counter-clockwise, 0 = front), measured at time
+    /// `t + i × step_time` (s, emulator clock): the sensor sweeps its beams
+    /// one after the other, so a moving sensor sees each from where it is
+    /// then.
+    fn sample(&mut self, t: f64, step_time: f64, angles: &[f64], out: &mut [Echo]);
 }
 
 /// An axis-aligned rectangular room seen from a fixed sensor pose.
@@ -104,7 +107,7 @@ impl RectRoom {
 }
 
 impl Scene for RectRoom {
-    fn sample(&mut self, _t: f64, angles: &[f64], out: &mut [Echo]) {
+    fn sample(&mut self, _t: f64, _step_time: f64, angles: &[f64], out: &mut [Echo]) {
         for (a, o) in angles.iter().zip(out.iter_mut()) {
             *o = match self.trace(*a) {
                 Echo::Hit {
@@ -162,7 +165,7 @@ impl ReplayScan {
 }
 
 impl Scene for ReplayScan {
-    fn sample(&mut self, _t: f64, angles: &[f64], out: &mut [Echo]) {
+    fn sample(&mut self, _t: f64, _step_time: f64, angles: &[f64], out: &mut [Echo]) {
         for (a, o) in angles.iter().zip(out.iter_mut()) {
             let k = ((a - self.first_angle) / self.step_angle).round();
             *o = if k >= 0.0 && (k as usize) < self.values.len() && self.step_angle != 0.0 {
@@ -302,8 +305,8 @@ mod tests {
         let angles = [0.0, 0.5, 1.0];
         let mut a = [Echo::NoReturn; 3];
         let mut b = [Echo::NoReturn; 3];
-        RectRoom::bench(7).sample(0.0, &angles, &mut a);
-        RectRoom::bench(7).sample(0.0, &angles, &mut b);
+        RectRoom::bench(7).sample(0.0, 0.0, &angles, &mut a);
+        RectRoom::bench(7).sample(0.0, 0.0, &angles, &mut b);
         assert_eq!(a, b);
         let Echo::Hit { range, .. } = a[0] else {
             panic!()
@@ -340,7 +343,7 @@ mod tests {
             ],
         );
         let mut out = [Echo::NoReturn; 3];
-        s.sample(0.0, &[-1.1, 0.05, 9.0], &mut out);
+        s.sample(0.0, 0.0, &[-1.1, 0.05, 9.0], &mut out);
         assert_eq!(out[0], Echo::Error(7));
         assert!(matches!(out[1], Echo::Hit { .. }));
         assert_eq!(out[2], Echo::NoReturn);

@@ -726,7 +726,11 @@ impl Sensor {
             .extend((start..=end).map(|s| self.spec.angle(s)));
         self.echoes.clear();
         self.echoes.resize(self.angles.len(), Echo::NoReturn);
-        self.scene.sample(t, &self.angles, &mut self.echoes);
+        // Steps are measured one after another from the first one asked for,
+        // at the time of the stamp.
+        let step_time = self.spec.period() / f64::from(self.spec.ares.max(1));
+        self.scene
+            .sample(t, step_time, &self.angles, &mut self.echoes);
         let spec = &self.spec;
         let mut w = DataLineWriter::new(out);
         let steps = self.echoes.len();
