@@ -111,7 +111,7 @@ fn vendor_open_sequence_replies() {
         "MD0044072502001\n00P\n\n"
     );
     let mut out = Vec::new();
-    s.poll(0.25, &mut out);
+    s.poll(0.35, &mut out);
     let scan = String::from_utf8(out).unwrap();
     assert!(scan.starts_with("MD0044072502000\n99b\n"), "{scan}");
     assert_eq!(s.next_due(), None, "a one-scan request ends by itself");
@@ -161,7 +161,7 @@ fn utm_answers_me_and_urg_ff_mode_pairs_steps() {
         "ME0000108001101\n00P\n\n"
     );
     let mut out = Vec::new();
-    s.poll(0.03, &mut out);
+    s.poll(0.06, &mut out);
     let text = String::from_utf8(out).unwrap();
     assert!(text.starts_with("ME0000108001100\n99b\n"), "{text}");
     // 1081 steps x 6 characters.

@@ -126,15 +126,19 @@ fn md_scans_and_gd_share_the_revolution_grid() {
         send(&mut s, "MD0044072501001", 0.0),
         "MD0044072501001\n00P\n\n"
     );
-    assert_eq!(s.next_due(), Some(0.030));
-    let scan = poll(&mut s, 0.030);
+    // The revolution starting at 30 ms is sent when it ends, stamped at its
+    // start.
+    let due = s.next_due().unwrap();
+    assert!((due - 0.130).abs() < 1e-9, "{due}");
+    assert_eq!(poll(&mut s, 0.129), "", "not before its revolution ends");
+    let scan = poll(&mut s, due);
     assert!(scan.starts_with("MD0044072501000\n99b\n"), "{scan}");
     assert_eq!(stamp(&scan), 30);
-    send(&mut s, "BM", 0.05);
-    assert_eq!(send(&mut s, "GD0044072501", 0.05), "");
+    send(&mut s, "BM", 0.15);
+    assert_eq!(send(&mut s, "GD0044072501", 0.15), "");
     let due = s.next_due().unwrap();
-    assert!((due - 0.230).abs() < 1e-9, "{due}");
-    assert_eq!(stamp(&poll(&mut s, due)), 130);
+    assert!((due - 0.330).abs() < 1e-9, "{due}");
+    assert_eq!(stamp(&poll(&mut s, due)), 230);
     // A phase outside one period wraps; a nonsense one is ignored.
     s.set_revolution_phase(0.330);
     s.set_revolution_phase(f64::NAN);

@@ -404,6 +404,8 @@ struct WorldScene {
     crowd: Arc<Mutex<Crowd>>,
     /// Scratch: where the people are for this scan.
     bodies: Vec<Body>,
+    /// Scratch: the base's true poses since the scan's stamp.
+    path: Vec<(f64, Pose)>,
 }
 
 impl WorldScene {
@@ -423,7 +425,19 @@ impl Scene for WorldScene {
         // `now` made every scan ~40 ms older than its stamp at ×8-10.)
         let (at, truth) = self.base.truth_stamped();
         let twist = Twist::from_wheels(&to_cmd(self.base.wheels()), self.wheel_base);
-        let p = integrate(&truth, &twist, (t - at).clamp(-0.3, 0.3));
+        // A revolution's steps are looked up after it ends (the sensor sends
+        // it then): along the poses the base reached meanwhile, beyond the
+        // newest one along its current motion.
+        let mut path = std::mem::take(&mut self.path);
+        self.base.truth_since(t, &mut path);
+        let pose_at = |tau: f64| match path.partition_point(|h| h.0 <= tau) {
+            n if n > 0 && n < path.len() => {
+                let ((t0, p0), (t1, p1)) = (path[n - 1], path[n]);
+                crate::geom::interpolate(&p0, &p1, (tau - t0) / (t1 - t0).max(1e-9))
+            }
+            _ => integrate(&truth, &twist, (tau - at).clamp(-0.3, 0.3)),
+        };
+        let p = pose_at(t);
         if let Ok(mut g) = self.seen.lock() {
             g.push((t, p));
         }
@@ -433,7 +447,7 @@ impl Scene for WorldScene {
             .extend_from_slice(lock_crowd(&self.crowd).bodies());
         for (k, (a, e)) in angles.iter().zip(out.iter_mut()).enumerate() {
             // Each beam from where the sensor is when it is measured.
-            let at_beam = integrate(&p, &twist, k as f64 * step_time);
+            let at_beam = pose_at(t + k as f64 * step_time);
             let sensor = at_beam * self.mount;
             let th = heading(&sensor);
             let o = Point2::from(sensor.translation.vector);
@@ -448,6 +462,7 @@ impl Scene for WorldScene {
                 None => Echo::NoReturn,
             };
         }
+        self.path = path;
     }
 }
 
@@ -548,6 +563,7 @@ fn start_emulators(
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
         crowd,
         bodies: Vec::new(),
+        path: Vec::new(),
     };
     let ucfg = urg_emu::EmulatorConfig {
         faults: opts.urg_faults.clone(),

@@ -203,8 +203,15 @@ struct Faults {
     unplug_for: Option<f64>,
 }
 
+/// How far back (s) the emulator keeps the robot's true poses: longer than
+/// a scanner's revolution, whose steps are looked up after it ends.
+const TRUTH_HISTORY: f64 = 0.5;
+
 struct Shared {
     truth: Pose,
+    /// The true poses of the last [`TRUTH_HISTORY`] seconds, oldest first,
+    /// with the clock time each was reached.
+    history: std::collections::VecDeque<(f64, Pose)>,
     wheels: WheelSpeeds,
     targets: WheelSpeeds,
     stats: EmuStats,
@@ -243,6 +250,17 @@ impl EmulatorHandle {
     /// pose-error evaluation against timestamped estimates.
     pub fn truth_stamped(&self) -> (f64, Pose) {
         self.with(|s| (s.now, s.truth))
+    }
+
+    /// Fills `out` with the true poses reached from just before clock time
+    /// `from` on (with their times, oldest first; at most the last
+    /// half second): where the robot was while a scanner swept.
+    pub fn truth_since(&self, from: f64, out: &mut Vec<(f64, Pose)>) {
+        out.clear();
+        self.with(|s| {
+            let first = s.history.partition_point(|h| h.0 <= from).saturating_sub(1);
+            out.extend(s.history.range(first..).copied());
+        });
     }
 
     /// One human-readable status line: true pose, wheel speeds, counters.
@@ -331,6 +349,7 @@ pub fn spawn(
     let path = wire.client_path();
     let shared = Arc::new(Mutex::new(Shared {
         truth: cfg.start,
+        history: std::collections::VecDeque::new(),
         wheels: WheelSpeeds::STOP,
         targets: WheelSpeeds::STOP,
         stats: EmuStats::default(),
@@ -502,6 +521,11 @@ fn run(
         }
         was_bumped = body.bumper.any();
         s.truth = sim.pose();
+        let (t, p) = (s.now, s.truth);
+        s.history.push_back((t, p));
+        while s.history.front().is_some_and(|h| h.0 < t - TRUTH_HISTORY) {
+            s.history.pop_front();
+        }
         s.wheels = sim.wheel_speeds();
         s.targets = target;
         s.stats.device = device.stats();

@@ -265,7 +265,7 @@ impl Sensor {
 
     /// When the next scan or GD reply is due (emulator clock), if any.
     pub fn next_due(&self) -> Option<f64> {
-        let stream = self.stream.as_ref().map(|s| s.next);
+        let stream = self.stream.as_ref().map(|s| s.next + self.spec.period());
         let get = self.get.map(|g| g.due);
         match (stream, get) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -524,7 +524,7 @@ impl Sensor {
             return;
         }
         let get_first = match (self.get, self.stream.as_ref()) {
-            (Some(g), Some(s)) => g.due <= s.next,
+            (Some(g), Some(s)) => g.due <= s.next + self.spec.period(),
             _ => true,
         };
         if get_first {
@@ -576,14 +576,15 @@ impl Sensor {
         let Some(stream) = self.stream.as_mut() else {
             return;
         };
-        if now < stream.next {
+        // A revolution's scan is sent once it has been measured, as GD's is.
+        let p = self.spec.period();
+        if now < stream.next + p {
             return;
         }
-        let p = self.spec.period();
         let interval = p * f64::from(stream.req.skip + 1);
         let t = stream.next;
         // Revolutions that ended while we were late are lost, as on the sensor.
-        while stream.next <= now {
+        while stream.next + p <= now {
             stream.next += interval;
         }
         let remaining = match stream.remaining {
