@@ -63,9 +63,15 @@ impl OdomLog {
 
     /// The robot's motion over the [`MOTION_WINDOW`] that ends at clock
     /// time `end`, or at the newest reading if that is earlier (in its frame
-    /// at the window's start): its velocity then.
+    /// at the window's start): its velocity then. None (the identity) when
+    /// the newest reading is a whole window older than `end`: odometry
+    /// that stopped coming says nothing of the motion since (and with the
+    /// motor link gone the wheels stop).
     pub fn motion_until(&self, end: f64) -> Pose {
-        let newest = lock(&self.inner).back().map_or(end, |s| s.0);
+        let newest = lock(&self.inner).back().map_or(f64::NEG_INFINITY, |s| s.0);
+        if !(newest.is_finite() && end.is_finite()) || newest < end - MOTION_WINDOW {
+            return Pose::identity();
+        }
         let end = end.min(newest);
         self.at(end - MOTION_WINDOW).inverse() * self.at(end)
     }
@@ -356,6 +362,23 @@ mod tests {
         assert!((heading(&mid) - std::f64::consts::FRAC_PI_4).abs() < 1e-9);
         assert_eq!(log.at(5.0), log.latest());
         assert_eq!(log.at(f64::NAN), log.latest());
+    }
+
+    #[test]
+    fn the_motion_of_a_sweep_is_the_odometry_over_the_window_that_ends_with_it() {
+        let log = OdomLog::default();
+        assert_eq!(log.motion_until(1.0), Pose::identity(), "no odometry yet");
+        // Turning in place at 0.5 rad/s, a reading every 20 ms up to 1.0 s.
+        for k in 0..=50 {
+            log.push(k as f64 * 0.02, &pose(0.0, 0.0, 0.01));
+        }
+        let turn = |m: Pose| heading(&m) / MOTION_WINDOW;
+        assert!((turn(log.motion_until(0.9)) - 0.5).abs() < 1e-9);
+        // The sweep ends after the newest reading: the window ends there.
+        assert!((turn(log.motion_until(1.05)) - 0.5).abs() < 1e-9);
+        // Odometry a whole window stale: no motion assumed.
+        assert_eq!(log.motion_until(1.2), Pose::identity());
+        assert_eq!(log.motion_until(f64::NAN), Pose::identity());
     }
 
     #[test]

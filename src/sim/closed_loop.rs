@@ -418,16 +418,14 @@ impl WorldScene {
 
 impl Scene for WorldScene {
     fn sample(&mut self, t: f64, step_time: f64, angles: &[f64], out: &mut [Echo]) {
-        // The base emulator's true pose is the one it reached at its last
-        // kinematics step, which may be before or after the scan's own time
-        // `t` (the two emulator threads run independently): carry it to `t`
-        // along the current motion. (Taking it as the pose at the clock's
-        // `now` made every scan ~40 ms older than its stamp at ×8-10.)
+        // A revolution's steps are looked up after it ends (the sensor sends
+        // it then), each at its own time: between the true poses the base
+        // emulator reached meanwhile, and beyond the newest one (the two
+        // emulator threads run independently) along its current motion.
+        // (Taking the pose at the clock's `now` for a whole scan made every
+        // scan ~40 ms older than its stamp at ×8-10.)
         let (at, truth) = self.base.truth_stamped();
         let twist = Twist::from_wheels(&to_cmd(self.base.wheels()), self.wheel_base);
-        // A revolution's steps are looked up after it ends (the sensor sends
-        // it then): along the poses the base reached meanwhile, beyond the
-        // newest one along its current motion.
         let mut path = std::mem::take(&mut self.path);
         self.base.truth_since(t, &mut path);
         let pose_at = |tau: f64| match path.partition_point(|h| h.0 <= tau) {
