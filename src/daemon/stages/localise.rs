@@ -331,8 +331,8 @@ impl Stage for LocaliseStage {
 }
 
 /// Moves the beams of `scan` to where the scanner was at its stamp, for a
-/// robot that moved by `motion` (its odometry over the
-/// [`MOTION_WINDOW`] before the stamp, in its frame then) at a steady
+/// robot that moved by `motion` over a [`MOTION_WINDOW`] (its odometry
+/// over the window ending with the sweep, [`ScanMsg::motion`]) at a steady
 /// velocity, with the scanner at `mount` on it.
 pub fn deskew(scan: &mut LaserScan, motion: &Pose, mount: &Pose) {
     let back = mount.inverse();
