@@ -256,6 +256,12 @@ fn hostile_inputs_name_the_key_or_line() {
             &["retry_walled_floor", "boolean"],
         ),
         (
+            // A wrong type must not fall back to deskewing or not.
+            "deskewing scans: a word, not a boolean",
+            "[daemon]\ndeskew_scans = \"yes\"\n".into(),
+            &["deskew_scans", "boolean"],
+        ),
+        (
             "a negative surface hold",
             "[plan]\nsurface_hold = -1\n".into(),
             &["surface_hold", "u32"],
