@@ -18,12 +18,14 @@ pub struct Frame {
 impl Frame {
     /// Linear indices of the up to 8 cells around cell `i` that lie inside
     /// the frame (the grid's `NEIGHBOURS_8` order).
+    #[inline]
     pub fn neighbours8(&self, i: usize) -> impl Iterator<Item = usize> {
         crate::grid::neighbours8_of(i, self.w, self.h)
     }
 
     /// Linear indices of the cells at `offsets` (cells across, cells up)
     /// from cell `i` that lie inside the frame, in the order given.
+    #[inline]
     pub fn around<'a>(
         &self,
         i: usize,
@@ -39,6 +41,7 @@ impl Frame {
     }
 
     /// Linear index of the cell containing `p`, if inside.
+    #[inline]
     pub fn index_of(&self, p: &Point2<f64>) -> Option<usize> {
         let fx = (p.x - self.origin.x) / self.res;
         let fy = (p.y - self.origin.y) / self.res;
@@ -50,6 +53,7 @@ impl Frame {
     }
 
     /// Centre of cell `i`.
+    #[inline]
     pub fn centre(&self, i: usize) -> Point2<f64> {
         Point2::new(
             self.origin.x + ((i % self.w) as f64 + 0.5) * self.res,
@@ -58,6 +62,7 @@ impl Frame {
     }
 
     /// Number of cells.
+    #[inline]
     pub fn len(&self) -> usize {
         self.w * self.h
     }

@@ -179,6 +179,7 @@ fn square_offsets(radius: f64, r: f64) -> Vec<(i64, i64)> {
 
 /// Distance from point `p` to the square of side `res` centred at `c` (0
 /// inside it): how near a body centred at `p` comes to a whole grid cell.
+#[inline]
 fn square_gap(p: &Point2<f64>, c: &Point2<f64>, res: f64) -> f64 {
     let gx = ((p.x - c.x).abs() - 0.5 * res).max(0.0);
     let gy = ((p.y - c.y).abs() - 0.5 * res).max(0.0);
@@ -302,6 +303,7 @@ impl CSpace {
 
     /// Whether cell (`x`, `y`) has a free 8-neighbour: only obstacle and
     /// unexplored cells bordering free floor bound the clearance.
+    #[inline]
     fn borders_free(&self, x: i64, y: i64) -> bool {
         let (w, h) = (self.frame.w as i64, self.frame.h as i64);
         NEIGHBOURS.iter().any(|&(dx, dy, _)| {
@@ -312,6 +314,7 @@ impl CSpace {
 
     /// Distance (m, whole cells) of cell (`x`, `y`) from the grid's edge,
     /// which counts as unexplored.
+    #[inline]
     fn edge_distance(&self, x: usize, y: usize) -> f64 {
         let (w, h) = (self.frame.w, self.frame.h);
         x.min(w - 1 - x).min(y).min(h - 1 - y) as f64 * self.frame.res
