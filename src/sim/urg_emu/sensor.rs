@@ -263,9 +263,16 @@ impl Sensor {
         self.adjust
     }
 
+    /// When the streamed revolution now due is sent (emulator clock), if
+    /// streaming: once it has been measured, a period after it starts, as
+    /// a GD reply is.
+    fn stream_due(&self) -> Option<f64> {
+        self.stream.as_ref().map(|s| s.next + self.spec.period())
+    }
+
     /// When the next scan or GD reply is due (emulator clock), if any.
     pub fn next_due(&self) -> Option<f64> {
-        let stream = self.stream.as_ref().map(|s| s.next + self.spec.period());
+        let stream = self.stream_due();
         let get = self.get.map(|g| g.due);
         match (stream, get) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -523,8 +530,8 @@ impl Sensor {
         if self.hung {
             return;
         }
-        let get_first = match (self.get, self.stream.as_ref()) {
-            (Some(g), Some(s)) => g.due <= s.next + self.spec.period(),
+        let get_first = match (self.get, self.stream_due()) {
+            (Some(g), Some(sent)) => g.due <= sent,
             _ => true,
         };
         if get_first {
@@ -573,14 +580,13 @@ impl Sensor {
 
     /// Produces the scan due at or before `now`, if streaming.
     fn poll_stream(&mut self, now: f64, out: &mut Vec<u8>) {
+        if self.stream_due().is_none_or(|sent| now < sent) {
+            return;
+        }
+        let p = self.spec.period();
         let Some(stream) = self.stream.as_mut() else {
             return;
         };
-        // A revolution's scan is sent once it has been measured, as GD's is.
-        let p = self.spec.period();
-        if now < stream.next + p {
-            return;
-        }
         let interval = p * f64::from(stream.req.skip + 1);
         let t = stream.next;
         // Revolutions that ended while we were late are lost, as on the sensor.
