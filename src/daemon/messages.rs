@@ -23,6 +23,12 @@ pub struct ScanMsg {
     /// Odometry pose of the robot at `stamp` (odometry frame); the localise
     /// stage, which owns the scanner's mount, composes the scanner's.
     pub odom: Pose,
+    /// Whether an odometry reading came at or after `stamp`
+    /// ([`OdomLog::covers`]): only then is `odom` measured at the scan's
+    /// time, and equal to the previous scan's, says the robot stood still.
+    ///
+    /// [`OdomLog::covers`]: crate::daemon::shared::OdomLog::covers
+    pub odom_current: bool,
     /// Time between two scans when none is lost (s; 0 when unknown).
     pub interval: f64,
     /// The robot's odometry motion over [`MOTION_WINDOW`] ending at the

@@ -76,6 +76,16 @@ impl OdomLog {
         self.at(end - MOTION_WINDOW).inverse() * self.at(end)
     }
 
+    /// Whether a reading came at or after clock time `t`, so that [`Self::at`]
+    /// interpolates the pose at `t` rather than holding the newest reading.
+    /// Only then does a pose that did not change between two scans say the
+    /// robot stood still: odometry late or stopped says nothing of the
+    /// motion since.
+    pub fn covers(&self, t: f64) -> bool {
+        let newest = lock(&self.inner).back().map_or(f64::NEG_INFINITY, |s| s.0);
+        newest.is_finite() && t.is_finite() && newest >= t
+    }
+
     /// The odometry pose at clock time `t`, interpolated between the two
     /// samples around it (the oldest or newest one outside the history).
     pub fn at(&self, t: f64) -> Pose {
@@ -362,6 +372,10 @@ mod tests {
         assert!((heading(&mid) - std::f64::consts::FRAC_PI_4).abs() < 1e-9);
         assert_eq!(log.at(5.0), log.latest());
         assert_eq!(log.at(f64::NAN), log.latest());
+        // Up to the newest reading the pose is measured; past it, held.
+        assert!(log.covers(0.5) && log.covers(2.0));
+        assert!(!log.covers(2.01) && !log.covers(f64::NAN));
+        assert!(!OdomLog::default().covers(0.0), "no reading yet");
     }
 
     #[test]

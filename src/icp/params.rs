@@ -77,7 +77,9 @@ pub struct IcpParams {
     /// increment arrives, in [0, 1): 0 = raw increments. Logged odometry is
     /// sampled with timing jitter (the step per scan alternates short/long);
     /// smoothing its translation gives a better prior along weakly constrained
-    /// directions (corridors).
+    /// directions (corridors). Live odometry (the daemon's, read at each
+    /// scan's own time: [`crate::icp::Tracker::note_live_odometry`]) is taken
+    /// as measured.
     pub odometry_smoothing: f64,
     /// Share of the scan-to-scan estimate in the reported pose, in [0, 1): each
     /// scan is also matched against the previous one and the reported pose is

@@ -82,6 +82,8 @@ pub struct Tracker {
     odom_step: Option<Vector2<f64>>,
     /// The next scan comes after a gap (see [`Tracker::note_gap`]).
     after_gap: bool,
+    /// The next step's odometry is live (see [`Tracker::note_live_odometry`]).
+    live_odometry: bool,
     started: bool,
     /// The reported (fused) pose; equals `pose` when `scan_fusion` is 0.
     reported: Pose,
@@ -106,6 +108,7 @@ impl Tracker {
             scans_since_anchor: 0,
             odom_step: None,
             after_gap: false,
+            live_odometry: false,
             started: false,
             reported: start,
             previous: Reference::new(),
@@ -170,6 +173,19 @@ impl Tracker {
         self.odom_step = None;
         self.velocity = Pose::identity();
         self.previous.clear();
+    }
+
+    /// Says that the next step's odometry was read at its scan's own time
+    /// from a base whose readings are still coming: a reading equal to the
+    /// previous one then means the robot stood still, and the scan is
+    /// matched from the previous pose. Without this, a repeated reading is
+    /// taken for a stalled log (which says nothing of the motion) and the
+    /// constant-velocity prior is used: a robot standing in a corridor,
+    /// where the scans do not pin the pose along it, then slid along it
+    /// with each match's small correction carried on as a velocity (131 mm
+    /// in 30 s in `tests/icp_standstill.rs`).
+    pub fn note_live_odometry(&mut self) {
+        self.live_odometry = true;
     }
 
     /// The current pose estimate (the reported pose of the last step).
@@ -247,10 +263,17 @@ impl Tracker {
     ) -> Step {
         self.finish_keyframe();
         // A fresh odometry reading predicts from the pose where the previous
-        // distinct reading first appeared; a stalled (repeated) reading says
-        // nothing, so the constant-velocity prior is used instead.
+        // distinct reading first appeared; a stalled (repeated) reading of a
+        // log says nothing, so the constant-velocity prior is used instead.
+        // A live reading is taken as measured, a repeated one too (a
+        // standstill), and the logs' timing jitter is not smoothed out of it.
+        let live = std::mem::take(&mut self.live_odometry);
         self.scans_since_anchor = self.scans_since_anchor.saturating_add(1);
         let fresh_odom = match (odom, self.odom_anchor) {
+            // Live readings are taken at the scan's own time: as measured.
+            (Some(now), Some((before, at))) if live => {
+                Some((*now, unit(at * before.inverse() * now)))
+            }
             (Some(now), Some((before, at))) if *now != before => Some((
                 *now,
                 unit(at * self.smoothed_increment(&(before.inverse() * now))),

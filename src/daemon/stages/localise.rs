@@ -209,6 +209,9 @@ impl Stage for LocaliseStage {
         let before = self.tracker.pose();
         let restored = self.tracker.map().len();
         let robot_odom = msg.odom;
+        if msg.odom_current {
+            self.tracker.note_live_odometry();
+        }
         // The keyframe (a k-d tree rebuild) is added after the pose is handed on.
         let step = self
             .tracker

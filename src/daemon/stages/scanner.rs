@@ -44,6 +44,7 @@ impl Stage for ScannerStage {
             work.scan.mirror();
         }
         let odom = self.shared.odom.at(work.scan.stamp);
+        let odom_current = self.shared.odom.covers(work.scan.stamp);
         // The velocity while the beams were swept: over the window ending
         // at the last beam, or at the newest odometry reading.
         let scan = &work.scan;
@@ -54,6 +55,7 @@ impl Stage for ScannerStage {
             t0,
             stamp: work.scan.stamp,
             odom,
+            odom_current,
             interval: work.interval,
             motion,
             scan: work.scan,
