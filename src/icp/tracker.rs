@@ -271,8 +271,13 @@ impl Tracker {
         self.scans_since_anchor = self.scans_since_anchor.saturating_add(1);
         let fresh_odom = match (odom, self.odom_anchor) {
             // Live readings are taken at the scan's own time: as measured.
+            // The step is kept, so that a log-style reading (late odometry)
+            // after them is smoothed from the motion then, not an old one.
             (Some(now), Some((before, at))) if live => {
-                Some((*now, unit(at * before.inverse() * now)))
+                let inc = before.inverse() * now;
+                let scans = f64::from(self.scans_since_anchor.max(1));
+                self.odom_step = Some(inc.translation.vector / scans);
+                Some((*now, unit(at * inc)))
             }
             (Some(now), Some((before, at))) if *now != before => Some((
                 *now,
