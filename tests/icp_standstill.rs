@@ -10,7 +10,7 @@
 use sweepline::config::Config;
 use sweepline::geom::{pose, Pose};
 use sweepline::icp::synth::{cast, room, ScanSpec, Wall};
-use sweepline::icp::{IcpParams, Outcome, Tracker};
+use sweepline::icp::{IcpParams, Outcome, Step, Tracker};
 
 /// The shipped `[icp]` settings: the daemon's.
 fn params() -> IcpParams {
@@ -41,6 +41,20 @@ fn pacing(t: f64) -> f64 {
     0.3 + if s < span { s } else { 2.0 * span - s }
 }
 
+/// One tracking step on a scan cast in `walls` from `at` (noise seed
+/// `seed`), with the odometry equal to `at`, marked live when `live`.
+fn scan_step(tracker: &mut Tracker, walls: &[Wall], at: &Pose, seed: u64, live: bool) -> Step {
+    let spec = ScanSpec {
+        seed,
+        ..ScanSpec::default()
+    };
+    let scan = cast(walls, at, &spec);
+    if live {
+        tracker.note_live_odometry();
+    }
+    tracker.step(&scan, Some(at))
+}
+
 /// Runs 30 s of scans (10 Hz) from the true poses `truth(k)`, with the
 /// odometry equal to the truth and marked live; a person paces beside the
 /// robot from the second second when `with_person`. Returns the largest
@@ -55,16 +69,7 @@ fn run(truth: impl Fn(u64) -> Pose, with_person: bool) -> (f64, usize) {
             walls.extend(person(0.7, pacing(k as f64 * 0.1)));
         }
         let at = truth(k);
-        let scan = cast(
-            &walls,
-            &at,
-            &ScanSpec {
-                seed: k,
-                ..ScanSpec::default()
-            },
-        );
-        tracker.note_live_odometry();
-        let step = tracker.step(&scan, Some(&at));
+        let step = scan_step(&mut tracker, &walls, &at, k, true);
         matched += usize::from(matches!(step.outcome, Outcome::Matched(_)));
         worst = worst.max((step.pose.translation.vector - at.translation.vector).norm());
     }
@@ -117,19 +122,8 @@ fn late_odometry_after_a_standstill_is_smoothed_from_the_standstill() {
     let mut k = 0u64;
     let mut scan_at = |tracker: &mut Tracker, y: f64, live: bool| {
         let at = pose(1.3, y, heading);
-        let scan = cast(
-            &corridor,
-            &at,
-            &ScanSpec {
-                seed: k,
-                ..ScanSpec::default()
-            },
-        );
+        let step = scan_step(tracker, &corridor, &at, k, live);
         k += 1;
-        if live {
-            tracker.note_live_odometry();
-        }
-        let step = tracker.step(&scan, Some(&at));
         (step.pose.translation.vector - at.translation.vector).norm()
     };
     scan_at(&mut tracker, y, false);
