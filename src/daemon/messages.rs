@@ -25,7 +25,8 @@ pub struct ScanMsg {
     pub odom: Pose,
     /// Whether an odometry reading came at or after `stamp`
     /// ([`OdomLog::covers`]): only then is `odom` measured at the scan's
-    /// time, and equal to the previous scan's, says the robot stood still.
+    /// time, and an `odom` equal to the previous scan's says the robot
+    /// stood still.
     ///
     /// [`OdomLog::covers`]: crate::daemon::shared::OdomLog::covers
     pub odom_current: bool,

@@ -178,7 +178,10 @@ impl Tracker {
     /// Says that the next step's odometry was read at its scan's own time
     /// from a base whose readings are still coming: a reading equal to the
     /// previous one then means the robot stood still, and the scan is
-    /// matched from the previous pose. Without this, a repeated reading is
+    /// matched from the previous pose; a changed one is taken as measured,
+    /// not smoothed (`odometry_smoothing` is for the logs' timing jitter; a
+    /// smoothed step lags when the robot starts and overshoots when it
+    /// stops). Without this, a repeated reading is
     /// taken for a stalled log (which says nothing of the motion) and the
     /// constant-velocity prior is used: a robot standing in a corridor,
     /// where the scans do not pin the pose along it, then slid along it
