@@ -68,7 +68,7 @@ impl OdomLog {
     /// that stopped coming says nothing of the motion since (and with the
     /// motor link gone the wheels stop).
     pub fn motion_until(&self, end: f64) -> Pose {
-        let newest = lock(&self.inner).back().map_or(f64::NEG_INFINITY, |s| s.0);
+        let newest = self.newest_time();
         if !(newest.is_finite() && end.is_finite()) || newest < end - MOTION_WINDOW {
             return Pose::identity();
         }
@@ -82,8 +82,13 @@ impl OdomLog {
     /// robot stood still: odometry late or stopped says nothing of the
     /// motion since.
     pub fn covers(&self, t: f64) -> bool {
-        let newest = lock(&self.inner).back().map_or(f64::NEG_INFINITY, |s| s.0);
+        let newest = self.newest_time();
         newest.is_finite() && t.is_finite() && newest >= t
+    }
+
+    /// Clock time of the newest reading (-∞ before the first).
+    fn newest_time(&self) -> f64 {
+        lock(&self.inner).back().map_or(f64::NEG_INFINITY, |s| s.0)
     }
 
     /// The odometry pose at clock time `t`, interpolated between the two
