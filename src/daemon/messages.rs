@@ -24,11 +24,11 @@ pub struct ScanMsg {
     /// stage, which owns the scanner's mount, composes the scanner's.
     pub odom: Pose,
     /// Whether an odometry reading came at or after `stamp`
-    /// ([`OdomLog::covers`]): only then is `odom` measured at the scan's
-    /// time, and an `odom` equal to the previous scan's says the robot
+    /// ([`ScanOdometry::current`]): only then is `odom` measured at the
+    /// scan's time, and an `odom` equal to the previous scan's says the robot
     /// stood still.
     ///
-    /// [`OdomLog::covers`]: crate::daemon::shared::OdomLog::covers
+    /// [`ScanOdometry::current`]: crate::daemon::shared::ScanOdometry::current
     pub odom_current: bool,
     /// Time between two scans when none is lost (s; 0 when unknown).
     pub interval: f64,

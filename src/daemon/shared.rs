@@ -61,59 +61,87 @@ impl OdomLog {
             .unwrap_or_else(Pose::identity)
     }
 
-    /// The robot's motion over the [`MOTION_WINDOW`] that ends at clock
-    /// time `end`, or at the newest reading if that is earlier (in its frame
-    /// at the window's start): its velocity then. None (the identity) when
-    /// the newest reading is a whole window older than `end`: odometry
-    /// that stopped coming says nothing of the motion since (and with the
-    /// motor link gone the wheels stop).
-    pub fn motion_until(&self, end: f64) -> Pose {
-        let newest = self.newest_time();
-        if !(newest.is_finite() && end.is_finite()) || newest < end - MOTION_WINDOW {
-            return Pose::identity();
-        }
-        let end = end.min(newest);
-        self.at(end - MOTION_WINDOW).inverse() * self.at(end)
-    }
-
-    /// Whether a reading came at or after clock time `t`, so that [`Self::at`]
-    /// interpolates the pose at `t` rather than holding the newest reading.
-    /// Only then does a pose that did not change between two scans say the
-    /// robot stood still: odometry late or stopped says nothing of the
-    /// motion since.
-    pub fn covers(&self, t: f64) -> bool {
-        let newest = self.newest_time();
-        newest.is_finite() && t.is_finite() && newest >= t
-    }
-
-    /// Clock time of the newest reading (-∞ before the first).
-    fn newest_time(&self) -> f64 {
-        lock(&self.inner).back().map_or(f64::NEG_INFINITY, |s| s.0)
-    }
-
     /// The odometry pose at clock time `t`, interpolated between the two
-    /// samples around it (the oldest or newest one outside the history).
+    /// readings around it (the oldest or newest one outside the history).
     pub fn at(&self, t: f64) -> Pose {
-        let q = lock(&self.inner);
-        let Some(&(tn, pn)) = q.back() else {
-            return Pose::identity();
-        };
-        if t >= tn || !t.is_finite() {
-            return pn;
-        }
-        let mut after = (tn, pn);
-        for &(ts, ps) in q.iter().rev() {
-            if ts <= t {
-                let span = after.0 - ts;
-                if !(span.is_finite() && span > 0.0) {
-                    return ps;
-                }
-                return interpolate(&ps, &after.1, (t - ts) / span);
-            }
-            after = (ts, ps);
-        }
-        after.1
+        pose_at(&lock(&self.inner), t)
     }
+
+    /// The odometry paired with a scan stamped `stamp` whose last beam came
+    /// at `sweep_end`, read under one lock so that its parts agree (a
+    /// reading arriving between two reads could otherwise mark a held pose
+    /// as measured).
+    pub fn for_scan(&self, stamp: f64, sweep_end: f64) -> ScanOdometry {
+        let q = lock(&self.inner);
+        ScanOdometry {
+            pose: pose_at(&q, stamp),
+            current: covers(&q, stamp),
+            motion: motion_until(&q, sweep_end),
+        }
+    }
+}
+
+/// The odometry a scan is paired with ([`OdomLog::for_scan`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScanOdometry {
+    /// The odometry pose at the scan's time, interpolated between the two
+    /// readings around it (the newest reading when none came after it).
+    pub pose: Pose,
+    /// Whether a reading came at or after the scan's time, so that `pose`
+    /// is interpolated rather than held at the newest reading. Only then
+    /// does a pose that did not change between two scans say the robot stood
+    /// still: odometry late or stopped says nothing of the motion since.
+    pub current: bool,
+    /// The robot's motion over the [`MOTION_WINDOW`] that ends with the
+    /// sweep, or at the newest reading if that is earlier (in its frame at
+    /// the window's start): its velocity then. The identity when the newest
+    /// reading is a whole window older than the sweep's end: odometry that
+    /// stopped coming says nothing of the motion since (and with the motor
+    /// link gone the wheels stop).
+    pub motion: Pose,
+}
+
+/// Clock time of the newest reading (-∞ before the first).
+fn newest_time(q: &VecDeque<(f64, Pose)>) -> f64 {
+    q.back().map_or(f64::NEG_INFINITY, |s| s.0)
+}
+
+/// See [`ScanOdometry::current`].
+fn covers(q: &VecDeque<(f64, Pose)>, t: f64) -> bool {
+    let newest = newest_time(q);
+    newest.is_finite() && t.is_finite() && newest >= t
+}
+
+/// See [`ScanOdometry::motion`].
+fn motion_until(q: &VecDeque<(f64, Pose)>, end: f64) -> Pose {
+    let newest = newest_time(q);
+    if !(newest.is_finite() && end.is_finite()) || newest < end - MOTION_WINDOW {
+        return Pose::identity();
+    }
+    let end = end.min(newest);
+    pose_at(q, end - MOTION_WINDOW).inverse() * pose_at(q, end)
+}
+
+/// See [`OdomLog::at`].
+fn pose_at(q: &VecDeque<(f64, Pose)>, t: f64) -> Pose {
+    let Some(&(tn, pn)) = q.back() else {
+        return Pose::identity();
+    };
+    if t >= tn || !t.is_finite() {
+        return pn;
+    }
+    let mut after = (tn, pn);
+    for &(ts, ps) in q.iter().rev() {
+        if ts <= t {
+            let span = after.0 - ts;
+            if !(span.is_finite() && span > 0.0) {
+                return ps;
+            }
+            return interpolate(&ps, &after.1, (t - ts) / span);
+        }
+        after = (ts, ps);
+    }
+    after.1
 }
 
 /// Where the follower is on which path, for the planner.
@@ -372,32 +400,37 @@ mod tests {
         log.push(2.0, &pose(1.0, 0.0, 0.0));
         let p = log.latest();
         assert!((p.translation.x - 1.0).abs() < 1e-9 && (p.translation.y - 1.0).abs() < 1e-9);
-        let mid = log.at(0.5);
+        let at = |t: f64| log.for_scan(t, t);
+        let mid = at(0.5).pose;
         assert!((mid.translation.x - 0.5).abs() < 1e-9, "{mid:?}");
         assert!((heading(&mid) - std::f64::consts::FRAC_PI_4).abs() < 1e-9);
-        assert_eq!(log.at(5.0), log.latest());
-        assert_eq!(log.at(f64::NAN), log.latest());
+        assert_eq!(at(5.0).pose, log.latest());
+        assert_eq!(at(f64::NAN).pose, log.latest());
         // Up to the newest reading the pose is measured; past it, held.
-        assert!(log.covers(0.5) && log.covers(2.0));
-        assert!(!log.covers(2.01) && !log.covers(f64::NAN));
-        assert!(!OdomLog::default().covers(0.0), "no reading yet");
+        assert!(at(0.5).current && at(2.0).current);
+        assert!(!at(2.01).current && !at(f64::NAN).current);
+        assert!(
+            !OdomLog::default().for_scan(0.0, 0.0).current,
+            "no reading yet"
+        );
     }
 
     #[test]
     fn the_motion_of_a_sweep_is_the_odometry_over_the_window_that_ends_with_it() {
         let log = OdomLog::default();
-        assert_eq!(log.motion_until(1.0), Pose::identity(), "no odometry yet");
+        let motion_until = |end: f64| log.for_scan(end - 0.1, end).motion;
+        assert_eq!(motion_until(1.0), Pose::identity(), "no odometry yet");
         // Turning in place at 0.5 rad/s, a reading every 20 ms up to 1.0 s.
         for k in 0..=50 {
             log.push(k as f64 * 0.02, &pose(0.0, 0.0, 0.01));
         }
         let turn = |m: Pose| heading(&m) / MOTION_WINDOW;
-        assert!((turn(log.motion_until(0.9)) - 0.5).abs() < 1e-9);
+        assert!((turn(motion_until(0.9)) - 0.5).abs() < 1e-9);
         // The sweep ends after the newest reading: the window ends there.
-        assert!((turn(log.motion_until(1.05)) - 0.5).abs() < 1e-9);
+        assert!((turn(motion_until(1.05)) - 0.5).abs() < 1e-9);
         // Odometry a whole window stale: no motion assumed.
-        assert_eq!(log.motion_until(1.2), Pose::identity());
-        assert_eq!(log.motion_until(f64::NAN), Pose::identity());
+        assert_eq!(motion_until(1.2), Pose::identity());
+        assert_eq!(motion_until(f64::NAN), Pose::identity());
     }
 
     #[test]

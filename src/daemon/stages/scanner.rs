@@ -43,21 +43,19 @@ impl Stage for ScannerStage {
         if self.upside_down {
             work.scan.mirror();
         }
-        let odom = self.shared.odom.at(work.scan.stamp);
-        let odom_current = self.shared.odom.covers(work.scan.stamp);
         // The velocity while the beams were swept: over the window ending
         // at the last beam, or at the newest odometry reading.
         let scan = &work.scan;
         let last = scan.beam_time(scan.beams.len().saturating_sub(1));
         let sweep_end = scan.stamp + scan.first_beam_time.max(last);
-        let motion = self.shared.odom.motion_until(sweep_end);
+        let odom = self.shared.odom.for_scan(scan.stamp, sweep_end);
         let msg = ScanMsg {
             t0,
             stamp: work.scan.stamp,
-            odom,
-            odom_current,
+            odom: odom.pose,
+            odom_current: odom.current,
             interval: work.interval,
-            motion,
+            motion: odom.motion,
             scan: work.scan,
         };
         ctx.hand_off();
