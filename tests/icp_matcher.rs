@@ -2,27 +2,14 @@
 //! point-to-point ICP, quality report.
 
 use sweepline::geom::{pose, IPoint, Pose};
-use sweepline::icp::synth::{cast, cast_seeded, cast_world, room, ScanSpec, Wall};
+use sweepline::icp::synth::{
+    cast, cast_seeded, cast_world, l_room_with_pillar, wall_points, ScanSpec, Wall,
+};
 use sweepline::icp::{IcpParams, Matcher, Metric, Reference};
 
-/// An L-shaped room with a pillar: no symmetry, every direction constrained.
+/// The L-shaped room with a pillar: every direction constrained.
 fn scene() -> Vec<Wall> {
-    let mut w = vec![
-        Wall::new(0.0, 0.0, 6.0, 0.0, 0.5),
-        Wall::new(6.0, 0.0, 6.0, 2.5, 0.5),
-        Wall::new(6.0, 2.5, 3.5, 2.5, 0.5),
-        Wall::new(3.5, 2.5, 3.5, 4.0, 0.5),
-        Wall::new(3.5, 4.0, 0.0, 4.0, 0.5),
-        Wall::new(0.0, 4.0, 0.0, 0.0, 0.5),
-    ];
-    w.extend(room(0.4, 0.4, 0.5).into_iter().map(|mut x| {
-        x.segment.a.x += 1.5;
-        x.segment.b.x += 1.5;
-        x.segment.a.y += 1.2;
-        x.segment.b.y += 1.2;
-        x
-    }));
-    w
+    l_room_with_pillar()
 }
 
 fn err(a: &Pose, b: &Pose) -> (f64, f64) {
@@ -108,15 +95,7 @@ fn tracker_follows_a_path_against_an_external_map() {
     // every wall of the scene (with their reflectivity).
     use sweepline::icp::{Outcome, Tracker};
     let walls = scene();
-    let mut map = Vec::new();
-    for w in &walls {
-        let n = (w.segment.length() / 0.02).ceil() as usize;
-        for k in 0..=n {
-            let t = k as f64 / n as f64;
-            let p = w.segment.a + (w.segment.b - w.segment.a) * t;
-            map.push(IPoint::new(p.x, p.y, w.intensity));
-        }
-    }
+    let map = wall_points(&walls, 0.02);
     let params = IcpParams::default();
     let mut reference = Reference::new();
     reference.rebuild(&map, &params).unwrap();

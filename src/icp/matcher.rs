@@ -38,8 +38,10 @@ pub struct Quality {
     pub degenerate: bool,
     /// Unit eigenvector (dx, dy, r·dθ) of the smallest eigenvalue.
     pub weak_direction: Vector3<f64>,
-    /// Covariance of (x, y, θ) (m², rad²), from residual variance and the
-    /// information matrix; `None` when degenerate.
+    /// Covariance of the pose's (x, y, θ) in the reference frame (m², rad²),
+    /// from the residual variance and the information matrix; `None` when
+    /// degenerate. `tests/icp_covariance.rs` checks it against the spread of
+    /// many matches.
     pub covariance: Option<Matrix3<f64>>,
     /// Distance between the result and the initial guess (m).
     pub correction_translation: f64,
@@ -126,6 +128,8 @@ struct Pair {
 #[derive(Debug)]
 pub struct Matcher {
     params: IcpParams,
+    /// [`trimmed_variance_share`] of `params.trim_fraction`.
+    trimmed_share: f64,
     scan: Vec<IPoint>,
     pairs: Vec<Pair>,
     tmp: Vec<f64>,
@@ -136,6 +140,7 @@ impl Matcher {
     pub fn new(params: IcpParams) -> Result<Self, ConfigError> {
         params.validate()?;
         Ok(Self {
+            trimmed_share: trimmed_variance_share(params.trim_fraction),
             params,
             scan: Vec::with_capacity(MAX_BEAMS),
             pairs: Vec::with_capacity(MAX_BEAMS),
@@ -340,9 +345,13 @@ impl Matcher {
         let covariance = if info.degenerate {
             None
         } else {
+            // The residuals left after trimming are the smallest ones: their
+            // mean square understates the noise's variance.
             let n = self.pairs.len() as f64;
-            let sigma2 = residual_rms * residual_rms * n / (n - 3.0).max(1.0);
-            info.raw.try_inverse().map(|inv| inv * sigma2)
+            let sigma2 = residual_rms * residual_rms * n / (n - 3.0).max(1.0) / self.trimmed_share;
+            info.raw
+                .try_inverse()
+                .map(|inv| about_origin(&inv, &pose, &info.centre) * sigma2)
         };
         let dpos = (pose.translation.vector - guess.translation.vector).norm();
         let drot = crate::geom::wrap_angle(pose.rotation.angle() - guess.rotation.angle()).abs();
@@ -547,6 +556,51 @@ fn apply_about(pose: &Pose, c: &Vector2<f64>, dx: f64, dy: f64, dth: f64) -> Pos
     crate::geom::pose(p.translation.x, p.translation.y, p.rotation.angle())
 }
 
+/// The share of a normal distribution's variance left in the central
+/// `kept` fraction of it: E[z² ; |z| < a] / `kept` with P(|z| < a) =
+/// `kept`, for z standard normal (1 when nothing is trimmed). Trimming the
+/// worst pairs leaves residuals whose mean square is this share of the
+/// noise's variance (0.62 when a tenth is trimmed).
+fn trimmed_variance_share(kept: f64) -> f64 {
+    if !(kept > 0.0 && kept < 1.0) {
+        return 1.0;
+    }
+    let pdf = |z: f64| (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    // P(|z| < a) by Simpson's rule over [0, a]: smooth, so 64 steps give
+    // it to about 1e-10.
+    let central = |a: f64| {
+        let n = 64;
+        let h = a / n as f64;
+        let mut s = pdf(0.0) + pdf(a);
+        for k in 1..n {
+            s += pdf(k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+        }
+        2.0 * s * h / 3.0
+    };
+    let (mut lo, mut hi) = (0.0, 10.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if central(mid) < kept {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let a = 0.5 * (lo + hi);
+    // E[z² ; |z| < a] = P(|z| < a) − 2 a φ(a) (by parts).
+    (kept - 2.0 * a * pdf(a)) / kept
+}
+
+/// The covariance `cov` of a correction taken about world point `c` (a
+/// rotation about `c`, then a translation), carried to the pose's own
+/// (x, y, θ): a rotation δθ about `c` moves the pose's origin `o` by
+/// δθ·(−(o − c).y, (o − c).x) on top of the translation.
+fn about_origin(cov: &Matrix3<f64>, pose: &Pose, c: &Vector2<f64>) -> Matrix3<f64> {
+    let v = pose.translation.vector - c;
+    let a = Matrix3::new(1.0, 0.0, -v.y, 0.0, 1.0, v.x, 0.0, 0.0, 1.0);
+    a * cov * a.transpose()
+}
+
 fn centroid_radius(pairs: &[Pair], pose: &Pose) -> (Vector2<f64>, f64) {
     let n = pairs.len().max(1) as f64;
     let mut c = Vector2::zeros();
@@ -645,4 +699,19 @@ fn residual_rms(pairs: &[Pair], reference: &Reference, pose: &Pose, metric: Metr
         };
     }
     (s / pairs.len().max(1) as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trimmed_variance_share_is_the_truncated_normals() {
+        assert_eq!(trimmed_variance_share(1.0), 1.0);
+        // a = 1.6449 (the 95th percentile): (0.9 − 2 a φ(a)) / 0.9.
+        assert!((trimmed_variance_share(0.9) - 0.62302).abs() < 1e-4);
+        // a = 0.6745 (the quartile): (0.5 − 2 a φ(a)) / 0.5.
+        assert!((trimmed_variance_share(0.5) - 0.14265).abs() < 1e-4);
+        assert!(trimmed_variance_share(0.999) < 1.0);
+    }
 }

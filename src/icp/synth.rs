@@ -140,6 +140,41 @@ pub fn room(w: f64, h: f64, intensity: f64) -> Vec<Wall> {
     ]
 }
 
+/// An L-shaped room (6 × 4 m, the upper right 2.5 × 1.5 m cut away) with a
+/// 0.4 m square pillar: no symmetry, every direction of a match constrained.
+pub fn l_room_with_pillar() -> Vec<Wall> {
+    let mut w = vec![
+        Wall::new(0.0, 0.0, 6.0, 0.0, 0.5),
+        Wall::new(6.0, 0.0, 6.0, 2.5, 0.5),
+        Wall::new(6.0, 2.5, 3.5, 2.5, 0.5),
+        Wall::new(3.5, 2.5, 3.5, 4.0, 0.5),
+        Wall::new(3.5, 4.0, 0.0, 4.0, 0.5),
+        Wall::new(0.0, 4.0, 0.0, 0.0, 0.5),
+    ];
+    w.extend(room(0.4, 0.4, 0.5).into_iter().map(|mut x| {
+        for p in [&mut x.segment.a, &mut x.segment.b] {
+            p.x += 1.5;
+            p.y += 1.2;
+        }
+        x
+    }));
+    w
+}
+
+/// Points every `step` (m) or closer along every wall, with its
+/// reflectivity: a dense, noise-free map of `walls` to match against.
+pub fn wall_points(walls: &[Wall], step: f64) -> Vec<IPoint> {
+    let mut pts = Vec::new();
+    for w in walls {
+        let n = (w.segment.length() / step).ceil().max(1.0) as usize;
+        for k in 0..=n {
+            let p = w.segment.a + (w.segment.b - w.segment.a) * (k as f64 / n as f64);
+            pts.push(IPoint::new(p.x, p.y, w.intensity));
+        }
+    }
+    pts
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
