@@ -52,6 +52,19 @@ pub fn polar(origin: Point2<f64>, angle: f64, r: f64) -> Point2<f64> {
     origin + Vector2::new(angle.cos(), angle.sin()) * r
 }
 
+/// Points from `a` to `b` every `step` (m) or less, both ends included (one
+/// step when the segment is shorter than `step`): samples of a segment for
+/// a test along it, or a map of it.
+pub fn points_along(
+    a: Point2<f64>,
+    b: Point2<f64>,
+    step: f64,
+) -> impl Iterator<Item = Point2<f64>> {
+    let d = b - a;
+    let n = (d.norm() / step).ceil().max(1.0) as usize;
+    (0..=n).map(move |k| a + d * (k as f64 / n as f64))
+}
+
 /// Wraps an angle into (-π, π].
 pub fn wrap_angle(a: f64) -> f64 {
     let mut r = a % std::f64::consts::TAU;

@@ -7,11 +7,6 @@ use sweepline::icp::synth::{
 };
 use sweepline::icp::{IcpParams, Matcher, Metric, Reference};
 
-/// The L-shaped room with a pillar: every direction constrained.
-fn scene() -> Vec<Wall> {
-    l_room_with_pillar()
-}
-
 fn err(a: &Pose, b: &Pose) -> (f64, f64) {
     let d = a.inverse() * b;
     (d.translation.vector.norm(), d.rotation.angle().abs())
@@ -19,7 +14,7 @@ fn err(a: &Pose, b: &Pose) -> (f64, f64) {
 
 #[test]
 fn converges_to_the_true_pose_with_both_metrics() {
-    let walls = scene();
+    let walls = l_room_with_pillar();
     let truth = pose(2.0, 1.5, 0.3);
     let refpts = cast_world(&walls, &pose(2.2, 1.4, 0.2), 7);
     let scan = cast_seeded(&walls, &truth, 8);
@@ -55,7 +50,7 @@ fn converges_to_the_true_pose_with_both_metrics() {
 #[test]
 fn converges_far_from_the_origin() {
     // World coordinates hundreds of metres away (as in the benchmark logs).
-    let walls: Vec<Wall> = scene()
+    let walls: Vec<Wall> = l_room_with_pillar()
         .into_iter()
         .map(|mut w| {
             for p in [&mut w.segment.a, &mut w.segment.b] {
@@ -94,7 +89,7 @@ fn tracker_follows_a_path_against_an_external_map() {
     // The map layer's points stand in as the reference: dense points along
     // every wall of the scene (with their reflectivity).
     use sweepline::icp::{Outcome, Tracker};
-    let walls = scene();
+    let walls = l_room_with_pillar();
     let map = wall_points(&walls, 0.02);
     let params = IcpParams::default();
     let mut reference = Reference::new();
@@ -131,7 +126,7 @@ fn tracker_follows_a_path_against_an_external_map() {
 
 #[test]
 fn prior_weight_holds_the_translation_to_the_guess() {
-    let walls = scene();
+    let walls = l_room_with_pillar();
     let truth = pose(2.0, 1.5, 0.3);
     let params = IcpParams::default();
     let mut reference = Reference::new();
@@ -220,7 +215,7 @@ fn smoothed_odometry_reduces_jitter_along_a_corridor() {
 #[test]
 fn scan_fusion_makes_consecutive_poses_consistent() {
     use sweepline::icp::{Outcome, Tracker};
-    let walls = scene();
+    let walls = l_room_with_pillar();
     let mut state = 5u64;
     let mut noise = || {
         state = state

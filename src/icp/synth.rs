@@ -4,7 +4,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::geom::{IPoint, Pose, Segment};
+use crate::geom::{points_along, IPoint, Pose, Segment};
 
 /// A wall: a segment and the intensity it returns.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -164,15 +164,12 @@ pub fn l_room_with_pillar() -> Vec<Wall> {
 /// Points every `step` (m) or closer along every wall, with its
 /// reflectivity: a dense, noise-free map of `walls` to match against.
 pub fn wall_points(walls: &[Wall], step: f64) -> Vec<IPoint> {
-    let mut pts = Vec::new();
-    for w in walls {
-        let n = (w.segment.length() / step).ceil().max(1.0) as usize;
-        for k in 0..=n {
-            let p = w.segment.a + (w.segment.b - w.segment.a) * (k as f64 / n as f64);
-            pts.push(IPoint::new(p.x, p.y, w.intensity));
-        }
-    }
-    pts
+    walls
+        .iter()
+        .flat_map(|w| {
+            points_along(w.segment.a, w.segment.b, step).map(|p| IPoint::new(p.x, p.y, w.intensity))
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -104,13 +104,8 @@ fn component(cs: &CSpace, start: usize, label: u32, labels: &mut [u32]) -> Vec<u
 /// Whether the straight segment `a`–`b` stays on traversable cells
 /// (sampled every quarter cell).
 fn segment_traversable(cs: &CSpace, a: &Point2<f64>, b: &Point2<f64>) -> bool {
-    let d = b - a;
-    let n = ((d.norm() / (cs.frame.res * 0.25)).ceil() as usize).max(1);
-    (0..=n).all(|k| {
-        cs.frame
-            .index_of(&(a + d * (k as f64 / n as f64)))
-            .is_some_and(|i| cs.traversable[i])
-    })
+    crate::geom::points_along(*a, *b, cs.frame.res * 0.25)
+        .all(|p| cs.frame.index_of(&p).is_some_and(|i| cs.traversable[i]))
 }
 
 /// String-pulls a cell path where it runs over traversable cells; through

@@ -17,6 +17,7 @@ use std::sync::{Mutex, MutexGuard};
 
 use nalgebra::{Point2, Vector2};
 
+use crate::geom::points_along;
 use crate::sim::world::{RayHit, World};
 
 /// Gap (m) between a walker and the robot's body within which the walker
@@ -163,12 +164,6 @@ impl Walker {
             .windows(2)
             .flat_map(move |w| points_along(w[0], w[1], step))
     }
-}
-
-/// Points from `a` to `b` every `step` metres or less, both ends included.
-fn points_along(a: Point2<f64>, b: Point2<f64>, step: f64) -> impl Iterator<Item = Point2<f64>> {
-    let n = ((b - a).norm() / step).ceil().max(1.0) as usize;
-    (0..=n).map(move |k| a + (b - a) * (k as f64 / n as f64))
 }
 
 /// Locks the people shared between the emulators and the sampler, even if a

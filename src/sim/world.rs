@@ -156,12 +156,8 @@ impl WallIndex {
         let ny = (((hi.y - lo.y) / cell).ceil() as usize).max(1);
         let mut buckets = vec![Vec::new(); nx * ny];
         for (i, w) in walls.iter().enumerate() {
-            let (a, b) = (w.seg.a, w.seg.b);
-            let len = (b - a).norm();
-            let n = ((len / (cell * 0.25)).ceil() as usize).max(1);
             let pad = cell * 0.3;
-            for k in 0..=n {
-                let p = a + (b - a) * (k as f64 / n as f64);
+            for p in crate::geom::points_along(w.seg.a, w.seg.b, cell * 0.25) {
                 let bucket = |v: f64, o: f64, m: usize| {
                     (((v - o) / cell).floor().max(0.0) as usize).min(m - 1)
                 };

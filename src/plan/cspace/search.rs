@@ -349,10 +349,8 @@ impl CSpace {
 
     /// The dearest extra cost factor along the segment `a`–`b`.
     fn segment_extra(&self, a: &Point2<f64>, b: &Point2<f64>) -> f32 {
-        let d = b - a;
-        let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
-        (0..=n)
-            .filter_map(|k| self.frame.index_of(&(a + d * (k as f64 / n as f64))))
+        crate::geom::points_along(*a, *b, self.frame.res * 0.25)
+            .filter_map(|p| self.frame.index_of(&p))
             .map(|i| self.extra_at(i))
             .fold(0.0, f32::max)
     }

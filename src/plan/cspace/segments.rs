@@ -61,8 +61,6 @@ impl CSpace {
     /// included, a quarter cell or less apart: no cell the segment crosses
     /// by more than a corner is missed.
     fn samples(&self, a: &Point2<f64>, b: &Point2<f64>) -> impl Iterator<Item = Point2<f64>> {
-        let (a, d) = (*a, b - a);
-        let n = ((d.norm() / (self.frame.res * 0.25)).ceil() as usize).max(1);
-        (0..=n).map(move |k| a + d * (k as f64 / n as f64))
+        crate::geom::points_along(*a, *b, self.frame.res * 0.25)
     }
 }

@@ -106,9 +106,7 @@ impl CoveragePlanner {
         let f = self.cspace.frame;
         let radius = self.reach + f.res * 0.5;
         for l in ls {
-            let n = ((l.length() / (f.res * 0.5)).ceil() as usize).max(1);
-            for k in 0..=n {
-                let p = l.a + (l.b - l.a) * (k as f64 / n as f64);
+            for p in crate::geom::points_along(l.a, l.b, f.res * 0.5) {
                 for j in cells_within(f, &p, &self.reach_disk, radius) {
                     self.targets[j] = false;
                 }
