@@ -436,6 +436,7 @@ impl Daemon {
                 relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
                 publish_keyframes: setup.state_dir.is_some(),
                 last_stamp: None,
+                unmatched_run: 0,
                 align: (setup.resume.is_none() && cfg.daemon.align_to_walls)
                     .then(align::WallAlign::new),
                 turn_check: turn_check::TurnCheck::default(),

@@ -96,6 +96,15 @@ pub struct IcpParams {
     pub max_correction_translation: f64,
     /// A match that corrects the initial guess by more than this (rad) is rejected.
     pub max_correction_rotation: f64,
+    /// With live odometry (the daemon's, [`crate::icp::Tracker::note_live_odometry`]),
+    /// a match may move the pose at most this far (m) from the odometry's
+    /// prediction per scan since the last accepted match: the wheels cannot
+    /// be off by more than a few centimetres over one scan period, so a
+    /// larger jump is a match drawn onto the wrong walls (a large room whose
+    /// far walls lie out of range). The limit grows with each rejected
+    /// scan, so a real offset (wheels slipping) is taken in a few scans.
+    /// 0 = only `max_correction_translation`.
+    pub live_correction: f64,
 }
 
 impl Default for IcpParams {
@@ -129,6 +138,7 @@ impl Default for IcpParams {
             keyframe_window: 6,
             max_correction_translation: 1.0,
             max_correction_rotation: 0.7,
+            live_correction: 0.05,
         }
     }
 }
@@ -207,6 +217,12 @@ impl IcpParams {
             self.max_correction_translation,
         )?;
         positive("icp.max_correction_rotation", self.max_correction_rotation)?;
+        if !(self.live_correction.is_finite() && self.live_correction >= 0.0) {
+            return Err(invalid(
+                "icp.live_correction",
+                "must be a finite number of metres >= 0 (0 = off)",
+            ));
+        }
         Ok(())
     }
 }
@@ -234,7 +250,7 @@ mod tests {
 
     #[test]
     fn bad_values_name_their_key() {
-        let cases: [(IcpParams, &str); 6] = [
+        let cases: [(IcpParams, &str); 7] = [
             (
                 IcpParams {
                     odometry_smoothing: 1.0,
@@ -277,6 +293,13 @@ mod tests {
                     ..IcpParams::default()
                 },
                 "icp.keyframe_window",
+            ),
+            (
+                IcpParams {
+                    live_correction: -0.05,
+                    ..IcpParams::default()
+                },
+                "icp.live_correction",
             ),
         ];
         for (p, key) in cases {

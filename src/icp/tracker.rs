@@ -93,6 +93,14 @@ pub struct Tracker {
     /// added: the scan-to-map pose it is added at (its points are the
     /// matcher's prepared points until the next step).
     pending_keyframe: Option<Pose>,
+    /// Scans since the last accepted match, while every scan since came
+    /// with live odometry (`None`: at the start, after a gap, a new pose or
+    /// a logged reading): how far `live_correction` lets the next match
+    /// move the pose from the odometry's prediction.
+    since_accept: Option<u32>,
+    /// The scan-to-map pose of the last accepted match (meaningful while
+    /// `since_accept` is `Some`).
+    accepted_at: Pose,
 }
 
 impl Tracker {
@@ -113,6 +121,8 @@ impl Tracker {
             reported: start,
             previous: Reference::new(),
             pending_keyframe: None,
+            since_accept: None,
+            accepted_at: start,
         })
     }
 
@@ -158,6 +168,7 @@ impl Tracker {
         self.odom_anchor = None;
         self.scans_since_anchor = 0;
         self.odom_step = None;
+        self.since_accept = None;
     }
 
     /// Says that the next scan follows the previous one after a gap (scans
@@ -170,6 +181,7 @@ impl Tracker {
     /// simulated runs one such match then locked on up to 1.4 m off.
     pub fn note_gap(&mut self) {
         self.after_gap = true;
+        self.since_accept = None;
         self.odom_step = None;
         self.velocity = Pose::identity();
         self.previous.clear();
@@ -331,7 +343,33 @@ impl Tracker {
             (Prior::Odometry, Some(_)) => self.matcher.params().prior_weight,
             _ => 0.0,
         };
-        let step = self.register(prepared.map(|_| ()), guess, weight, alt, external);
+        let live_limit = match (live && !gap, self.since_accept) {
+            (true, Some(n)) if self.matcher.params().live_correction > 0.0 => {
+                Some(self.matcher.params().live_correction * f64::from(n.saturating_add(1)))
+            }
+            _ => None,
+        };
+        let armed = live && !gap && self.since_accept.is_some() && external.is_none();
+        let mut step = self.register(
+            prepared.map(|_| ()),
+            (guess, weight),
+            alt,
+            live_limit,
+            external,
+        );
+        if armed && self.bridges(&step.outcome) {
+            self.pending_keyframe = Some(self.map_pose);
+            step.keyframe = true;
+        }
+        let accepted = matches!(step.outcome, Outcome::Matched(_));
+        if accepted {
+            self.accepted_at = self.map_pose;
+        }
+        self.since_accept = match (live, accepted) {
+            (false, _) => None,
+            (true, true) => Some(0),
+            (true, false) => self.since_accept.map(|n| n.saturating_add(1)),
+        };
         if gap {
             // The motion across the gap is no per-scan velocity: the next
             // scan, if its odometry is stale (wheels held), stays put.
@@ -367,26 +405,50 @@ impl Tracker {
         crate::geom::pose(t.x, t.y, inc.rotation.angle())
     }
 
-    /// Matches the prepared scan from `guess`; when that match is rejected or
-    /// fails, retries once from `alt` (if different) and keeps the better.
+    /// Matches the prepared scan from `guess` (with the prior's weight);
+    /// when that match is rejected or fails, retries once from `alt` (if
+    /// different) and keeps the better. A match that moves the pose farther
+    /// than `live_limit` (m) from `guess` is rejected (see
+    /// [`IcpParams::live_correction`]).
     fn register(
         &mut self,
         prepared: Result<(), IcpError>,
-        guess: Pose,
-        weight: f64,
+        (guess, weight): (Pose, f64),
         alt: Pose,
+        live_limit: Option<f64>,
         external: Option<&Reference>,
     ) -> Step {
         if let Err(e) = prepared {
             return self.predict(guess, Outcome::Failed(e));
         }
-        let first = self.try_match(&guess, weight, external);
+        // Both variants are plain stack values used once, as in `try_match`.
+        #[allow(clippy::result_large_err)]
+        let within = |m: super::Match| match live_limit {
+            Some(limit) => {
+                let moved = (m.pose.translation.vector - guess.translation.vector).norm();
+                if moved > limit {
+                    Err(Outcome::Rejected(
+                        Rejection::TooLargeCorrection {
+                            translation: moved,
+                            rotation: m.quality.correction_rotation,
+                        },
+                        m.quality,
+                    ))
+                } else {
+                    Ok(m)
+                }
+            }
+            None => Ok(m),
+        };
+        let first = self.try_match(&guess, weight, external).and_then(within);
         let outcome = match first {
             Ok(m) => Ok(m),
-            Err(bad) if alt != guess => match self.try_match(&alt, 0.0, external) {
-                Ok(m) => Ok(m),
-                Err(bad2) => Err(better_failure(bad, bad2)),
-            },
+            Err(bad) if alt != guess => {
+                match self.try_match(&alt, 0.0, external).and_then(within) {
+                    Ok(m) => Ok(m),
+                    Err(bad2) => Err(better_failure(bad, bad2)),
+                }
+            }
             Err(bad) => Err(bad),
         };
         match outcome {
@@ -503,6 +565,28 @@ impl Tracker {
         {
             self.previous.clear();
         }
+    }
+
+    /// Whether a scan that found too little of the local map to match
+    /// becomes a keyframe at the odometry's pose: the robot turned or
+    /// stepped towards walls the keyframe window lacks (a frontier faced in
+    /// a large room, an occluder gone), and it moved too little since the
+    /// last accepted match (`keyframe_distance`, `keyframe_angle`) for
+    /// the live odometry to be off. Without this the next scans, seeing the
+    /// same, fail too, and nothing new ever enters the local map: a robot
+    /// waiting to see that frontier waits for ever. A scan that fits badly
+    /// (high residual, too large a correction) is never bridged.
+    fn bridges(&self, outcome: &Outcome) -> bool {
+        let little = matches!(
+            outcome,
+            Outcome::Failed(IcpError::TooFewPairs { .. })
+                | Outcome::Rejected(Rejection::LowInlierRatio { .. }, _)
+        );
+        let params = self.matcher.params();
+        let d = self.accepted_at.inverse() * self.map_pose;
+        little
+            && d.translation.vector.norm() <= params.keyframe_distance
+            && d.rotation.angle().abs() <= params.keyframe_angle
     }
 
     /// Whether the scan just matched at `map_pose` is far enough from the
@@ -652,6 +736,111 @@ mod tests {
             error = error.max((step.pose.translation.vector - truth(k).translation.vector).norm());
         }
         (correction, error)
+    }
+
+    /// The robot really moved 0.2 m that its live odometry missed (wheels
+    /// slipping): the scans say so at once, but `live_correction` takes a
+    /// jump that large only after a few scans, its limit growing by 5 cm a
+    /// scan; without live odometry, or with the limit off, at once.
+    fn scans_until_an_unseen_slide_is_taken(live: bool, live_correction: f64) -> usize {
+        let mut walls = room(4.0, 3.0, 0.5);
+        walls.push(Wall::new(2.5, 1.0, 2.5, 2.0, 0.9));
+        let start = pose(1.0, 1.5, 0.1);
+        let params = IcpParams {
+            live_correction,
+            ..IcpParams::default()
+        };
+        let mut t = Tracker::new(params, start).unwrap();
+        let odom = pose(0.0, 0.0, 0.0);
+        for k in 0..5 {
+            if live {
+                t.note_live_odometry();
+            }
+            let step = t.step(&cast_seeded(&walls, &start, k), Some(&odom));
+            assert!(matches!(step.outcome, Outcome::First | Outcome::Matched(_)));
+        }
+        let slid = start * pose(0.2, 0.0, 0.0);
+        for k in 0..8u64 {
+            if live {
+                t.note_live_odometry();
+            }
+            let step = t.step(&cast_seeded(&walls, &slid, 10 + k), Some(&odom));
+            match step.outcome {
+                Outcome::Matched(_) => {
+                    let err = (step.pose.translation.vector - slid.translation.vector).norm();
+                    assert!(err < 0.01, "taken {err:.3} m off");
+                    return k as usize;
+                }
+                Outcome::Rejected(Rejection::TooLargeCorrection { translation, .. }, _) => {
+                    assert!(translation > 0.15, "{translation}");
+                    let held = (step.pose.translation.vector - start.translation.vector).norm();
+                    assert!(held < 0.01, "held at the odometry: {held:.3} m");
+                }
+                other => panic!("scan {k}: {other:?}"),
+            }
+        }
+        panic!("never taken");
+    }
+
+    /// A robot standing boxed in (a screen around it) while its local map
+    /// forms; the screen is lifted and the room's walls, a metre and more
+    /// beyond it, share nothing with that map. With live odometry the
+    /// first such scan becomes a keyframe where the wheels say the robot
+    /// stands, and the next one matches it; from logged odometry no scan
+    /// ever matches again.
+    fn scans_matched_after_the_view_opens(live: bool) -> usize {
+        let room_walls = room(6.0, 4.0, 0.5);
+        let mut boxed = room_walls.clone();
+        boxed.extend([
+            Wall::new(2.5, 1.5, 3.5, 1.5, 0.5),
+            Wall::new(3.5, 1.5, 3.5, 2.5, 0.5),
+            Wall::new(3.5, 2.5, 2.5, 2.5, 0.5),
+            Wall::new(2.5, 2.5, 2.5, 1.5, 0.5),
+        ]);
+        let at = pose(3.0, 2.0, 0.3);
+        let odom = pose(0.0, 0.0, 0.0);
+        let mut t = Tracker::new(IcpParams::default(), at).unwrap();
+        for k in 0..4 {
+            if live {
+                t.note_live_odometry();
+            }
+            t.step(&cast_seeded(&boxed, &at, k), Some(&odom));
+        }
+        let mut matched = 0;
+        for k in 0..6 {
+            if live {
+                t.note_live_odometry();
+            }
+            let step = t.step(&cast_seeded(&room_walls, &at, 10 + k), Some(&odom));
+            let err = (step.pose.translation.vector - at.translation.vector).norm();
+            // From logged odometry (a repeated reading is a stalled log)
+            // the pose moves on at the last velocity: held only when live.
+            assert!(!live || err < 0.02, "scan {k}: {err:.3} m off");
+            if k == 0 {
+                assert!(
+                    matches!(step.outcome, Outcome::Failed(IcpError::TooFewPairs { .. })),
+                    "{:?}",
+                    step.outcome
+                );
+                assert_eq!(step.keyframe, live, "bridged only with live odometry");
+            }
+            matched += usize::from(matches!(step.outcome, Outcome::Matched(_)));
+        }
+        matched
+    }
+
+    #[test]
+    fn a_view_opening_onto_unmapped_walls_is_bridged_by_live_odometry() {
+        assert_eq!(scans_matched_after_the_view_opens(true), 5);
+        assert_eq!(scans_matched_after_the_view_opens(false), 0);
+    }
+
+    #[test]
+    fn a_live_match_far_from_the_odometry_is_taken_only_as_its_limit_grows() {
+        // 0.2 m: over 0.05, 0.10 and 0.15, within 0.20 at the fourth scan.
+        assert_eq!(scans_until_an_unseen_slide_is_taken(true, 0.05), 3);
+        assert_eq!(scans_until_an_unseen_slide_is_taken(true, 0.0), 0);
+        assert_eq!(scans_until_an_unseen_slide_is_taken(false, 0.05), 0);
     }
 
     #[test]

@@ -65,6 +65,9 @@ pub struct LocaliseStage {
     pub publish_keyframes: bool,
     /// Stamp of the previous scan localised (s).
     pub last_stamp: Option<f64>,
+    /// Scans in a row whose match was not accepted (the pose followed the
+    /// odometry), for the warning that names why.
+    pub unmatched_run: u32,
     /// At a fresh start, until decided: turns the map frame to the walls
     /// of the first scans before tracking starts (see [`crate::daemon::align`]).
     pub align: Option<crate::daemon::align::WallAlign>,
@@ -98,6 +101,10 @@ const GAP_INTERVALS: f64 = 1.5;
 
 /// A gap at least this long (s) is logged.
 const GAP_LOGGED: f64 = 1.0;
+
+/// Unmatched scans in a row after which (and after each further as many)
+/// a warning names the last reason: ten seconds of a URG-04LX's scans.
+const UNMATCHED_WARN: u32 = 100;
 
 impl Stage for LocaliseStage {
     type Work = ScanMsg;
@@ -217,6 +224,28 @@ impl Stage for LocaliseStage {
             .tracker
             .step_deferred(&self.points, Some(&(robot_odom * self.mount)));
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        self.unmatched_run = if matched {
+            if self.unmatched_run >= UNMATCHED_WARN {
+                log::info!(
+                    "localise: scans match again after {} that did not",
+                    self.unmatched_run
+                );
+            }
+            0
+        } else {
+            self.unmatched_run.saturating_add(1)
+        };
+        if self.unmatched_run > 0 && self.unmatched_run.is_multiple_of(UNMATCHED_WARN) {
+            let why = match step.outcome {
+                Outcome::Failed(e) => e.to_string(),
+                Outcome::Rejected(r, _) => format!("rejected: {r}"),
+                _ => String::new(),
+            };
+            log::warn!(
+                "localise: {} scans in a row not matched, the pose follows the wheels and the scans stay out of the map (last: {why})",
+                self.unmatched_run
+            );
+        }
         let pinned = pins_the_pose(&step.outcome, self.check_min_information);
         if resuming {
             let how = match step.outcome {
