@@ -93,14 +93,12 @@ pub struct Tracker {
     /// added: the scan-to-map pose it is added at (its points are the
     /// matcher's prepared points until the next step).
     pending_keyframe: Option<Pose>,
-    /// Scans since the last accepted match, while every scan since came
-    /// with live odometry (`None`: at the start, after a gap, a new pose or
-    /// a logged reading): how far `live_correction` lets the next match
-    /// move the pose from the odometry's prediction.
-    since_accept: Option<u32>,
-    /// The scan-to-map pose of the last accepted match (meaningful while
-    /// `since_accept` is `Some`).
-    accepted_at: Pose,
+    /// The scans since the last accepted match and its scan-to-map pose,
+    /// while every scan since came with live odometry (`None`: at the
+    /// start, after a gap, a new pose or a logged reading): how far
+    /// `live_correction` lets the next match move the pose from the
+    /// odometry's prediction, and whether a scan may be bridged.
+    since_accept: Option<(u32, Pose)>,
 }
 
 impl Tracker {
@@ -122,7 +120,6 @@ impl Tracker {
             previous: Reference::new(),
             pending_keyframe: None,
             since_accept: None,
-            accepted_at: start,
         })
     }
 
@@ -344,12 +341,15 @@ impl Tracker {
             _ => 0.0,
         };
         let live_limit = match (live && !gap, self.since_accept) {
-            (true, Some(n)) if self.matcher.params().live_correction > 0.0 => {
+            (true, Some((n, _))) if self.matcher.params().live_correction > 0.0 => {
                 Some(self.matcher.params().live_correction * f64::from(n.saturating_add(1)))
             }
             _ => None,
         };
-        let armed = live && !gap && self.since_accept.is_some() && external.is_none();
+        let armed = match self.since_accept {
+            Some((_, at)) if live && !gap && external.is_none() => Some(at),
+            _ => None,
+        };
         let mut step = self.register(
             prepared.map(|_| ()),
             (guess, weight),
@@ -357,18 +357,15 @@ impl Tracker {
             live_limit,
             external,
         );
-        if armed && self.bridges(&step.outcome) {
+        if armed.is_some_and(|at| self.bridges(&step.outcome, &at)) {
             self.pending_keyframe = Some(self.map_pose);
             step.keyframe = true;
         }
         let accepted = matches!(step.outcome, Outcome::Matched(_));
-        if accepted {
-            self.accepted_at = self.map_pose;
-        }
         self.since_accept = match (live, accepted) {
             (false, _) => None,
-            (true, true) => Some(0),
-            (true, false) => self.since_accept.map(|n| n.saturating_add(1)),
+            (true, true) => Some((0, self.map_pose)),
+            (true, false) => self.since_accept.map(|(n, at)| (n.saturating_add(1), at)),
         };
         if gap {
             // The motion across the gap is no per-scan velocity: the next
@@ -571,19 +568,19 @@ impl Tracker {
     /// becomes a keyframe at the odometry's pose: the robot turned or
     /// stepped towards walls the keyframe window lacks (a frontier faced in
     /// a large room, an occluder gone), and it moved too little since the
-    /// last accepted match (`keyframe_distance`, `keyframe_angle`) for
-    /// the live odometry to be off. Without this the next scans, seeing the
-    /// same, fail too, and nothing new ever enters the local map: a robot
-    /// waiting to see that frontier waits for ever. A scan that fits badly
-    /// (high residual, too large a correction) is never bridged.
-    fn bridges(&self, outcome: &Outcome) -> bool {
+    /// last accepted match, at `at` (`keyframe_distance`, `keyframe_angle`),
+    /// for the live odometry to be off. Without this the next scans, seeing
+    /// the same, fail too, and nothing new ever enters the local map: a
+    /// robot waiting to see that frontier waits for ever. A scan that fits
+    /// badly (high residual, too large a correction) is never bridged.
+    fn bridges(&self, outcome: &Outcome, at: &Pose) -> bool {
         let little = matches!(
             outcome,
             Outcome::Failed(IcpError::TooFewPairs { .. })
                 | Outcome::Rejected(Rejection::LowInlierRatio { .. }, _)
         );
         let params = self.matcher.params();
-        let d = self.accepted_at.inverse() * self.map_pose;
+        let d = at.inverse() * self.map_pose;
         little
             && d.translation.vector.norm() <= params.keyframe_distance
             && d.rotation.angle().abs() <= params.keyframe_angle
