@@ -8,22 +8,17 @@ use std::hint::black_box;
 use sweepline::motor::create2::codec::{encode_stream_frame, SensorState, StreamParser};
 use sweepline::motor::odometry::{CounterWidth, Odometer};
 use sweepline::motor::roboclaw::codec::{
-    cmd, encode_command, encode_reply, Command, Reply, ReplyDecoder,
+    cmd, encode_command, encode_reply, Command, Query, Reply, ReplyDecoder,
 };
 
 fn codecs(c: &mut Criterion) {
     c.bench_function("roboclaw_encode_drive_speeds", |b| {
-        b.iter(|| {
-            encode_command(
-                0x80,
-                black_box(&Command::DriveSpeeds { m1: 1234, m2: -987 }),
-            )
-        })
+        b.iter(|| encode_command(0x80, black_box(&Command::speeds(1234, -987))))
     });
-    let reply = encode_reply(0x80, cmd::READ_ENCODERS, &Reply::Encoders { m1: 5, m2: 7 });
+    let reply = encode_reply(0x80, cmd::READ_ENCODERS, &Reply::Pair32(5, 7));
     c.bench_function("roboclaw_decode_encoder_reply", |b| {
         b.iter(|| {
-            let mut d = ReplyDecoder::new(0x80, &Command::ReadEncoders);
+            let mut d = ReplyDecoder::new(0x80, &Command::Query(Query::Encoders));
             let mut out = None;
             for &x in black_box(&reply[..]) {
                 out = d.push(x).ok().flatten();

@@ -6,6 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use super::CliResult;
 use crate::serial::PtyHost;
+use crate::sim::base_emu::faults::FaultPlan;
 use crate::sim::urg_emu::{
     self, EmuLog, EmulatorConfig, Faults, Model, RectRoom, ReplayScan, Scene,
 };
@@ -25,12 +26,23 @@ pub struct Args {
     /// Boot in SCIP 1.1, as many URG-04LX units do (clients must send SCIP2.0).
     #[arg(long)]
     pub scip1: bool,
-    /// Fault switches, comma separated: checksum=N, drop=N, extra=N,
+    /// Fault switches, comma separated. urg: checksum=N, drop=N, extra=N,
     /// status=N or status=N:CODE, stuck=N, noise=N, hang=N, crlf, split,
-    /// stall=N:SECONDS, wrap,
-    /// unplug=N:SECONDS (N = every N-th scan).
+    /// stall=N:SECONDS, wrap, unplug=N:SECONDS (N = every N-th scan).
+    /// roboclaw and create2: silence=N:SECONDS, corrupt-in=N:BYTES,
+    /// corrupt-out=N:BYTES, bump=N:SECONDS, wheel-drop=N:SECONDS,
+    /// unplug=N:SECONDS (N = every N seconds).
     #[arg(long, default_value = "")]
     pub faults: String,
+    /// roboclaw and create2: answer what the manual leaves open as the device
+    /// would, instead of refusing and counting it (strict is the default,
+    /// so a client that drifts from the manual sees it).
+    #[arg(long)]
+    pub lenient: bool,
+    /// roboclaw and create2: the room the base drives in (walls and
+    /// obstacles close its bumpers); default open floor.
+    #[command(flatten)]
+    pub world: super::world_args::WorldArgs,
     /// Replay the first scan of a byte capture (hokuyoaist .logr format)
     /// instead of the built-in 4 x 3 m room.
     #[arg(long)]
@@ -66,6 +78,7 @@ fn run_base(args: Args) -> CliResult {
     if !(args.rate.is_finite() && args.rate > 0.0) {
         return Err(format!("--rate must be a positive number, got {}", args.rate).into());
     }
+    let mut plan: FaultPlan = args.faults.parse()?;
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, stop.clone())?;
@@ -73,12 +86,23 @@ fn run_base(args: Args) -> CliResult {
     let cfg = crate::config::Config::default();
     let mut ecfg = crate::sim::base_emu::EmulatorConfig::from_config(&cfg, kind);
     ecfg.seed = args.seed;
+    ecfg.strict = !args.lenient;
+    let room = if args.world.selected() {
+        let world = args.world.load(None)?;
+        let name = world.name.clone();
+        ecfg = ecfg.in_world(Arc::new(world));
+        format!(" in {name}")
+    } else {
+        String::new()
+    };
     let clock: crate::clock::SharedClock = Arc::new(crate::clock::ScaledClock::new(args.rate));
-    let emu = crate::sim::base_emu::spawn_on_pty(ecfg, args.link.clone(), clock)?;
+    let emu = crate::sim::base_emu::spawn_on_pty(ecfg, args.link.clone(), clock.clone())?;
     let at = args.link.clone().or(emu.path()).unwrap_or_default();
-    println!("{} base emulated at {}", args.device, at.display());
+    println!("{} base emulated at {}{room}", args.device, at.display());
+    let t0 = clock.now();
     while !stop.load(Ordering::Relaxed) {
-        std::thread::sleep(std::time::Duration::from_millis(50));
+        plan.due(clock.now() - t0, |f| emu.inject(f));
+        std::thread::sleep(std::time::Duration::from_millis(20));
     }
     let s = emu.stats();
     let p = emu.truth();
@@ -90,6 +114,9 @@ fn run_base(args: Args) -> CliResult {
 }
 
 fn run_urg(args: Args) -> CliResult {
+    if args.world.selected() || args.lenient {
+        return Err("--world, --room, --map and --lenient apply to roboclaw and create2; the urg emulator scans its built-in room or --replay".into());
+    }
     let model: Model = args.model.parse()?;
     let faults: Faults = args.faults.parse()?;
     if !(args.rate.is_finite() && args.rate > 0.0) {

@@ -57,6 +57,11 @@ pub struct WorldArgs {
 }
 
 impl WorldArgs {
+    /// Whether a world was named (--world, --room or --map).
+    pub fn selected(&self) -> bool {
+        self.world.is_some() || self.room.is_some() || self.map.is_some()
+    }
+
     /// The folder of the benchmark floor plans.
     pub fn maps_dir(&self) -> PathBuf {
         self.maps

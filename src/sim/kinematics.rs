@@ -190,10 +190,14 @@ impl DiffDriveSim {
         } else {
             self.pose = candidate;
             self.wheel = next;
+            // A quadrature counter counts only while its wheel turns: the
+            // noise (always drawn, so the random stream does not depend on
+            // the motion) is applied to a turning wheel only, and never
+            // turns its count backwards.
             let nl = noise * self.gauss();
             let nr = noise * self.gauss();
-            self.encoder.0 += dl + nl;
-            self.encoder.1 += dr + nr;
+            self.encoder.0 += counted(dl, nl);
+            self.encoder.1 += counted(dr, nr);
         }
         self.bumper = self.front_contact(world, bodies);
         StepOutcome {
@@ -225,6 +229,18 @@ impl DiffDriveSim {
             }
         }
         s
+    }
+}
+
+/// The travel an encoder counts for a wheel step `d` with noise `n`: none
+/// for a wheel standing still, and never of the other sign than `d`.
+fn counted(d: f64, n: f64) -> f64 {
+    if d == 0.0 {
+        0.0
+    } else if d > 0.0 {
+        (d + n).max(0.0)
+    } else {
+        (d + n).min(0.0)
     }
 }
 

@@ -16,7 +16,7 @@ use crate::motor::link::{Link, LinkOpener, ReadOutcome};
 use crate::motor::odometry::{counts_per_metre, Accepted, CounterWidth, Odometer, DEFAULT_LATENCY};
 use crate::motor::params::MotorParams;
 use crate::motor::roboclaw::codec::{
-    encode_command, Command, Reply, ReplyDecoder, ReplyError, STATUS_ESTOP,
+    encode_command, Command, Query, Reply, ReplyDecoder, ReplyError, STATUS_ESTOP,
 };
 use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
@@ -200,13 +200,9 @@ impl RoboClawDriver {
         let retries = self.retries + 1;
         let urgent = self.cmd.deadman.tripped() || self.cmd.gate.active() || self.stopping;
         let cmd = if self.accel_counts > 0 && !urgent {
-            Command::DriveSpeedsAccel {
-                accel: self.accel_counts,
-                m1,
-                m2,
-            }
+            Command::speeds_accel(self.accel_counts, m1, m2)
         } else {
-            Command::DriveSpeeds { m1, m2 }
+            Command::speeds(m1, m2)
         };
         self.transact(&cmd, retries).map(|_| ())
     }
@@ -232,7 +228,7 @@ impl RoboClawDriver {
             self.timeout_tenths as f64 / 10.0
         );
         // Best effort: if the link is only garbled, a stop may still get through.
-        let _ = self.transact(&Command::DriveSpeeds { m1: 0, m2: 0 }, 1);
+        let _ = self.transact(&Command::speeds(0, 0), 1);
         self.cmd.push(SafetyEvent::LinkLost);
     }
 
@@ -266,7 +262,7 @@ impl RoboClawDriver {
                 log::info!("wheel base {}: link restored", self.link.describe());
                 self.cmd.push(SafetyEvent::LinkRestored);
             } else {
-                let version = match self.transact(&Command::ReadVersion, 2) {
+                let version = match self.transact(&Command::Query(Query::Version), 2) {
                     Ok(Reply::Version(v)) => String::from_utf8_lossy(&v).into_owned(),
                     _ => "version unknown".into(),
                 };
@@ -312,8 +308,8 @@ impl DiffDriveBase for RoboClawDriver {
             let w = self.cmd.effective();
             let mut closed = self.send_speeds(w) == Err(TxError::Closed);
             let asked = self.clock.now();
-            match self.transact(&Command::ReadEncoders, self.retries + 1) {
-                Ok(Reply::Encoders { m1, m2 }) => {
+            match self.transact(&Command::Query(Query::Encoders), self.retries + 1) {
+                Ok(Reply::Pair32(m1, m2)) => {
                     let (l, r) = if self.m1_is_left { (m1, m2) } else { (m2, m1) };
                     // The counters were latched somewhere between request and
                     // reply: stamp the reading with the midpoint. (A retried
@@ -339,8 +335,8 @@ impl DiffDriveBase for RoboClawDriver {
                 Ok(_) => {}
                 Err(e) => closed |= e == TxError::Closed,
             }
-            match self.transact(&Command::ReadStatus, self.retries + 1) {
-                Ok(Reply::Status(s)) => {
+            match self.transact(&Command::Query(Query::Status), self.retries + 1) {
+                Ok(Reply::U32(s)) => {
                     let pressed = s & STATUS_ESTOP != 0;
                     self.apply_bumper(Sides {
                         left: pressed,
@@ -352,8 +348,8 @@ impl DiffDriveBase for RoboClawDriver {
             }
             // The battery changes slowly: once every BATTERY_EVERY polls.
             if self.polls.is_multiple_of(BATTERY_EVERY) {
-                match self.transact(&Command::ReadMainBattery, 1) {
-                    Ok(Reply::MainBattery(dv)) => self.battery = Some(dv as f64 / 10.0),
+                match self.transact(&Command::Query(Query::MainBattery), 1) {
+                    Ok(Reply::U16(dv)) => self.battery = Some(dv as f64 / 10.0),
                     Ok(_) => {}
                     Err(e) => closed |= e == TxError::Closed,
                 }
@@ -395,7 +391,7 @@ impl Drop for RoboClawDriver {
     /// for the ACK); the controller's serial timeout is the backstop.
     fn drop(&mut self) {
         if self.link.is_open() {
-            let p = encode_command(self.address, &Command::DriveSpeeds { m1: 0, m2: 0 });
+            let p = encode_command(self.address, &Command::speeds(0, 0));
             let _ = self.link.write_all(&p);
         }
     }

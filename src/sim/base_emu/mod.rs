@@ -6,6 +6,7 @@
 //! its device) in a thread, stepping [`crate::sim::kinematics::DiffDriveSim`] on the injected clock.
 
 pub mod create2;
+pub mod faults;
 pub mod loopback;
 pub mod pty_wire;
 pub mod roboclaw;

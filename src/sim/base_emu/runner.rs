@@ -143,6 +143,10 @@ pub struct EmulatorConfig {
     pub step: f64,
     /// Seed of the fault-injection generator.
     pub seed: u64,
+    /// Refuse and count what the device's manual does not allow (see
+    /// [`RoboClawDevice::strict`]); on by default so that a driver drifting
+    /// from the manual fails its tests.
+    pub strict: bool,
 }
 
 impl EmulatorConfig {
@@ -165,6 +169,7 @@ impl EmulatorConfig {
             crowd: None,
             step: 0.005,
             seed: 1,
+            strict: true,
         }
     }
 
@@ -180,11 +185,15 @@ impl EmulatorConfig {
     pub(crate) fn device(&self) -> Box<dyn BaseDevice> {
         let per_metre = |counts_per_rev| counts_per_metre(counts_per_rev, self.wheel_radius);
         match self.kind {
-            BaseKind::Roboclaw => Box::new(RoboClawDevice::new(
-                self.motor.roboclaw.address,
-                per_metre(self.motor.roboclaw.counts_per_rev),
-                self.motor.roboclaw.m1_is_left,
-            )),
+            BaseKind::Roboclaw => Box::new(
+                RoboClawDevice::new(
+                    self.motor.roboclaw.address,
+                    per_metre(self.motor.roboclaw.counts_per_rev),
+                    self.motor.roboclaw.m1_is_left,
+                )
+                .with_motors(self.kinematics.max_wheel_speed, self.kinematics.max_accel)
+                .strict(self.strict),
+            ),
             BaseKind::Create2 => Box::new(Create2Device::new(
                 per_metre(self.motor.create2.counts_per_rev),
                 self.kinematics.wheel_base,

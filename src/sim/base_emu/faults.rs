@@ -1,0 +1,147 @@
+//! Fault schedules for an emulated wheel base, written as the scanner
+//! emulator's `--faults` are: comma-separated `name=EVERY:AMOUNT`, where
+//! EVERY is the period in seconds of emulator clock and AMOUNT is how long
+//! (seconds) or how many bytes. `bump=20:0.5,corrupt-out=7:3` closes the
+//! bumper for half a second every 20 s and flips a bit in each of three
+//! reply bytes every 7 s.
+
+use std::str::FromStr;
+
+use crate::sim::base_emu::Fault;
+
+/// A fault injected periodically.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Periodic {
+    /// Seconds of emulator clock between two injections.
+    pub every: f64,
+    /// What is injected.
+    pub fault: Fault,
+}
+
+/// A set of periodic faults (empty: none).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FaultPlan {
+    /// The faults, in the order given.
+    pub faults: Vec<Periodic>,
+    next: Vec<f64>,
+}
+
+/// The names the plan accepts, for error messages and `--help`.
+pub const NAMES: &str =
+    "silence=EVERY:SECS, corrupt-in=EVERY:BYTES, corrupt-out=EVERY:BYTES, bump=EVERY:SECS, wheel-drop=EVERY:SECS, unplug=EVERY:SECS";
+
+impl FromStr for FaultPlan {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let mut faults = Vec::new();
+        for item in s.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+            faults.push(parse_one(item)?);
+        }
+        let next = faults.iter().map(|f| f.every).collect();
+        Ok(Self { faults, next })
+    }
+}
+
+fn parse_one(item: &str) -> Result<Periodic, String> {
+    let bad = |why: &str| format!("fault `{item}`: {why} (expected one of {NAMES})");
+    let (name, value) = item.split_once('=').ok_or_else(|| bad("no `=`"))?;
+    let (every, amount) = value
+        .split_once(':')
+        .ok_or_else(|| bad("no `:` between the period and the amount"))?;
+    let every: f64 = every
+        .trim()
+        .parse()
+        .ok()
+        .filter(|e: &f64| e.is_finite() && *e > 0.0)
+        .ok_or_else(|| bad("the period must be a positive number of seconds"))?;
+    let secs = || {
+        amount
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|a| a.is_finite() && *a > 0.0)
+            .ok_or_else(|| bad("the duration must be a positive number of seconds"))
+    };
+    let bytes = || {
+        amount
+            .trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&b| b > 0)
+            .ok_or_else(|| bad("the byte count must be a positive whole number"))
+    };
+    let fault = match name.trim() {
+        "silence" => Fault::Silence { secs: secs()? },
+        "corrupt-in" => Fault::CorruptIn { bytes: bytes()? },
+        "corrupt-out" => Fault::CorruptOut { bytes: bytes()? },
+        "bump" => Fault::Bump { secs: secs()? },
+        "wheel-drop" => Fault::WheelDrop { secs: secs()? },
+        "unplug" => Fault::Unplug { secs: secs()? },
+        _ => return Err(bad("unknown fault")),
+    };
+    Ok(Periodic { every, fault })
+}
+
+impl FaultPlan {
+    /// Whether the plan injects nothing.
+    pub fn is_empty(&self) -> bool {
+        self.faults.is_empty()
+    }
+
+    /// The faults due at clock time `now` (seconds since the emulator
+    /// started), each handed to `inject` once per period.
+    pub fn due(&mut self, now: f64, mut inject: impl FnMut(Fault)) {
+        for (f, next) in self.faults.iter().zip(self.next.iter_mut()) {
+            if now >= *next {
+                inject(f.fault);
+                *next += f.every * ((now - *next) / f.every).floor().max(0.0) + f.every;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_every_fault_and_refuses_nonsense_naming_it() {
+        let p: FaultPlan =
+            "bump=20:0.5, corrupt-out=7:3,silence=9:1,corrupt-in=4:2,wheel-drop=30:1,unplug=60:2"
+                .parse()
+                .unwrap();
+        assert_eq!(p.faults.len(), 6);
+        assert_eq!(
+            p.faults[1],
+            Periodic {
+                every: 7.0,
+                fault: Fault::CorruptOut { bytes: 3 }
+            }
+        );
+        assert!("".parse::<FaultPlan>().unwrap().is_empty());
+        for bad in [
+            "bump",
+            "bump=1",
+            "bump=-1:1",
+            "bump=1:0",
+            "corrupt-in=1:0.5",
+            "fly=1:1",
+        ] {
+            let e = bad.parse::<FaultPlan>().unwrap_err();
+            assert!(e.contains(bad), "{e}");
+        }
+    }
+
+    #[test]
+    fn each_fault_comes_once_per_period() {
+        let mut p: FaultPlan = "bump=2:0.5".parse().unwrap();
+        let mut n = 0;
+        let mut t = 0.0;
+        while t < 10.0 {
+            p.due(t, |_| n += 1);
+            t += 0.05;
+        }
+        assert_eq!(n, 4, "at 2, 4, 6 and 8 s");
+    }
+}
