@@ -5,29 +5,45 @@ use sweepline::cli;
 
 /// sweepline: an online coverage daemon for a URG-04LX robot.
 #[derive(Parser)]
-#[command(name = "sweepline", version, about, long_about = None)]
+#[command(name = "sweepline", version, about, long_about = None, after_help = AFTER_HELP)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
 
+/// Logging and exit codes, shown under `--help`.
+const AFTER_HELP: &str = "\
+Logging: RUST_LOG sets the level (error, warn, info, debug, trace; default info),
+per module too: RUST_LOG=warn,sweepline::motor=debug. Logs go to stderr.
+
+Exit codes: 0 done; 1 error (the message says what); 2 wrong command line;
+3 a simulation reached its --time-cap before coverage finished (report written).";
+
 #[derive(Subcommand)]
 enum Command {
     /// Simulated robot covering a world, writing its report (the main job).
+    #[command(allow_negative_numbers = true)]
     Sim(cli::sim::Args),
     /// Run the daemon on real devices.
+    #[command(allow_negative_numbers = true)]
     Run(cli::run::Args),
     /// Ask a scanner what it is and show one scan and the health counters.
+    #[command(allow_negative_numbers = true)]
     Probe(cli::probe::Args),
     /// Run an emulated device on a pty (urg, roboclaw, create2).
+    #[command(allow_negative_numbers = true)]
     Emulate(cli::emulate::Args),
     /// Run the scan matcher over a CARMEN log.
+    #[command(allow_negative_numbers = true)]
     Replay(cli::replay::Args),
     /// Score a trajectory against ground-truth relations.
+    #[command(allow_negative_numbers = true)]
     Eval(cli::eval::Args),
     /// Lock-step coverage planning run on a world (ideal localisation).
+    #[command(allow_negative_numbers = true)]
     Coverage(cli::coverage::Args),
     /// Write the latency/CPU budget report of a run.
+    #[command(allow_negative_numbers = true)]
     Report(cli::report::Args),
 }
 
@@ -47,7 +63,12 @@ fn main() {
         Command::Report(a) => cli::report::run(a),
     };
     if let Err(e) = result {
-        eprintln!("sweepline: error: {e}");
-        std::process::exit(1);
+        let code = cli::exit_code(&*e);
+        if code == cli::exit::TIME_CAP {
+            eprintln!("sweepline: {e}");
+        } else {
+            eprintln!("sweepline: error: {e}");
+        }
+        std::process::exit(code);
     }
 }

@@ -23,28 +23,29 @@ use crate::pipeline::signals::SignalForwarder;
 use crate::report::run_folder::RunFolderHooks;
 use crate::serial::DeviceConnector;
 
-/// Stable device name the udev rules give the URG-04LX (`hw/99-sweepline.rules`).
-pub const DEFAULT_SCANNER: &str = "/dev/sweepline-urg";
-/// Stable device name the udev rules give the wheel base.
-pub const DEFAULT_BASE: &str = "/dev/sweepline-base";
 /// State folder when neither `--state-dir` nor systemd's `STATE_DIRECTORY` is set.
 pub const DEFAULT_STATE_DIR: &str = "/var/lib/sweepline";
+/// Configuration file when neither `--config` nor systemd's
+/// `CONFIGURATION_DIRECTORY` is set.
+pub const DEFAULT_CONFIG: &str = "/etc/sweepline/robot.toml";
 
 /// Arguments of `sweepline run`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Configuration file.
-    #[arg(long, default_value = "hw/robot.toml")]
-    pub config: PathBuf,
-    /// Only load and validate the configuration, then exit (0 when valid).
+    /// Configuration file (default: `robot.toml` in systemd's
+    /// `$CONFIGURATION_DIRECTORY`, else /etc/sweepline/robot.toml).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Run every check of the configuration that `run` makes before opening
+    /// the devices, print the devices it would open, then exit (0 when valid).
     #[arg(long)]
     pub check_config: bool,
-    /// Scanner serial device.
-    #[arg(long, default_value = DEFAULT_SCANNER)]
-    pub scanner: PathBuf,
-    /// Wheel-base serial device.
-    #[arg(long, default_value = DEFAULT_BASE)]
-    pub base: PathBuf,
+    /// Scanner serial device (default: the config's `[scanner] port`).
+    #[arg(long)]
+    pub scanner: Option<PathBuf>,
+    /// Wheel-base serial device (default: the config's `[motor] device`).
+    #[arg(long)]
+    pub base: Option<PathBuf>,
     /// Folder for checkpoints, metrics and reports (default: systemd's
     /// `$STATE_DIRECTORY`, else /var/lib/sweepline).
     #[arg(long)]
@@ -58,6 +59,21 @@ pub struct Args {
     /// another room meanwhile). A finished run is never resumed.
     #[arg(long)]
     pub fresh: bool,
+}
+
+/// The configuration file: the flag, else `robot.toml` in the first entry of
+/// `$CONFIGURATION_DIRECTORY` (set by systemd's `ConfigurationDirectory=`),
+/// else [`DEFAULT_CONFIG`].
+pub fn config_path(flag: Option<&Path>) -> PathBuf {
+    if let Some(p) = flag {
+        return p.to_path_buf();
+    }
+    std::env::var("CONFIGURATION_DIRECTORY")
+        .ok()
+        .and_then(|v| v.split(':').next().map(PathBuf::from))
+        .filter(|p| !p.as_os_str().is_empty())
+        .map(|d| d.join("robot.toml"))
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_CONFIG))
 }
 
 /// The state folder: the flag, else the first entry of `$STATE_DIRECTORY`
@@ -121,9 +137,25 @@ fn check_device(what: &str, path: &Path) -> Result<(), String> {
 
 /// Runs `sweepline run`.
 pub fn run(args: Args) -> CliResult {
-    let mut cfg = Config::load(&args.config)?;
+    let path = config_path(args.config.as_deref());
+    let mut cfg = Config::load(&path)?;
+    // The devices: the flags when given, else the configuration's keys.
+    let scanner = args
+        .scanner
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(&cfg.scanner.port));
+    let base_dev = args
+        .base
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(&cfg.motor.device));
     if args.check_config {
-        println!("{}: configuration is valid", args.config.display());
+        println!(
+            "{}: configuration is valid; scanner {}, wheel base ({}) {}",
+            path.display(),
+            scanner.display(),
+            cfg.motor.kind.name(),
+            base_dev.display()
+        );
         return Ok(());
     }
     let notifier = Notifier::new();
@@ -146,14 +178,14 @@ pub fn run(args: Args) -> CliResult {
         keep_previous_run(&dir.join(RUN_FOLDER));
     }
 
-    let devices = check_device("scanner", &args.scanner)
-        .and_then(|()| check_device("wheel-base", &args.base));
+    let devices =
+        check_device("scanner", &scanner).and_then(|()| check_device("wheel-base", &base_dev));
     if let Err(msg) = devices {
         notifier.status(&format!("failed: {msg}"));
         return Err(msg.into());
     }
-    cfg.scanner.port = args.scanner.display().to_string();
-    cfg.motor.device = args.base.display().to_string();
+    cfg.scanner.port = scanner.display().to_string();
+    cfg.motor.device = base_dev.display().to_string();
     let p = &cfg.pipeline;
     let clock: SharedClock = if p.time_scale != 1.0 || p.clock_epoch > 0.0 {
         log::info!(
@@ -178,7 +210,7 @@ pub fn run(args: Args) -> CliResult {
     let daemon = Daemon::start(DaemonSetup {
         config: cfg.clone(),
         clock,
-        scanner: Box::new(DeviceConnector::new(&args.scanner)),
+        scanner: Box::new(DeviceConnector::new(&scanner)),
         base,
         start,
         map,

@@ -162,6 +162,12 @@ pub fn run(args: Args) -> CliResult {
     );
     if r.finished {
         Ok(())
+    } else if r.capped {
+        Err(super::TimeCapReached(format!(
+            "coverage did not finish within the time cap ({:.0} s simulated)",
+            r.sim_time
+        ))
+        .into())
     } else {
         Err(format!("coverage did not finish: {}", r.reason).into())
     }

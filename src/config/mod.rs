@@ -241,7 +241,24 @@ impl Config {
         })?;
         self.map.validate()?;
         self.daemon.validate()?;
+        // The algorithm tables check themselves when their stage is built;
+        // checked here too, so that `run --check-config` refuses what `run`,
+        // `sim` and `coverage` would refuse.
+        self.decomp.validate().map_err(keyed)?;
+        self.control.validate().map_err(keyed)?;
+        self.plan.validate().map_err(keyed)?;
+        crate::plan::lane_geometry(&self.plan, &self.robot).map_err(keyed)?;
         Ok(())
+    }
+}
+
+/// An [`ConfigError::Invalid`] from an error whose message starts with the
+/// dotted key it is about (`plan.lane_overlap: ...`).
+fn keyed(e: impl std::fmt::Display) -> ConfigError {
+    let m = e.to_string();
+    match m.split_once(": ") {
+        Some((key, rest)) if !key.contains(' ') => invalid(key, rest),
+        _ => invalid("config", &m),
     }
 }
 

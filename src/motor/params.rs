@@ -15,6 +15,16 @@ pub enum BaseKind {
     Create2,
 }
 
+impl BaseKind {
+    /// The device's name for people: "RoboClaw" or "Create 2".
+    pub fn name(self) -> &'static str {
+        match self {
+            BaseKind::Roboclaw => "RoboClaw",
+            BaseKind::Create2 => "Create 2",
+        }
+    }
+}
+
 impl std::str::FromStr for BaseKind {
     type Err = String;
 

@@ -18,7 +18,9 @@ pub(crate) mod test_support;
 pub mod tour;
 pub mod unbox;
 
-pub use planner::{CoveragePlanner, HomeOutcome, Motion, PlanError, PlanStatus, Task};
+pub use planner::{
+    lane_geometry, CoveragePlanner, HomeOutcome, Motion, PlanError, PlanStatus, Task,
+};
 pub use swept::{HomePlace, LatticePhase, PlanReach, PlanTries, SweptFloor, TriedCell};
 
 /// Coverage planner settings.

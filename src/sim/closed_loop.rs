@@ -208,6 +208,8 @@ pub struct SimReport {
     pub live_position_max: f64,
     /// True when the daemon finished coverage by itself.
     pub finished: bool,
+    /// True when the simulation time cap stopped the run.
+    pub capped: bool,
     /// Why the daemon stopped.
     pub reason: String,
     /// Wall-clock duration of the run (s).
@@ -799,6 +801,7 @@ fn drive(
         live_heading_rmse: (se_head / n).sqrt(),
         live_position_max: max_err,
         finished: matches!(&outcome.reason, StopReason::Requested(w) if w == "coverage finished"),
+        capped,
         reason: outcome.reason.to_string(),
         wall: wall0.elapsed().as_secs_f64(),
         sim_time,

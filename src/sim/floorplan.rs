@@ -60,6 +60,16 @@ pub enum FloorPlanError {
     /// A room spec was not `MAP:N`.
     #[error("room spec `{0}` is not MAP:N (e.g. office_f:3)")]
     BadSpec(String),
+    /// No floor plan of that name in the folder.
+    #[error("no floor plan `{map}` in {dir}; the plans there: {known}")]
+    UnknownMap {
+        /// The name asked for.
+        map: String,
+        /// The folder looked in.
+        dir: String,
+        /// The plans the folder holds, comma separated.
+        known: String,
+    },
     /// The map has fewer rooms than asked for.
     #[error("{map} has {count} rooms; room {index} does not exist")]
     NoSuchRoom {
@@ -298,6 +308,33 @@ pub fn map_files(dir: &Path, map: &str) -> (PathBuf, PathBuf) {
     )
 }
 
+/// The base name of a floor plan given as the user may write it: `office_f`,
+/// or one of its files (`office_f_furnitures`, `office_f.png`, ...).
+pub fn map_base(name: &str) -> &str {
+    let name = name.trim();
+    let name = name.strip_suffix(".png").unwrap_or(name);
+    ["_furnitures", "_gt_segmentation"]
+        .iter()
+        .find_map(|s| name.strip_suffix(s))
+        .unwrap_or(name)
+}
+
+/// The base names of the floor plans in `dir` (those with a furnished plan),
+/// sorted.
+pub fn plan_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.strip_suffix("_furnitures.png").map(str::to_string)
+        })
+        .collect();
+    names.sort();
+    names
+}
+
 /// Which floor of a benchmark room is simulated.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Furnishing {
@@ -322,7 +359,15 @@ pub fn rooms_as(
     min_pixels: usize,
     furnishing: Furnishing,
 ) -> Result<Vec<Room>, FloorPlanError> {
+    let map = map_base(map);
     let (furn_path, seg_path) = map_files(dir, map);
+    if !furn_path.is_file() && dir.is_dir() {
+        return Err(FloorPlanError::UnknownMap {
+            map: map.to_string(),
+            dir: dir.display().to_string(),
+            known: plan_names(dir).join(", "),
+        });
+    }
     let furn = load_grey(&furn_path)?;
     let seg = load_grey(&seg_path)?;
     let floor = match furnishing {

@@ -73,7 +73,7 @@ pub struct UrgParams {
 impl Default for UrgParams {
     fn default() -> Self {
         Self {
-            port: "/dev/ttyACM0".to_string(),
+            port: "/dev/sweepline-urg".to_string(),
             baud: 115_200,
             cluster: 1,
             skip: 0,

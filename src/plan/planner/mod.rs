@@ -317,6 +317,25 @@ const MAX_FRUITLESS_EXPLORES: usize = 8;
 /// Updates between re-evaluations while exploring (a cell may have become final).
 const EXPLORE_RECHECK: usize = 5;
 
+/// The lane spacing (tool width less the overlap) and the reach of the
+/// tool from a lane (half the tool width less the margin), both m; an error
+/// naming `plan.lane_overlap` when either is not positive. The planner and
+/// the configuration check (`sweepline run --check-config`) both ask here.
+pub fn lane_geometry(params: &PlanParams, robot: &RobotParams) -> Result<(f64, f64), PlanError> {
+    let spacing = robot.tool_width - params.lane_overlap;
+    let reach = robot.tool_width / 2.0 - params.reach_margin;
+    if spacing > 0.0 && reach > 0.0 {
+        return Ok((spacing, reach));
+    }
+    Err(PlanError::BadParam {
+        key: "lane_overlap",
+        message: format!(
+            "lane_overlap ({}) and reach_margin ({}) must stay below the tool width {} (and its half)",
+            params.lane_overlap, params.reach_margin, robot.tool_width
+        ),
+    })
+}
+
 impl CoveragePlanner {
     /// A planner for the robot `robot` (radius, tool width) with `params`.
     pub fn new(params: &PlanParams, robot: &RobotParams) -> Result<Self, PlanError> {
@@ -332,17 +351,7 @@ impl CoveragePlanner {
                 });
             }
         }
-        let spacing = robot.tool_width - params.lane_overlap;
-        let reach = robot.tool_width / 2.0 - params.reach_margin;
-        if spacing <= 0.0 || reach <= 0.0 {
-            return Err(PlanError::BadParam {
-                key: "lane_overlap",
-                message: format!(
-                    "lane_overlap ({}) and reach_margin ({}) must stay below the tool width {}",
-                    params.lane_overlap, params.reach_margin, robot.tool_width
-                ),
-            });
-        }
+        let (spacing, reach) = lane_geometry(params, robot)?;
         Ok(Self {
             params: params.clone(),
             spacing,
