@@ -63,6 +63,8 @@ impl State {
             encoder: self.sim.encoder_travel(),
             bumper: self.sim.bumper(),
             wheel_drop: Default::default(),
+            wheels: self.sim.wheel_speeds(),
+            cliff: [false; 4],
         }
     }
 

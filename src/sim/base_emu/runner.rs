@@ -143,6 +143,11 @@ pub struct EmulatorConfig {
     pub step: f64,
     /// Seed of the fault-injection generator.
     pub seed: u64,
+    /// Create 2 only: refuse commands whose values the OI specification does
+    /// not allow, rather than clamp them (they are counted as rejected either
+    /// way). On by default, so a driver drifting from the specification
+    /// fails its tests.
+    pub strict_oi: bool,
 }
 
 impl EmulatorConfig {
@@ -165,6 +170,7 @@ impl EmulatorConfig {
             crowd: None,
             step: 0.005,
             seed: 1,
+            strict_oi: true,
         }
     }
 
@@ -188,6 +194,7 @@ impl EmulatorConfig {
             BaseKind::Create2 => Box::new(Create2Device::new(
                 per_metre(self.motor.create2.counts_per_rev),
                 self.kinematics.wheel_base,
+                self.strict_oi,
             )),
         }
     }
@@ -469,6 +476,8 @@ fn run(
                 left: lifted,
                 right: lifted,
             },
+            wheels: sim.wheel_speeds(),
+            cliff: [false; 4],
         };
         out.clear();
         let mut silenced = 0u64;
