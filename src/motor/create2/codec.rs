@@ -11,7 +11,7 @@
 //!
 //! The host side is [`encode`] plus the streaming [`StreamParser`]; the device
 //! side (emulator) is [`OiDecoder`] plus [`encode_stream_frame`] and
-//! [`packet_bytes`]. [`OiCommand::check`] tells whether a command's values lie
+//! `packet_bytes`. [`OiCommand::check`] tells whether a command's values lie
 //! in the ranges the specification allows. Nothing here allocates or panics on
 //! any input.
 
@@ -22,11 +22,8 @@ mod packets;
 mod stream;
 
 pub use decoder::{DecodeError, OiDecoder};
-pub(crate) use packets::reads;
-pub use packets::{
-    encode_stream_frame, group_members, packet_bytes, packet_size, response_size, FrameBytes,
-    PacketBytes, SensorState,
-};
+pub use packets::{encode_stream_frame, packet_size, response_size, FrameBytes, SensorState};
+pub(crate) use packets::{packet_bytes, reads};
 pub use stream::{SensorFrame, StreamError, StreamParser, MAX_PAYLOAD};
 
 /// Opcodes of the Create 2 OI specification.

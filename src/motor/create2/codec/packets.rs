@@ -19,7 +19,7 @@ pub fn packet_size(id: u8) -> Option<usize> {
 
 /// The single packets group packet `id` carries, in order; `None` for single
 /// packets and unknown ids.
-pub fn group_members(id: u8) -> Option<RangeInclusive<u8>> {
+pub(crate) fn group_members(id: u8) -> Option<RangeInclusive<u8>> {
     match id {
         0 => Some(7..=26),
         1 => Some(7..=16),
@@ -124,7 +124,7 @@ pub struct SensorState {
 }
 
 /// Data of one packet; the largest is group 100 (80 bytes).
-pub type PacketBytes = HVec<u8, 80>;
+pub(crate) type PacketBytes = HVec<u8, 80>;
 
 /// Appends single packet `id`'s data from `s`; unused packets (16, 32, 33)
 /// are zeros. Ids that are no single packet add nothing.
@@ -177,7 +177,7 @@ fn push_single(id: u8, s: &SensorState, o: &mut PacketBytes) {
 
 /// The data bytes of packet `id` (single or group, as a Sensors or Query List
 /// reply carries them: no id, no checksum); empty for undefined ids.
-pub fn packet_bytes(id: u8, s: &SensorState) -> PacketBytes {
+pub(crate) fn packet_bytes(id: u8, s: &SensorState) -> PacketBytes {
     let mut o = PacketBytes::new();
     match group_members(id) {
         Some(members) => members.for_each(|m| push_single(m, s, &mut o)),

@@ -2,6 +2,7 @@
 //! (Drive Direct 200 mm/s = `91 00 C8 00 C8`) and the OI specification's
 //! stream example (packets 29 and 13: `19 5 29 2 25 13 0 163`).
 
+use super::packets::group_members;
 use super::*;
 use proptest::prelude::*;
 
