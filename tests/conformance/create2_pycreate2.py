@@ -295,6 +295,35 @@ def conformance(port, c):
             delta(e0[1], e1[1]) > 20, f"{e0} -> {e1}")
     c.check("limit(600, -500, 500) clamps", robot.limit(600, -500, 500) == 500)
 
+    # Opcodes pycreate2 does not send, through its serial object, with data
+    # bytes that are themselves opcodes (128 Start, 129 Baud, 131 Safe, 173
+    # Stop): a robot that consumed too few or too many data bytes would change
+    # mode or swallow the query that follows.
+    tricky = [
+        ("Baud 115200 (129)", 129, (11,)),
+        ("Drive straight (137)", 137, (0, 0, 128, 0)),
+        ("Motors (138)", 138, (7,)),
+        ("PWM Motors (144)", 144, (129, 127, 127)),
+        ("Scheduling LEDs (162)", 162, (127, 31)),
+        ("Digit LEDs raw (163)", 163, (127, 6, 91, 79)),
+        ("Buttons (165)", 165, (128,)),
+        ("Schedule (167)", 167, (127, 9, 30, 10, 0, 11, 15, 12, 45, 13, 59, 14, 1, 23, 59)),
+        ("Set Day/Time (168)", 168, (6, 23, 59)),
+        ("Drive Direct (145)", 145, (0, 131, 0, 131)),
+    ]
+    bad = []
+    for name, opc, data in tricky:
+        robot.SCI.write(opc, data)
+        if raw.mode() != 3:
+            bad.append(name)
+    d = raw.query([41, 42])
+    c.check("every other opcode consumes exactly its data bytes (mode stays Full)",
+            not bad and d == bytes([0, 131, 0, 131]), f"misread after {bad}" if bad else "")
+    robot.SCI.write(130)
+    c.check("Control (130): mode Safe, as the specification says", raw.mode() == 2)
+    robot.drive_direct(0, 0)
+    robot.full()
+
     # Group packets and single packets: every one answered with its size.
     ok = [pid for pid in list(GROUPS) + list(range(7, 59))
           if len(raw.query([pid])) == size(pid)]
