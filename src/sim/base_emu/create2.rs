@@ -14,6 +14,14 @@
 //! packet id) is counted in [`DeviceStats::packets_rejected`]. In strict
 //! mode an out-of-range command is also refused; otherwise it is obeyed
 //! with its values clamped, as a lenient robot would.
+//!
+//! Assumed where the specification is silent (each at its item): the
+//! emulator stays awake after Power so its mode can be read; Spot, Clean,
+//! Max and Seek Dock do not run the cleaning behaviours; full PWM reaches
+//! 500 mm/s; packets 39 and 40 after Drive Direct report the equivalent
+//! Drive request; the battery's capacity and currents; the reset message's
+//! text. Wall, virtual wall, light bumper, IR, buttons, dirt and overcurrents
+//! read 0: the body state carries nothing they could sense.
 
 mod body;
 #[cfg(test)]
