@@ -98,7 +98,13 @@ fn rooms_are_cut_as_the_benchmark_does() {
     let e = floorplan::load_room(&dir, "office_f:999").unwrap_err();
     assert!(e.to_string().contains("room 999 does not exist"), "{e}");
     let e = floorplan::load_room(&dir, "no_such_map:0").unwrap_err();
-    assert!(e.to_string().contains("no_such_map_furnitures.png"), "{e}");
+    assert!(
+        e.to_string().contains("no floor plan `no_such_map`") && e.to_string().contains("office_f"),
+        "{e}"
+    );
+    // A plan named by its file is the plan.
+    let by_file = floorplan::rooms(&dir, "office_f_furnitures", floorplan::MIN_ROOM_PIXELS).unwrap();
+    assert_eq!(by_file.len(), rooms.len());
     // Without furniture: the same rooms under the same numbers, more floor.
     let bare = floorplan::rooms_as(
         &dir,

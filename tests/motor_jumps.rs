@@ -77,6 +77,7 @@ impl Write for ScriptedLink {
             encoder: (SPEED * now + off, SPEED * now),
             bumper: Sides::default(),
             wheel_drop: Sides::default(),
+            ..BodyState::default()
         };
         let mut out = Vec::new();
         self.device.on_bytes(bytes, now, &body, &mut out);

@@ -1,36 +1,72 @@
-//! iRobot Create 2 / Roomba Open Interface (OI), sans-IO.
+//! iRobot Create 2 / Roomba 600 Open Interface (OI), sans-IO.
 //!
-//! Host → robot: one opcode byte and its fixed data ([`OiCommand`],
-//! [`encode`]). Robot → host: the sensor stream, a frame every 15 ms:
+//! Host → robot: one opcode byte and exactly the data bytes the OI
+//! specification gives it ([`OiCommand`], [`encode`]); the robot has no
+//! framing, so a command with the wrong number of data bytes makes it read
+//! data as opcodes. Robot → host: replies to Sensors / Query List (the packets'
+//! data only) and the sensor stream, a frame every 15 ms:
 //! `19, n, (packet id, packet data)…, checksum`, where `n` counts the bytes
 //! between itself and the checksum, and the 8-bit sum of every frame byte,
 //! checksum included, is 0. Multi-byte values are big-endian.
 //!
 //! The host side is [`encode`] plus the streaming [`StreamParser`]; the device
-//! side (emulator) is [`OiDecoder`] plus [`encode_stream_frame`]. Nothing here
-//! allocates or panics on any input.
+//! side (emulator) is [`OiDecoder`] plus [`encode_stream_frame`] and
+//! `packet_bytes`. [`OiCommand::check`] tells whether a command's values lie
+//! in the ranges the specification allows. Nothing here allocates or panics on
+//! any input.
 
 use heapless::Vec as HVec;
 
-/// Opcodes used here (Create 2 OI specification).
+mod decoder;
+mod packets;
+mod stream;
+
+pub use decoder::{DecodeError, OiDecoder};
+pub use packets::{encode_stream_frame, packet_size, response_size, FrameBytes, SensorState};
+pub(crate) use packets::{packet_bytes, reads};
+pub use stream::{SensorFrame, StreamError, StreamParser, MAX_PAYLOAD};
+
+/// Opcodes of the Create 2 OI specification.
 pub mod op {
-    /// Reset the robot (as if the battery were removed and reinserted).
+    /// Reset the robot (as if the battery were removed and reinserted): Off.
     pub const RESET: u8 = 7;
     /// Start the OI (enters Passive mode).
     pub const START: u8 = 128;
     /// Set the baud rate (1 data byte, code 11 = 115200).
     pub const BAUD: u8 = 129;
+    /// Same as Safe.
+    pub const CONTROL: u8 = 130;
     /// Enter Safe mode.
     pub const SAFE: u8 = 131;
     /// Enter Full mode.
     pub const FULL: u8 = 132;
+    /// Power the robot down (mode becomes Passive).
+    pub const POWER: u8 = 133;
+    /// Start a spot clean (mode becomes Passive).
+    pub const SPOT: u8 = 134;
+    /// Start a default clean (mode becomes Passive).
+    pub const CLEAN: u8 = 135;
+    /// Start a max clean (mode becomes Passive).
+    pub const MAX: u8 = 136;
     /// Drive with velocity and turn radius (4 data bytes).
     pub const DRIVE: u8 = 137;
+    /// Cleaning motors on/off (1 data byte).
+    pub const MOTORS: u8 = 138;
+    /// LEDs: bits, power colour, power intensity (3 data bytes).
+    pub const LEDS: u8 = 139;
+    /// Define a song: number, length N, N (note, duration) pairs (2 + 2N).
+    pub const SONG: u8 = 140;
+    /// Play a song (1 data byte).
+    pub const PLAY: u8 = 141;
     /// Query one sensor packet (1 data byte).
     pub const SENSORS: u8 = 142;
+    /// Seek the dock (mode becomes Passive).
+    pub const SEEK_DOCK: u8 = 143;
+    /// Cleaning motors by PWM: main brush, side brush, vacuum (3 data bytes).
+    pub const PWM_MOTORS: u8 = 144;
     /// Drive each wheel: right velocity then left velocity, mm/s (4 data bytes).
     pub const DRIVE_DIRECT: u8 = 145;
-    /// Drive each wheel by PWM, ±255 (4 data bytes).
+    /// Drive each wheel by PWM, ±255, right first (4 data bytes).
     pub const DRIVE_PWM: u8 = 146;
     /// Start a sensor stream: count, then that many packet ids.
     pub const STREAM: u8 = 148;
@@ -38,14 +74,30 @@ pub mod op {
     pub const QUERY_LIST: u8 = 149;
     /// Pause (0) or resume (1) the stream.
     pub const PAUSE_RESUME: u8 = 150;
-    /// Stop the OI (robot stops responding to commands).
+    /// Scheduling LEDs: weekday bits, scheduling bits (2 data bytes).
+    pub const SCHEDULING_LEDS: u8 = 162;
+    /// Digit LEDs by segments, digit 3 first (4 data bytes).
+    pub const DIGIT_LEDS_RAW: u8 = 163;
+    /// Digit LEDs by ASCII codes 32-126 (4 data bytes).
+    pub const DIGIT_LEDS_ASCII: u8 = 164;
+    /// Push the robot's buttons (1 data byte).
+    pub const BUTTONS: u8 = 165;
+    /// Cleaning schedule: days, then hour and minute for each day (15 data bytes).
+    pub const SCHEDULE: u8 = 167;
+    /// Set the clock: day, hour, minute (3 data bytes).
+    pub const SET_DAY_TIME: u8 = 168;
+    /// Stop the OI (mode becomes Off; the robot stops responding).
     pub const STOP: u8 = 173;
 }
 
-/// Sensor packet ids used here.
+/// Sensor packet ids the driver uses.
 pub mod pkt {
     /// Bumps (bits 0 right, 1 left) and wheel drops (bits 2 right, 3 left).
     pub const BUMPS_WHEEL_DROPS: u8 = 7;
+    /// Distance travelled since last read (mm, i16).
+    pub const DISTANCE: u8 = 19;
+    /// Angle turned since last read (degrees, i16, counter-clockwise positive).
+    pub const ANGLE: u8 = 20;
     /// Battery voltage (mV, u16).
     pub const VOLTAGE: u8 = 22;
     /// OI mode: 0 Off, 1 Passive, 2 Safe, 3 Full.
@@ -58,25 +110,26 @@ pub mod pkt {
 
 /// The stream frame header byte.
 pub const STREAM_HEADER: u8 = 19;
-/// Fastest wheel speed Drive Direct accepts (mm/s).
+/// Fastest wheel speed Drive and Drive Direct accept (mm/s).
 pub const MAX_WHEEL_MM_S: i16 = 500;
-/// Most packet ids in one stream request this codec sends or accepts.
-pub const MAX_STREAM_IDS: usize = 16;
-
-/// Data size in bytes of single sensor packet `id` (7..=58), `None` for group
-/// packets and unknown ids.
-pub fn packet_size(id: u8) -> Option<usize> {
-    match id {
-        7..=18 | 21 | 24 | 32 | 34..=38 | 45 | 52 | 53 | 58 => Some(1),
-        19 | 20 | 22 | 23 | 25..=31 | 33 | 39..=44 | 46..=51 | 54..=57 => Some(2),
-        _ => None,
-    }
-}
+/// Largest turn radius Drive accepts besides the special values (mm).
+pub const MAX_RADIUS_MM: i16 = 2000;
+/// Drive's radius meaning "straight" (the specification gives 0x8000 and 0x7FFF).
+pub const RADIUS_STRAIGHT: i16 = i16::MAX;
+/// Largest PWM magnitude Drive PWM accepts.
+pub const MAX_WHEEL_PWM: i16 = 255;
+/// Most packet ids in one Stream or Query List this codec carries; a longer
+/// list is consumed and reported as [`DecodeError::TooLong`].
+pub const MAX_STREAM_IDS: usize = 64;
+/// Songs the robot stores (numbers 0-4).
+pub const SONGS: u8 = 5;
+/// Most notes in one song.
+pub const MAX_NOTES: usize = 16;
 
 /// The OI's operating mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OiMode {
-    /// OI not started: only Start is obeyed.
+    /// OI not started: only Start (and Reset) are obeyed.
     Off,
     /// Sensors only; actuator commands are ignored.
     Passive,
@@ -107,19 +160,41 @@ impl OiMode {
             OiMode::Full => 3,
         }
     }
+
+    /// Whether actuator commands are obeyed (Safe and Full).
+    pub fn drives(self) -> bool {
+        matches!(self, OiMode::Safe | OiMode::Full)
+    }
 }
 
-/// A host-to-robot command.
+/// A song's notes: (MIDI note, duration in 1/64 s) pairs, flattened.
+pub type Notes = HVec<u8, { 2 * MAX_NOTES }>;
+/// A list of packet ids.
+pub type PacketIds = HVec<u8, MAX_STREAM_IDS>;
+
+/// A host-to-robot command: every opcode of the specification.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum OiCommand {
     /// Opcode 128.
     Start,
     /// Opcode 129 with its baud code.
     Baud(u8),
+    /// Opcode 130 (the specification: same as Safe).
+    Control,
     /// Opcode 131.
     Safe,
     /// Opcode 132.
     Full,
+    /// Opcode 133.
+    Power,
+    /// Opcode 134.
+    Spot,
+    /// Opcode 135.
+    Clean,
+    /// Opcode 136.
+    Max,
+    /// Opcode 143.
+    SeekDock,
     /// Opcode 173.
     Stop,
     /// Opcode 7.
@@ -145,14 +220,79 @@ pub enum OiCommand {
         /// Left wheel PWM.
         left: i16,
     },
+    /// Opcode 138: cleaning motor bits.
+    Motors(u8),
+    /// Opcode 144: cleaning motors by PWM.
+    PwmMotors {
+        /// Main brush, -127..=127.
+        main: i8,
+        /// Side brush, -127..=127.
+        side: i8,
+        /// Vacuum, 0..=127.
+        vacuum: i8,
+    },
+    /// Opcode 139.
+    Leds {
+        /// LED bits (debris, spot, dock, check robot).
+        bits: u8,
+        /// Power LED colour, 0 green to 255 red.
+        color: u8,
+        /// Power LED intensity.
+        intensity: u8,
+    },
+    /// Opcode 162: weekday and scheduling LED bits.
+    SchedulingLeds {
+        /// Weekday LED bits.
+        weekdays: u8,
+        /// Scheduling LED bits.
+        scheduling: u8,
+    },
+    /// Opcode 163: segment bits of digits 3, 2, 1, 0.
+    DigitLedsRaw([u8; 4]),
+    /// Opcode 164: ASCII codes of the four digits, left first.
+    DigitLedsAscii([u8; 4]),
+    /// Opcode 165: button bits.
+    Buttons(u8),
+    /// Opcode 167: day bits, then (hour, minute) Sunday to Saturday.
+    Schedule([u8; 15]),
+    /// Opcode 168.
+    SetDayTime {
+        /// Day, 0 Sunday to 6 Saturday.
+        day: u8,
+        /// Hour, 0-23.
+        hour: u8,
+        /// Minute, 0-59.
+        minute: u8,
+    },
+    /// Opcode 140: song `number`, its notes (the length is `notes.len() / 2`).
+    Song {
+        /// Song number, 0-4.
+        number: u8,
+        /// (note, duration) pairs.
+        notes: Notes,
+    },
+    /// Opcode 141.
+    Play(u8),
     /// Opcode 148: stream these packet ids every 15 ms.
-    Stream(HVec<u8, MAX_STREAM_IDS>),
+    Stream(PacketIds),
     /// Opcode 149: send these packets once.
-    QueryList(HVec<u8, MAX_STREAM_IDS>),
+    QueryList(PacketIds),
     /// Opcode 142: send one packet once.
     Sensors(u8),
     /// Opcode 150: `false` pauses the stream, `true` resumes it.
     StreamEnable(bool),
+}
+
+/// A command value outside the range the specification allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("OI opcode {opcode}: {field} = {value} is outside the specification's range")]
+pub struct RangeError {
+    /// The command's opcode.
+    pub opcode: u8,
+    /// Which data field.
+    pub field: &'static str,
+    /// Its value.
+    pub value: i32,
 }
 
 impl OiCommand {
@@ -164,6 +304,135 @@ impl OiCommand {
             left: mm_s(left_mps),
         }
     }
+
+    /// The command's opcode.
+    pub fn opcode(&self) -> u8 {
+        use OiCommand as C;
+        match self {
+            C::Start => op::START,
+            C::Baud(_) => op::BAUD,
+            C::Control => op::CONTROL,
+            C::Safe => op::SAFE,
+            C::Full => op::FULL,
+            C::Power => op::POWER,
+            C::Spot => op::SPOT,
+            C::Clean => op::CLEAN,
+            C::Max => op::MAX,
+            C::SeekDock => op::SEEK_DOCK,
+            C::Stop => op::STOP,
+            C::Reset => op::RESET,
+            C::Drive { .. } => op::DRIVE,
+            C::DriveDirect { .. } => op::DRIVE_DIRECT,
+            C::DrivePwm { .. } => op::DRIVE_PWM,
+            C::Motors(_) => op::MOTORS,
+            C::PwmMotors { .. } => op::PWM_MOTORS,
+            C::Leds { .. } => op::LEDS,
+            C::SchedulingLeds { .. } => op::SCHEDULING_LEDS,
+            C::DigitLedsRaw(_) => op::DIGIT_LEDS_RAW,
+            C::DigitLedsAscii(_) => op::DIGIT_LEDS_ASCII,
+            C::Buttons(_) => op::BUTTONS,
+            C::Schedule(_) => op::SCHEDULE,
+            C::SetDayTime { .. } => op::SET_DAY_TIME,
+            C::Song { .. } => op::SONG,
+            C::Play(_) => op::PLAY,
+            C::Stream(_) => op::STREAM,
+            C::QueryList(_) => op::QUERY_LIST,
+            C::Sensors(_) => op::SENSORS,
+            C::StreamEnable(_) => op::PAUSE_RESUME,
+        }
+    }
+
+    /// Checks every value against the range the specification gives it.
+    /// Bit-field bytes (LEDs, motors, buttons) accept any value: the robot
+    /// ignores unused bits. Notes outside 31-127 are rests, not errors.
+    pub fn check(&self) -> Result<(), RangeError> {
+        use OiCommand as C;
+        let opcode = self.opcode();
+        let within = |field: &'static str, v: i32, lo: i32, hi: i32| {
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(RangeError {
+                    opcode,
+                    field,
+                    value: v,
+                })
+            }
+        };
+        let wheel = i32::from(MAX_WHEEL_MM_S);
+        match self {
+            C::Baud(code) => within("baud code", (*code).into(), 0, 11),
+            C::Drive { velocity, radius } => {
+                within("velocity", (*velocity).into(), -wheel, wheel)?;
+                let r = i32::from(*radius);
+                let special = *radius == i16::MIN || *radius == i16::MAX;
+                if special {
+                    Ok(())
+                } else {
+                    within("radius", r, -i32::from(MAX_RADIUS_MM), MAX_RADIUS_MM.into())
+                }
+            }
+            C::DriveDirect { right, left } => {
+                within("right velocity", (*right).into(), -wheel, wheel)?;
+                within("left velocity", (*left).into(), -wheel, wheel)
+            }
+            C::DrivePwm { right, left } => {
+                let m = i32::from(MAX_WHEEL_PWM);
+                within("right PWM", (*right).into(), -m, m)?;
+                within("left PWM", (*left).into(), -m, m)
+            }
+            C::PwmMotors { main, side, vacuum } => {
+                within("main brush PWM", (*main).into(), -127, 127)?;
+                within("side brush PWM", (*side).into(), -127, 127)?;
+                within("vacuum PWM", (*vacuum).into(), 0, 127)
+            }
+            C::DigitLedsRaw(d) => d
+                .iter()
+                .try_for_each(|&b| within("digit segments", b.into(), 0, 127)),
+            C::DigitLedsAscii(d) => d
+                .iter()
+                .try_for_each(|&b| within("digit ASCII", b.into(), 32, 126)),
+            C::Schedule(s) => check_schedule(s, &within),
+            C::SetDayTime { day, hour, minute } => {
+                within("day", (*day).into(), 0, 6)?;
+                within("hour", (*hour).into(), 0, 23)?;
+                within("minute", (*minute).into(), 0, 59)
+            }
+            C::Song { number, notes } => {
+                within("song number", (*number).into(), 0, i32::from(SONGS) - 1)?;
+                within("song length", (notes.len() / 2) as i32, 1, MAX_NOTES as i32)
+            }
+            C::Play(n) => within("song number", (*n).into(), 0, i32::from(SONGS) - 1),
+            C::Sensors(id) => check_id(*id, &within),
+            C::Stream(ids) | C::QueryList(ids) => {
+                ids.iter().try_for_each(|&id| check_id(id, &within))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+fn check_id(
+    id: u8,
+    within: &impl Fn(&'static str, i32, i32, i32) -> Result<(), RangeError>,
+) -> Result<(), RangeError> {
+    match response_size(id) {
+        Some(_) => Ok(()),
+        // An id with no packet: report it against an empty range.
+        None => within("packet id", id.into(), 1, 0),
+    }
+}
+
+fn check_schedule(
+    s: &[u8; 15],
+    within: &impl Fn(&'static str, i32, i32, i32) -> Result<(), RangeError>,
+) -> Result<(), RangeError> {
+    within("schedule days", s[0].into(), 0, 127)?;
+    for hm in s[1..].chunks_exact(2) {
+        within("schedule hour", hm[0].into(), 0, 23)?;
+        within("schedule minute", hm[1].into(), 0, 59)?;
+    }
+    Ok(())
 }
 
 fn mm_s(v: f64) -> i16 {
@@ -175,382 +444,64 @@ fn mm_s(v: f64) -> i16 {
     }
 }
 
-/// Encoded command bytes.
-pub type OiBytes = HVec<u8, 24>;
+/// Encoded command bytes (the longest command, a Stream or Query List of
+/// [`MAX_STREAM_IDS`] ids, fits).
+pub type OiBytes = HVec<u8, { MAX_STREAM_IDS + 2 }>;
 
-/// Encodes one command.
+/// Encodes one command: its opcode and exactly its data bytes.
 pub fn encode(c: &OiCommand) -> OiBytes {
+    use OiCommand as C;
     let mut o = OiBytes::new();
-    // Capacity 24 exceeds the longest command (2 + 16 ids): pushes cannot fail.
-    let two = |o: &mut OiBytes, opc: u8, a: i16, b: i16| {
-        let _ = o.push(opc);
-        let _ = o.extend_from_slice(&a.to_be_bytes());
-        let _ = o.extend_from_slice(&b.to_be_bytes());
+    let _ = o.push(c.opcode());
+    // Capacity exceeds the longest command: extending cannot fail.
+    let mut put = |b: &[u8]| {
+        let _ = o.extend_from_slice(b);
+    };
+    let pair = |a: i16, b: i16| {
+        let (a, b) = (a.to_be_bytes(), b.to_be_bytes());
+        [a[0], a[1], b[0], b[1]]
     };
     match c {
-        OiCommand::Start => {
-            let _ = o.push(op::START);
+        C::Start
+        | C::Control
+        | C::Safe
+        | C::Full
+        | C::Power
+        | C::Spot
+        | C::Clean
+        | C::Max
+        | C::SeekDock
+        | C::Stop
+        | C::Reset => {}
+        C::Baud(b) | C::Motors(b) | C::Buttons(b) | C::Play(b) | C::Sensors(b) => put(&[*b]),
+        C::StreamEnable(on) => put(&[u8::from(*on)]),
+        C::Drive { velocity, radius } => put(&pair(*velocity, *radius)),
+        C::DriveDirect { right, left } | C::DrivePwm { right, left } => put(&pair(*right, *left)),
+        C::PwmMotors { main, side, vacuum } => {
+            put(&[*main as u8, *side as u8, *vacuum as u8]);
         }
-        OiCommand::Baud(code) => {
-            let _ = o.extend_from_slice(&[op::BAUD, *code]);
+        C::Leds {
+            bits,
+            color,
+            intensity,
+        } => put(&[*bits, *color, *intensity]),
+        C::SchedulingLeds {
+            weekdays,
+            scheduling,
+        } => put(&[*weekdays, *scheduling]),
+        C::DigitLedsRaw(d) | C::DigitLedsAscii(d) => put(d),
+        C::Schedule(s) => put(s),
+        C::SetDayTime { day, hour, minute } => put(&[*day, *hour, *minute]),
+        C::Song { number, notes } => {
+            put(&[*number, (notes.len() / 2) as u8]);
+            put(&notes[..notes.len() & !1]);
         }
-        OiCommand::Safe => {
-            let _ = o.push(op::SAFE);
-        }
-        OiCommand::Full => {
-            let _ = o.push(op::FULL);
-        }
-        OiCommand::Stop => {
-            let _ = o.push(op::STOP);
-        }
-        OiCommand::Reset => {
-            let _ = o.push(op::RESET);
-        }
-        OiCommand::Drive { velocity, radius } => two(&mut o, op::DRIVE, *velocity, *radius),
-        OiCommand::DriveDirect { right, left } => two(&mut o, op::DRIVE_DIRECT, *right, *left),
-        OiCommand::DrivePwm { right, left } => two(&mut o, op::DRIVE_PWM, *right, *left),
-        OiCommand::Stream(ids) | OiCommand::QueryList(ids) => {
-            let opc = if matches!(c, OiCommand::Stream(_)) {
-                op::STREAM
-            } else {
-                op::QUERY_LIST
-            };
-            let _ = o.push(opc);
-            let _ = o.push(ids.len() as u8);
-            let _ = o.extend_from_slice(ids);
-        }
-        OiCommand::Sensors(id) => {
-            let _ = o.extend_from_slice(&[op::SENSORS, *id]);
-        }
-        OiCommand::StreamEnable(on) => {
-            let _ = o.extend_from_slice(&[op::PAUSE_RESUME, u8::from(*on)]);
+        C::Stream(ids) | C::QueryList(ids) => {
+            put(&[ids.len() as u8]);
+            put(ids);
         }
     }
     o
-}
-
-/// The sensor values a stream frame carried (only those requested are `Some`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SensorFrame {
-    /// Packet 7: bumps and wheel drops bit field.
-    pub bumps_drops: Option<u8>,
-    /// Packet 22: battery voltage (mV).
-    pub voltage_mv: Option<u16>,
-    /// Packet 35: OI mode byte.
-    pub oi_mode: Option<u8>,
-    /// Packet 43: left encoder counts.
-    pub left_encoder: Option<u16>,
-    /// Packet 44: right encoder counts.
-    pub right_encoder: Option<u16>,
-}
-
-impl SensorFrame {
-    /// Bumper bits as sides (right = bit 0, left = bit 1).
-    pub fn bumps(&self) -> Option<crate::motor::Sides> {
-        self.bumps_drops.map(|b| crate::motor::Sides {
-            right: b & 0x01 != 0,
-            left: b & 0x02 != 0,
-        })
-    }
-
-    /// Wheel-drop bits as sides (right = bit 2, left = bit 3).
-    pub fn wheel_drops(&self) -> Option<crate::motor::Sides> {
-        self.bumps_drops.map(|b| crate::motor::Sides {
-            right: b & 0x04 != 0,
-            left: b & 0x08 != 0,
-        })
-    }
-}
-
-/// Why a stream frame was rejected.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum StreamError {
-    /// The byte sum of the frame is not 0 mod 256.
-    #[error("sensor stream checksum mismatch (sum 0x{0:02X}, expected 0)")]
-    Checksum(u8),
-    /// A packet id that is unknown or a group id.
-    #[error("sensor stream frame names unknown packet id {0}")]
-    UnknownPacket(u8),
-    /// The packets do not fill the frame's length exactly.
-    #[error("sensor stream frame length {0} does not match its packets")]
-    BadLength(u8),
-}
-
-/// Longest stream payload accepted (bytes between the length and the checksum).
-pub const MAX_PAYLOAD: usize = 120;
-
-/// Host-side streaming parser of sensor frames: finds the header, checks the
-/// length and checksum, and after a bad frame re-scans the bytes it had taken
-/// for the next header, so one corrupted byte costs at most one frame.
-#[derive(Clone, Debug, Default)]
-pub struct StreamParser {
-    buf: HVec<u8, { MAX_PAYLOAD + 3 }>,
-    expect: Option<u8>,
-    /// Bytes skipped while looking for a header.
-    pub discarded: u64,
-}
-
-impl StreamParser {
-    /// A parser looking for a header, accepting any plausible length.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// A parser for a stream whose payload is known to be `n` bytes long (the
-    /// host knows what it asked for): a header followed by any other length is
-    /// taken for data at once, so a corrupted length cannot swallow the
-    /// frames after it.
-    pub fn with_payload_len(n: u8) -> Self {
-        Self {
-            expect: Some(n),
-            ..Self::default()
-        }
-    }
-
-    /// Expected payload length of the requested packet `ids`, if every id is a
-    /// known single packet and the frame fits.
-    pub fn payload_len(ids: &[u8]) -> Option<u8> {
-        let mut n = 0usize;
-        for &id in ids {
-            n += 1 + packet_size(id)?;
-        }
-        (n > 0 && n <= MAX_PAYLOAD).then_some(n as u8)
-    }
-
-    /// Drops a partial frame (after a stream pause or reconnect).
-    pub fn reset(&mut self) {
-        self.buf.clear();
-    }
-
-    /// Feeds bytes; calls `out` for every complete frame, valid or not.
-    pub fn feed(&mut self, bytes: &[u8], out: &mut impl FnMut(Result<SensorFrame, StreamError>)) {
-        for &b in bytes {
-            self.push(b, out);
-        }
-    }
-
-    fn push(&mut self, b: u8, out: &mut impl FnMut(Result<SensorFrame, StreamError>)) {
-        if self.buf.is_empty() {
-            if b == STREAM_HEADER {
-                let _ = self.buf.push(b);
-            } else {
-                self.discarded += 1;
-            }
-            return;
-        }
-        if self.buf.len() == 1
-            && (b == 0 || b as usize > MAX_PAYLOAD || self.expect.is_some_and(|n| n != b))
-        {
-            // Not a plausible length: the 19 was data, look again from here.
-            self.discarded += 1;
-            self.buf.clear();
-            self.push(b, out);
-            return;
-        }
-        let _ = self.buf.push(b);
-        let n = self.buf[1] as usize;
-        if self.buf.len() < n + 3 {
-            return;
-        }
-        match parse_frame(&self.buf) {
-            Ok(f) => {
-                self.buf.clear();
-                out(Ok(f));
-            }
-            Err(e) => {
-                out(Err(e));
-                // Re-scan everything after the false header.
-                let mut rest: HVec<u8, { MAX_PAYLOAD + 3 }> = HVec::new();
-                let _ = rest.extend_from_slice(&self.buf[1..]);
-                self.buf.clear();
-                self.discarded += 1;
-                for &r in rest.iter() {
-                    self.push(r, out);
-                }
-            }
-        }
-    }
-}
-
-/// Parses one complete frame `19, n, payload, checksum`.
-fn parse_frame(frame: &[u8]) -> Result<SensorFrame, StreamError> {
-    let sum = frame.iter().fold(0u8, |a, &b| a.wrapping_add(b));
-    if sum != 0 {
-        return Err(StreamError::Checksum(sum));
-    }
-    let n = frame[1];
-    let payload = &frame[2..frame.len() - 1];
-    let mut f = SensorFrame::default();
-    let mut i = 0;
-    while i < payload.len() {
-        let id = payload[i];
-        let size = packet_size(id).ok_or(StreamError::UnknownPacket(id))?;
-        let Some(d) = payload.get(i + 1..i + 1 + size) else {
-            return Err(StreamError::BadLength(n));
-        };
-        let word = || u16::from_be_bytes([d[0], d[1]]);
-        match id {
-            pkt::BUMPS_WHEEL_DROPS => f.bumps_drops = Some(d[0]),
-            pkt::VOLTAGE => f.voltage_mv = Some(word()),
-            pkt::OI_MODE => f.oi_mode = Some(d[0]),
-            pkt::LEFT_ENCODER => f.left_encoder = Some(word()),
-            pkt::RIGHT_ENCODER => f.right_encoder = Some(word()),
-            _ => {}
-        }
-        i += 1 + size;
-    }
-    Ok(f)
-}
-
-/// The robot-side values a stream frame reports (device side).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SensorState {
-    /// Packet 7 bit field.
-    pub bumps_drops: u8,
-    /// Packet 22 (mV).
-    pub voltage_mv: u16,
-    /// Packet 35 mode byte.
-    pub oi_mode: u8,
-    /// Packet 43.
-    pub left_encoder: u16,
-    /// Packet 44.
-    pub right_encoder: u16,
-}
-
-/// A stream frame on the wire.
-pub type FrameBytes = HVec<u8, { MAX_PAYLOAD + 3 }>;
-
-/// Encodes a stream frame with packets `ids` from `s` (device side). Ids this
-/// codec does not know are sent as zeros of their size; unknown or group ids
-/// are left out.
-pub fn encode_stream_frame(ids: &[u8], s: &SensorState) -> FrameBytes {
-    let mut o = FrameBytes::new();
-    let _ = o.push(STREAM_HEADER);
-    let _ = o.push(0);
-    for &id in ids {
-        let Some(size) = packet_size(id) else {
-            continue;
-        };
-        if o.len() + 1 + size + 1 > o.capacity() {
-            break;
-        }
-        let _ = o.push(id);
-        match id {
-            pkt::BUMPS_WHEEL_DROPS => {
-                let _ = o.push(s.bumps_drops);
-            }
-            pkt::VOLTAGE => {
-                let _ = o.extend_from_slice(&s.voltage_mv.to_be_bytes());
-            }
-            pkt::OI_MODE => {
-                let _ = o.push(s.oi_mode);
-            }
-            pkt::LEFT_ENCODER => {
-                let _ = o.extend_from_slice(&s.left_encoder.to_be_bytes());
-            }
-            pkt::RIGHT_ENCODER => {
-                let _ = o.extend_from_slice(&s.right_encoder.to_be_bytes());
-            }
-            _ => {
-                for _ in 0..size {
-                    let _ = o.push(0);
-                }
-            }
-        }
-    }
-    o[1] = (o.len() - 2) as u8;
-    let sum = o.iter().fold(0u8, |a, &b| a.wrapping_add(b));
-    let _ = o.push(0u8.wrapping_sub(sum));
-    o
-}
-
-/// Device-side parser of host commands. Opcodes it does not know are skipped
-/// (a real robot ignores them too) and counted.
-#[derive(Clone, Debug, Default)]
-pub struct OiDecoder {
-    buf: HVec<u8, 24>,
-    need: usize,
-    /// Bytes skipped because they were no known opcode.
-    pub skipped: u64,
-}
-
-fn fixed_len(opc: u8) -> Option<usize> {
-    match opc {
-        op::START | op::SAFE | op::FULL | op::STOP | op::RESET => Some(0),
-        op::BAUD | op::SENSORS | op::PAUSE_RESUME => Some(1),
-        op::DRIVE | op::DRIVE_DIRECT | op::DRIVE_PWM => Some(4),
-        _ => None,
-    }
-}
-
-impl OiDecoder {
-    /// A decoder waiting for an opcode.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Feeds one byte; returns a command when one is complete.
-    pub fn push(&mut self, b: u8) -> Option<OiCommand> {
-        if self.buf.is_empty() {
-            if let Some(n) = fixed_len(b) {
-                self.need = 1 + n;
-            } else if b == op::STREAM || b == op::QUERY_LIST {
-                self.need = 2;
-            } else {
-                self.skipped += 1;
-                return None;
-            }
-        }
-        let _ = self.buf.push(b);
-        let opc = self.buf[0];
-        if (opc == op::STREAM || opc == op::QUERY_LIST) && self.buf.len() == 2 {
-            let n = b as usize;
-            if n > MAX_STREAM_IDS {
-                self.skipped += 2;
-                self.buf.clear();
-                return None;
-            }
-            self.need = 2 + n;
-        }
-        if self.buf.len() < self.need {
-            return None;
-        }
-        let d = &self.buf[1..];
-        let w = |i: usize| i16::from_be_bytes([d[i], d[i + 1]]);
-        let c = match opc {
-            op::START => OiCommand::Start,
-            op::SAFE => OiCommand::Safe,
-            op::FULL => OiCommand::Full,
-            op::STOP => OiCommand::Stop,
-            op::RESET => OiCommand::Reset,
-            op::BAUD => OiCommand::Baud(d[0]),
-            op::SENSORS => OiCommand::Sensors(d[0]),
-            op::PAUSE_RESUME => OiCommand::StreamEnable(d[0] != 0),
-            op::DRIVE => OiCommand::Drive {
-                velocity: w(0),
-                radius: w(2),
-            },
-            op::DRIVE_DIRECT => OiCommand::DriveDirect {
-                right: w(0),
-                left: w(2),
-            },
-            op::DRIVE_PWM => OiCommand::DrivePwm {
-                right: w(0),
-                left: w(2),
-            },
-            _ => {
-                let mut ids = HVec::new();
-                let _ = ids.extend_from_slice(&d[1..]);
-                if opc == op::STREAM {
-                    OiCommand::Stream(ids)
-                } else {
-                    OiCommand::QueryList(ids)
-                }
-            }
-        };
-        self.buf.clear();
-        Some(c)
-    }
 }
 
 #[cfg(test)]

@@ -3,6 +3,10 @@
 //! encoders (43, 44), turns it into odometry and safety events, and drives with
 //! Drive Direct.
 //!
+//! Drive commands go out only while the robot may take them: the OI
+//! specification allows them in Safe and Full mode only, and the stream
+//! reports the mode (after a wheel drop Safe mode falls back to Passive).
+//!
 //! The Create 2 has no command timeout: it keeps driving on the last command
 //! if the host dies. The host-side dead-man is therefore the only guard, and a
 //! stream that stops arriving is treated as a lost link: a zero Drive Direct
@@ -38,6 +42,9 @@ pub struct Create2Driver {
     link: Link,
     clock: SharedClock,
     mode: OiMode,
+    /// The mode the robot last reported (`None` until a frame says, or
+    /// after the driver itself changed it).
+    reported: Option<OiMode>,
     link_timeout: f64,
     probe_interval: f64,
     parser: StreamParser,
@@ -76,6 +83,7 @@ impl Create2Driver {
             } else {
                 OiMode::Safe
             },
+            reported: None,
             link_timeout: p.link_timeout,
             probe_interval: p.reconnect_interval,
             parser: StreamParser::with_payload_len(payload),
@@ -112,6 +120,22 @@ impl Create2Driver {
         ok
     }
 
+    /// Sends a drive command unless the robot reported a mode that does not
+    /// take one (Off or Passive): the specification allows them in Safe
+    /// and Full only, and the robot stands still otherwise anyway.
+    fn send_drive(&mut self, c: &OiCommand) -> bool {
+        if !self.may_drive() {
+            return true;
+        }
+        self.send(c)
+    }
+
+    /// Whether the robot may take a drive command: not reported in a mode
+    /// that refuses one.
+    fn may_drive(&self) -> bool {
+        self.reported.is_none_or(|m| m.drives())
+    }
+
     fn mode_command(&self) -> OiCommand {
         if self.mode == OiMode::Full {
             OiCommand::Full
@@ -125,6 +149,7 @@ impl Create2Driver {
         let mut ids = heapless::Vec::new();
         let _ = ids.extend_from_slice(&STREAM_IDS);
         let mode = self.mode_command();
+        self.reported = None;
         let _ = self.send(&OiCommand::Start)
             && self.send(&mode)
             && self.send(&OiCommand::drive_direct(0.0, 0.0))
@@ -140,7 +165,8 @@ impl Create2Driver {
     pub fn pause_stream(&mut self) -> bool {
         self.paused = true;
         self.cmd.requested = WheelSpeeds::STOP;
-        self.send(&OiCommand::drive_direct(0.0, 0.0)) && self.send(&OiCommand::StreamEnable(false))
+        self.send_drive(&OiCommand::drive_direct(0.0, 0.0))
+            && self.send(&OiCommand::StreamEnable(false))
     }
 
     /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts and
@@ -160,12 +186,15 @@ impl Create2Driver {
 
     fn send_wheels(&mut self) {
         let w = self.cmd.effective();
-        self.send(&OiCommand::drive_direct(w.left, w.right));
+        self.send_drive(&OiCommand::drive_direct(w.left, w.right));
     }
 
     fn on_frame(&mut self, f: SensorFrame, now: f64) {
         self.health.received += 1;
         self.last_frame = now;
+        if let Some(m) = f.oi_mode.and_then(OiMode::from_byte) {
+            self.reported = Some(m);
+        }
         if !self.up {
             self.up = true;
             self.silent_warned = false;
@@ -206,6 +235,7 @@ impl Create2Driver {
                 }
                 let c = self.mode_command();
                 self.send(&c);
+                self.reported = None;
             } else if m == self.mode {
                 self.mode_warned = false;
             }
@@ -302,7 +332,7 @@ impl DiffDriveBase for Create2Driver {
                 self.link.describe(),
                 now - self.last_frame
             );
-            self.send(&OiCommand::drive_direct(0.0, 0.0));
+            self.send_drive(&OiCommand::drive_direct(0.0, 0.0));
             self.cmd.push(SafetyEvent::LinkLost);
             self.odo.rebase();
             self.next_probe = now;
@@ -329,9 +359,10 @@ impl DiffDriveBase for Create2Driver {
     fn stop(&mut self) -> Result<(), MotorError> {
         self.cmd.halt();
         self.link.require_open()?;
-        let ok = self.send(&OiCommand::drive_direct(0.0, 0.0))
+        let ok = self.send_drive(&OiCommand::drive_direct(0.0, 0.0))
             && self.send(&OiCommand::StreamEnable(false))
             && self.send(&OiCommand::Stop);
+        self.reported = Some(OiMode::Off);
         if ok {
             Ok(())
         } else {
@@ -358,7 +389,7 @@ impl Drop for Create2Driver {
     /// Leaves the robot stopped: the Create 2 has no command timeout and would
     /// otherwise keep executing its last Drive Direct.
     fn drop(&mut self) {
-        if self.link.is_open() {
+        if self.link.is_open() && self.may_drive() {
             let _ = self
                 .link
                 .write_all(&encode(&OiCommand::drive_direct(0.0, 0.0)));

@@ -63,6 +63,8 @@ impl State {
             encoder: self.sim.encoder_travel(),
             bumper: self.sim.bumper(),
             wheel_drop: Default::default(),
+            wheels: self.sim.wheel_speeds(),
+            cliff: [false; 4],
         }
     }
 
@@ -170,6 +172,11 @@ impl LoopbackTruth {
         s.catch_up();
         s.sim.wheel_speeds()
     }
+
+    /// The device core's counters (what it accepted and rejected).
+    pub fn device_stats(&self) -> crate::sim::base_emu::DeviceStats {
+        lock(&self.state).device.stats()
+    }
 }
 
 /// The driver `cfg.kind` selects, connected in lock-step to an emulated base
@@ -205,6 +212,20 @@ mod tests {
     use crate::motor::{BaseKind, SafetyEvent};
 
     fn drive(kind: BaseKind, seed: u64) -> (Vec<Pose>, Pose, Vec<SafetyEvent>) {
+        let (odom, pose, events, _) = drive_counted(kind, seed);
+        (odom, pose, events)
+    }
+
+    /// [`drive`], with the device's counters at the end.
+    fn drive_counted(
+        kind: BaseKind,
+        seed: u64,
+    ) -> (
+        Vec<Pose>,
+        Pose,
+        Vec<SafetyEvent>,
+        crate::sim::base_emu::DeviceStats,
+    ) {
         let cfg = Config::default();
         let mut e = EmulatorConfig::from_config(&cfg, kind);
         e.kinematics.seed = seed;
@@ -234,7 +255,15 @@ mod tests {
             events.extend(fb.events.iter().copied());
             clock.sleep(0.05);
         }
-        (odom, truth.pose(), events)
+        (odom, truth.pose(), events, truth.device_stats())
+    }
+
+    #[test]
+    fn the_create2_driver_sends_only_what_the_strict_emulator_takes() {
+        let (_, _, _, stats) = drive_counted(BaseKind::Create2, 3);
+        assert_eq!(stats.packets_rejected, 0, "{stats:?}");
+        assert_eq!(stats.bytes_skipped, 0, "{stats:?}");
+        assert!(stats.packets_ok > 100, "{stats:?}");
     }
 
     #[test]

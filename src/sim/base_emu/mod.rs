@@ -38,6 +38,13 @@ pub struct BodyState {
     pub bumper: Sides,
     /// Wheel-drop switches.
     pub wheel_drop: Sides,
+    /// The speeds the wheels turn at (m/s): an encoder counts nothing while
+    /// its wheel stands still.
+    pub wheels: WheelSpeeds,
+    /// Cliff sensors (left, front left, front right, right): floor missing
+    /// under them. The simulated worlds have no drop-offs, so only tests set
+    /// these.
+    pub cliff: [bool; 4],
 }
 
 /// Counters of an emulated device.
@@ -51,6 +58,11 @@ pub struct DeviceStats {
     pub packets_ok: u64,
     /// Packets rejected (bad CRC, unknown command, not allowed in this mode).
     pub packets_rejected: u64,
+    /// Of those, commands valid in themselves that arrived in a mode not
+    /// taking them (Create 2: a drive command in Passive). A driver can race
+    /// the robot here: the robot leaves Safe mode on its own (wheel drop)
+    /// while a drive command is on the wire.
+    pub refused_in_mode: u64,
     /// Sensor-stream frames sent.
     pub frames_out: u64,
     /// Times the controller's own serial timeout stopped the motors.

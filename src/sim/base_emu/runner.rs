@@ -143,9 +143,11 @@ pub struct EmulatorConfig {
     pub step: f64,
     /// Seed of the fault-injection generator.
     pub seed: u64,
-    /// Refuse and count what the device's manual does not allow (see
-    /// [`RoboClawDevice::strict`]); on by default so that a driver drifting
-    /// from the manual fails its tests.
+    /// Refuse and count what the device's manual does not allow, rather than
+    /// answer it as the device would (RoboClaw: see
+    /// [`RoboClawDevice::strict`]; Create 2: out-of-range values refused
+    /// rather than clamped, counted as rejected either way). On by default,
+    /// so that a driver drifting from the manual fails its tests.
     pub strict: bool,
 }
 
@@ -197,6 +199,7 @@ impl EmulatorConfig {
             BaseKind::Create2 => Box::new(Create2Device::new(
                 per_metre(self.motor.create2.counts_per_rev),
                 self.kinematics.wheel_base,
+                self.strict,
             )),
         }
     }
@@ -478,6 +481,8 @@ fn run(
                 left: lifted,
                 right: lifted,
             },
+            wheels: sim.wheel_speeds(),
+            cliff: [false; 4],
         };
         out.clear();
         let mut silenced = 0u64;

@@ -2,6 +2,7 @@
 //! (Drive Direct 200 mm/s = `91 00 C8 00 C8`) and the OI specification's
 //! stream example (packets 29 and 13: `19 5 29 2 25 13 0 163`).
 
+use super::packets::group_members;
 use super::*;
 use proptest::prelude::*;
 
@@ -71,6 +72,7 @@ fn encoders_bumps_and_mode_decode() {
         oi_mode: 2,
         left_encoder: 0xFFFE,
         right_encoder: 3,
+        ..SensorState::default()
     };
     let bytes = encode_stream_frame(&[7, 43, 44, 35, 22], &s);
     // 19, n=3*... : 7(1)+43(2)+44(2)+35(1)+22(2) = 8 data + 5 ids = 13
@@ -183,15 +185,25 @@ fn truncated_packet_is_a_length_error() {
     assert!(r.contains(&Err(StreamError::BadLength(2))), "{r:?}");
 }
 
-#[test]
-fn device_decoder_round_trips_and_skips_unknown_opcodes() {
-    let mut ids = HVec::new();
-    ids.extend_from_slice(&[7, 35, 43, 44]).unwrap();
-    let cmds = [
+/// One of every command, with data bytes that are themselves opcodes.
+fn every_command() -> Vec<OiCommand> {
+    let mut ids = PacketIds::new();
+    ids.extend_from_slice(&[7, 35, 43, 44, 100, 6]).unwrap();
+    let mut notes = Notes::new();
+    notes
+        .extend_from_slice(&[60, 145, 128, 131, 31, 255])
+        .unwrap();
+    vec![
         OiCommand::Start,
+        OiCommand::Baud(11),
+        OiCommand::Control,
         OiCommand::Safe,
         OiCommand::Full,
-        OiCommand::Baud(11),
+        OiCommand::Power,
+        OiCommand::Spot,
+        OiCommand::Clean,
+        OiCommand::Max,
+        OiCommand::SeekDock,
         OiCommand::drive_direct(-0.3, 0.25),
         OiCommand::Drive {
             velocity: -200,
@@ -201,21 +213,231 @@ fn device_decoder_round_trips_and_skips_unknown_opcodes() {
             right: 255,
             left: -255,
         },
+        OiCommand::Motors(0x07),
+        OiCommand::PwmMotors {
+            main: -127,
+            side: 127,
+            vacuum: 127,
+        },
+        OiCommand::Leds {
+            bits: 0x0F,
+            color: 128,
+            intensity: 255,
+        },
+        OiCommand::SchedulingLeds {
+            weekdays: 0x7F,
+            scheduling: 0x1F,
+        },
+        OiCommand::DigitLedsRaw([0x7F, 0x06, 0x5B, 0x4F]),
+        OiCommand::DigitLedsAscii(*b"ABC "),
+        OiCommand::Buttons(0x80),
+        OiCommand::Schedule([127, 9, 30, 10, 0, 11, 15, 12, 45, 13, 59, 14, 1, 23, 59]),
+        OiCommand::SetDayTime {
+            day: 6,
+            hour: 23,
+            minute: 59,
+        },
+        OiCommand::Song { number: 4, notes },
+        OiCommand::Play(4),
         OiCommand::Stream(ids.clone()),
         OiCommand::QueryList(ids),
-        OiCommand::Sensors(7),
+        OiCommand::Sensors(100),
         OiCommand::StreamEnable(false),
         OiCommand::Stop,
         OiCommand::Reset,
-    ];
-    let mut d = OiDecoder::new();
-    assert_eq!(d.push(135), None); // Clean: not handled here
-    assert_eq!(d.skipped, 1);
-    for c in cmds {
-        let bytes = encode(&c);
-        let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
-        assert_eq!(got, vec![c]);
+    ]
+}
+
+/// Data bytes per opcode as the specification lists them (Song: 2 + 2N,
+/// Stream and Query List: 1 + N).
+fn spec_data_len(c: &OiCommand) -> usize {
+    match c {
+        OiCommand::Song { notes, .. } => 2 + notes.len(),
+        OiCommand::Stream(ids) | OiCommand::QueryList(ids) => 1 + ids.len(),
+        c => match c.opcode() {
+            7 | 128 | 130..=136 | 143 | 173 => 0,
+            129 | 138 | 141 | 142 | 150 | 165 => 1,
+            162 => 2,
+            139 | 144 | 168 => 3,
+            137 | 145 | 146 | 163 | 164 => 4,
+            167 => 15,
+            o => panic!("opcode {o} missing from the table"),
+        },
     }
+}
+
+#[test]
+fn every_command_has_the_specifications_length_and_round_trips() {
+    let mut d = OiDecoder::new();
+    for c in every_command() {
+        let bytes = encode(&c);
+        assert_eq!(bytes.len(), 1 + spec_data_len(&c), "{c:?}");
+        assert_eq!(c.check(), Ok(()), "{c:?}");
+        let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
+        assert_eq!(got, vec![Ok(c.clone())]);
+        assert!(!d.mid_command());
+    }
+    assert_eq!(d.skipped, 0);
+}
+
+#[test]
+fn all_commands_back_to_back_decode_in_order() {
+    let cmds = every_command();
+    let bytes: Vec<u8> = cmds.iter().flat_map(|c| encode(c).to_vec()).collect();
+    let mut d = OiDecoder::new();
+    let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
+    assert_eq!(got, cmds.into_iter().map(Ok).collect::<Vec<_>>());
+}
+
+#[test]
+fn song_data_bytes_are_never_opcodes() {
+    // createSong(0, [60, 145]) then drive_direct(100, 100).
+    let mut d = OiDecoder::new();
+    let bytes = [140, 0, 1, 60, 145, 145, 0, 100, 0, 100];
+    let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
+    let mut notes = Notes::new();
+    notes.extend_from_slice(&[60, 145]).unwrap();
+    assert_eq!(
+        got,
+        vec![
+            Ok(OiCommand::Song { number: 0, notes }),
+            Ok(OiCommand::DriveDirect {
+                right: 100,
+                left: 100
+            })
+        ]
+    );
+}
+
+#[test]
+fn unknown_opcodes_cost_one_byte_and_long_lists_are_consumed_whole() {
+    let mut d = OiDecoder::new();
+    assert_eq!(d.push(147), Some(Err(DecodeError::UnknownOpcode(147))));
+    assert_eq!(d.push(0), Some(Err(DecodeError::UnknownOpcode(0))));
+    assert_eq!(d.skipped, 2);
+    // A 20-note song: 2 + 40 data bytes, all consumed, then Start decodes.
+    let mut bytes = vec![140, 0, 20];
+    bytes.extend(std::iter::repeat_n(128u8, 40));
+    bytes.push(128);
+    let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
+    assert_eq!(
+        got,
+        vec![
+            Err(DecodeError::TooLong {
+                opcode: 140,
+                count: 20
+            }),
+            Ok(OiCommand::Start)
+        ]
+    );
+    // A query list of 200 ids, then Safe.
+    let mut bytes = vec![149, 200];
+    bytes.extend(std::iter::repeat_n(131u8, 200));
+    bytes.push(131);
+    let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
+    assert_eq!(
+        got,
+        vec![
+            Err(DecodeError::TooLong {
+                opcode: 149,
+                count: 200
+            }),
+            Ok(OiCommand::Safe)
+        ]
+    );
+}
+
+#[test]
+fn every_group_is_the_sum_of_its_members_as_the_specification_lists() {
+    // (group, first, last, bytes) from the specification's sensor table.
+    let groups = [
+        (0u8, 7u8, 26u8, 26usize),
+        (1, 7, 16, 10),
+        (2, 17, 20, 6),
+        (3, 21, 26, 10),
+        (4, 27, 34, 14),
+        (5, 35, 42, 12),
+        (6, 7, 42, 52),
+        (100, 7, 58, 80),
+        (101, 43, 58, 28),
+        (106, 46, 51, 12),
+        (107, 54, 58, 9),
+    ];
+    for (g, first, last, bytes) in groups {
+        assert_eq!(group_members(g), Some(first..=last), "group {g}");
+        let sum: usize = (first..=last).map(|i| packet_size(i).unwrap()).sum();
+        assert_eq!(sum, bytes, "group {g}");
+        assert_eq!(response_size(g), Some(bytes), "group {g}");
+        assert_eq!(packet_bytes(g, &SensorState::default()).len(), bytes);
+    }
+    for id in 7..=58 {
+        assert!(packet_size(id).is_some(), "{id}");
+    }
+    for id in (59..100).chain(102..106).chain(108..=255) {
+        assert_eq!(response_size(id), None, "{id}");
+    }
+}
+
+#[test]
+fn out_of_range_values_are_caught() {
+    let bad = [
+        OiCommand::DriveDirect {
+            right: 501,
+            left: 0,
+        },
+        OiCommand::Drive {
+            velocity: 0,
+            radius: 2001,
+        },
+        OiCommand::Drive {
+            velocity: -501,
+            radius: i16::MIN,
+        },
+        OiCommand::DrivePwm {
+            right: 0,
+            left: -256,
+        },
+        OiCommand::Baud(12),
+        OiCommand::Play(5),
+        OiCommand::Sensors(59),
+        OiCommand::DigitLedsAscii([31, 65, 65, 65]),
+        OiCommand::SetDayTime {
+            day: 7,
+            hour: 0,
+            minute: 0,
+        },
+        OiCommand::Song {
+            number: 0,
+            notes: Notes::new(),
+        },
+    ];
+    for c in bad {
+        assert!(c.check().is_err(), "{c:?}");
+    }
+    let ok = OiCommand::Drive {
+        velocity: 500,
+        radius: i16::MAX,
+    };
+    assert_eq!(ok.check(), Ok(()));
+}
+
+#[test]
+fn group_packets_in_a_stream_frame_parse() {
+    let s = SensorState {
+        oi_mode: 2,
+        left_encoder: 7,
+        right_encoder: 9,
+        bumps_drops: 3,
+        ..SensorState::default()
+    };
+    let f = encode_stream_frame(&[100], &s);
+    assert_eq!(f[1], 81);
+    let mut p = StreamParser::with_payload_len(StreamParser::payload_len(&[100]).unwrap());
+    let r = frames(&mut p, &f);
+    let got = r[0].unwrap();
+    assert_eq!(got.oi_mode, Some(2));
+    assert_eq!((got.left_encoder, got.right_encoder), (Some(7), Some(9)));
+    assert_eq!(got.bumps_drops, Some(3));
 }
 
 proptest! {
@@ -247,6 +469,23 @@ proptest! {
         let mut d = OiDecoder::new();
         for b in bytes {
             let _ = d.push(b);
+        }
+    }
+
+    #[test]
+    fn oi_decoder_resyncs_after_any_noise(noise in proptest::collection::vec(any::<u8>(), 0..100)) {
+        // Whatever came before, once the decoder is between commands every
+        // command decodes exactly.
+        let mut d = OiDecoder::new();
+        for b in noise {
+            let _ = d.push(b);
+        }
+        while d.mid_command() {
+            let _ = d.push(0);
+        }
+        for c in every_command() {
+            let got: Vec<_> = encode(&c).iter().filter_map(|&b| d.push(b)).collect();
+            prop_assert_eq!(got, vec![Ok(c)]);
         }
     }
 }
