@@ -195,3 +195,52 @@ fn end_step_768_is_accepted_and_769_refused() {
     let (md, _) = exchange(&mut s, "MD0044076800001", 0.5);
     assert_eq!(md, "MD0044076800001\n00P\n\n");
 }
+
+#[test]
+fn through_the_in_process_link_vv_takes_a_scan_period_of_manual_clock() {
+    use crate::sim::urg_emu::link::SensorLink;
+    use crate::urg::clock::{Clock, ManualClock};
+    use std::io::{Read, Write};
+
+    let clock = Arc::new(ManualClock::new(0.0));
+    let mut link = SensorLink::new(urg(RectRoom::bench(1)), clock.clone());
+    let mut reply = Vec::new();
+    let mut buf = [0u8; 256];
+    clock.set(0.0945);
+    link.write_all(b"VV\n").unwrap_or_default();
+    while !reply.ends_with(b"\n\n") {
+        // A timed-out read moves the clock on; a reply moves it to its time.
+        if let Ok(n) = link.read(&mut buf) {
+            reply.extend_from_slice(&buf[..n]);
+        }
+        assert!(clock.now() < 1.0, "no reply");
+    }
+    assert!(reply.starts_with(b"VV\n00P\n"));
+    let took = clock.now() - 0.0945;
+    assert!(
+        (0.095..=0.1).contains(&took),
+        "VV took {:.1} ms",
+        took * 1e3
+    );
+    // TM1 in adjust mode: about a millisecond.
+    link.write_all(b"TM0\nTM1\n").unwrap_or_default();
+    let start = clock.now();
+    let mut got = Vec::new();
+    let mut tm1_at = None;
+    while tm1_at.is_none() {
+        if let Ok(n) = link.read(&mut buf) {
+            got.extend_from_slice(&buf[..n]);
+        }
+        if got.windows(4).any(|w| w == b"TM1\n") && got.ends_with(b"\n\n") {
+            tm1_at = Some(clock.now());
+        }
+        assert!(clock.now() < start + 1.0, "no reply");
+    }
+    let tm0_at = 0.294;
+    let tm1 = tm1_at.unwrap_or(0.0) - tm0_at;
+    assert!(
+        tm1 > 0.0 && tm1 <= 0.001 + 1e-9,
+        "TM1 took {:.2} ms",
+        tm1 * 1e3
+    );
+}
