@@ -221,7 +221,8 @@ fn sensor_left_in_time_adjust_or_streaming_is_recovered() {
 #[test]
 fn hung_firmware_is_rebooted_as_the_last_resort() {
     let mut p = test_params();
-    p.reply_timeout = 0.1;
+    // Above the 100 ms a real URG may take to answer (once per revolution).
+    p.reply_timeout = 0.25;
     p.failures_before_reset = 2;
     p.reboot_wait = 0.5;
     let rig = rig("hang", "hang=10", false, p);

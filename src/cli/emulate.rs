@@ -60,6 +60,10 @@ pub struct Args {
     /// Sensor clock rate error in parts per million (crystal drift).
     #[arg(long, default_value_t = 0.0)]
     pub drift_ppm: f64,
+    /// Answer every command at once instead of with the real URG's
+    /// latency (about one scan period; TM1 about 1 ms).
+    #[arg(long)]
+    pub no_latency: bool,
 }
 
 /// Runs `sweepline emulate`.
@@ -142,6 +146,7 @@ fn run_urg(args: Args) -> CliResult {
         link: args.link.clone(),
         seed: args.seed,
         drift_ppm: args.drift_ppm,
+        reply_latency: !args.no_latency,
     };
     let log = Arc::new(Mutex::new(EmuLog::default()));
     let spec = urg_emu::ModelSpec::of(model);
@@ -190,9 +195,10 @@ fn run_urg(args: Args) -> CliResult {
 fn summary(log: &Mutex<EmuLog>) {
     if let Ok(l) = log.lock() {
         println!(
-            "stopped: {} scans sent ({} corrupted on purpose), {} commands, {} boots",
+            "stopped: {} scans sent ({} corrupted on purpose, {:.1} % of steps error codes), {} commands, {} boots",
             l.sent.len(),
             l.corrupted(),
+            100.0 * l.error_share(),
             l.commands.len(),
             l.boots
         );

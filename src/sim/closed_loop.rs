@@ -768,6 +768,13 @@ fn drive(
         .join()
         .map_err(|_| SimError::Emulator("the supervisor thread panicked".into()))?;
     let sim_time = clock.now() - t_start;
+    let seen_by_urg = urg.log();
+    log::info!(
+        "scanner emulator: {} of {} steps sent as error codes ({:.1} %)",
+        seen_by_urg.error_steps,
+        seen_by_urg.steps,
+        100.0 * seen_by_urg.error_share()
+    );
     drop(urg);
     let base_emu = base.stats();
     let n = n_err.max(1) as f64;

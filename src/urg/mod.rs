@@ -45,7 +45,9 @@ pub struct UrgParams {
     pub intensity: bool,
     /// Capacity of the scan channel; when full the oldest scan is dropped.
     pub queue: usize,
-    /// How long to wait for the reply to a command (s).
+    /// How long to wait for the reply to a command (s). A URG handles
+    /// commands once per revolution, so a reply can take a whole scan
+    /// period (100 ms on the URG-04LX): keep this well above it.
     pub reply_timeout: f64,
     /// A scan is overdue after this many expected scan intervals.
     pub scan_timeout_periods: f64,

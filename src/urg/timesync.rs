@@ -3,10 +3,16 @@
 //!
 //! Each TM1 exchange gives a sample: host time when the request left, the
 //! sensor's (unwrapped) millisecond clock, host time when the reply arrived.
-//! The sensor read its clock somewhere inside that round trip, so samples
-//! with the smallest round trip bound the offset best: we keep the better
-//! half by round-trip time and fit `sensor = a + b·host` through their
-//! mid-points (b = 1 until the samples span long enough to see drift).
+//! In time-adjust mode the sensor answers at the next edge of its
+//! millisecond clock with the value it has just reached (the UXM-30LX-E
+//! capture in `../shared/datasets/hokuyo-captures/`: every TM1 reply leaves
+//! 0.9-1.0 ms after its request and the values step by one), so the value
+//! is exact at the end of the round trip, less the transfer back. Samples
+//! with the smallest round trip carry the least transfer and queueing: we
+//! keep the better half by round-trip time and fit `sensor = a + b·host`
+//! through their arrival times (b = 1 until the samples span long enough
+//! to see drift). *Assumed*: the URG-04LX, of which no TM capture exists,
+//! answers TM1 the same way.
 //! Periodic re-syncs add their best sample to a short history so drift is
 //! measured over a long baseline.
 
@@ -27,9 +33,6 @@ impl TimeSample {
     /// Round-trip time (s).
     pub fn rtt(&self) -> f64 {
         self.host_recv - self.host_send
-    }
-    fn mid(&self) -> f64 {
-        0.5 * (self.host_send + self.host_recv)
     }
 }
 
@@ -86,11 +89,11 @@ pub fn fit(samples: &[TimeSample], anchors: &[TimeSample]) -> Option<ClockModel>
     let keep = best.len().div_ceil(2);
     best.truncate(keep);
     let min_rtt = best[0].rtt();
-    // Sensor ms ticks truncate: the true reading is half a tick later on average.
+    // The value was reached at a clock edge, just before the reply left.
     let pts = best
         .iter()
         .chain(anchors.iter())
-        .map(|s| (s.mid(), s.sensor + 0.0005));
+        .map(|s| (s.host_recv, s.sensor));
     let n = (keep + anchors.len()) as f64;
     let (mut sh, mut ss) = (0.0, 0.0);
     for (h, s) in pts.clone() {
@@ -186,34 +189,37 @@ pub fn continuity(prev_ms: Option<u64>, now_ms: u64, interval_ms: f64) -> Contin
 mod tests {
     use super::*;
 
+    /// A TM1 round trip whose reply left at a clock edge `read_at` of the
+    /// way through it (the rest is the transfer back).
     fn sample(host: f64, rtt: f64, offset: f64, rate: f64, read_at: f64) -> TimeSample {
         let read = host + rtt * read_at;
         TimeSample {
             host_send: host,
             host_recv: host + rtt,
-            sensor: ((offset + read * rate) * 1000.0).floor() / 1000.0,
+            sensor: offset + read * rate,
         }
     }
 
     #[test]
     fn min_rtt_samples_win_over_slow_ones() {
-        // Fast round trips read mid-way; slow ones read late (queued reply).
+        // Fast round trips come back at once; slow ones spend a long time
+        // on the way back (a queued reply).
         let mut v = Vec::new();
         for i in 0..10 {
             let slow = i % 2 == 0;
-            let rtt = if slow { 0.050 } else { 0.002 };
+            let rtt = if slow { 0.050 } else { 0.001 };
             v.push(sample(
                 10.0 + i as f64 * 0.01,
                 rtt,
                 123.4,
                 1.0,
-                if slow { 0.95 } else { 0.5 },
+                if slow { 0.5 } else { 0.9 },
             ));
         }
         let m = fit(&v, &[]).unwrap();
         assert!((m.offset() - 123.4).abs() < 0.0015, "{}", m.offset());
         assert_eq!(m.rate, 1.0);
-        assert!((m.rtt - 0.002).abs() < 1e-9);
+        assert!((m.rtt - 0.001).abs() < 1e-9);
         assert!((m.host_of(123.4 + 20.0) - 20.0).abs() < 0.0015);
     }
 
@@ -224,12 +230,12 @@ mod tests {
         for round in 0..4 {
             let t0 = round as f64 * 30.0;
             let v: Vec<_> = (0..6)
-                .map(|i| sample(t0 + i as f64 * 0.01, 0.002, 5.0, rate, 0.5))
+                .map(|i| sample(t0 + i as f64 * 0.01, 0.001, 5.0, rate, 0.9))
                 .collect();
             h.add_round(&v).unwrap();
         }
         let v: Vec<_> = (0..6)
-            .map(|i| sample(120.0 + i as f64 * 0.01, 0.002, 5.0, rate, 0.5))
+            .map(|i| sample(120.0 + i as f64 * 0.01, 0.001, 5.0, rate, 0.9))
             .collect();
         let m = h.add_round(&v).unwrap();
         assert!((m.drift_ppm() - 50.0).abs() < 10.0, "{}", m.drift_ppm());

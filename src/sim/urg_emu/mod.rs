@@ -18,6 +18,7 @@
 pub mod faults;
 pub mod link;
 pub mod model;
+mod returns;
 pub mod scene;
 pub mod sensor;
 
@@ -35,7 +36,7 @@ use rand_chacha::ChaCha8Rng;
 pub use faults::{FaultSpecError, Faults, ScanFault};
 pub use link::SensorLink;
 pub use model::{Model, ModelSpec};
-pub use scene::{capture_stream, Echo, RectRoom, ReplayError, ReplayScan, Scene};
+pub use scene::{capture_stream, Echo, RectRoom, ReplayError, ReplayScan, Scene, WallPatch};
 pub use sensor::{Action, EmuLog, Sensor, SentScan};
 
 use crate::scip::{LineEvent, LineFramer};
@@ -57,6 +58,9 @@ pub struct EmulatorConfig {
     pub seed: u64,
     /// Sensor clock rate error (ppm) relative to the emulator clock.
     pub drift_ppm: f64,
+    /// Answer commands with the real firmware's latency (about one scan
+    /// period; see [`sensor`]); off answers every line at once.
+    pub reply_latency: bool,
 }
 
 impl Default for EmulatorConfig {
@@ -68,6 +72,7 @@ impl Default for EmulatorConfig {
             link: None,
             seed: 1,
             drift_ppm: 0.0,
+            reply_latency: true,
         }
     }
 }
@@ -259,6 +264,7 @@ impl Engine {
             now,
         );
         sensor.set_drift_ppm(cfg.drift_ppm);
+        sensor.set_reply_latency(cfg.reply_latency);
         Engine {
             sensor,
             faults: cfg.faults.clone(),

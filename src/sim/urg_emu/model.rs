@@ -45,8 +45,12 @@ pub struct ModelSpec {
     pub ares: u32,
     /// First measurable step.
     pub amin: u16,
-    /// Last measurable step.
+    /// Last step of the detection range (PP's AMAX).
     pub amax: u16,
+    /// Last step a scan request may name ("step D" of the SCIP 2.0
+    /// specification's measurement table: 768 on the URG-04LX, whose PP
+    /// still says AMAX 725). Steps past AMAX look into the dead zone.
+    pub last_step: u16,
     /// Step pointing forward.
     pub afrt: u16,
     /// Motor speed (rpm).
@@ -63,6 +67,13 @@ pub struct ModelSpec {
     pub cr_status: [u8; 2],
     /// Value sent for "no echo within range".
     pub no_return_code: u32,
+    /// How long before a revolution starts the firmware answers commands
+    /// other than GD/GS (s). The captures show every VV, PP, II, BM, CR and
+    /// TM0 reply leaving at one fixed point of the revolution: on the
+    /// URG-04LX the II `TIME` values end in 24 ms while its revolutions
+    /// start at clock values ending in 30 ms (the GD stamp); on the UTM-30LX
+    /// the ME ack leaves 3 ms before the first streamed revolution's stamp.
+    pub tick_lead: f64,
 }
 
 impl ModelSpec {
@@ -84,6 +95,7 @@ impl ModelSpec {
                 ares: 1024,
                 amin: 44,
                 amax: 725,
+                last_step: 768,
                 afrt: 384,
                 scan_rpm: 600,
                 scsp: "Initial(600[rpm])<-Default setting by user",
@@ -92,6 +104,7 @@ impl ModelSpec {
                 has_ff: true,
                 cr_status: *b"03",
                 no_return_code: 0,
+                tick_lead: 0.006,
             },
             Model::Utm30lx => ModelSpec {
                 model,
@@ -108,6 +121,7 @@ impl ModelSpec {
                 ares: 1440,
                 amin: 0,
                 amax: 1080,
+                last_step: 1080,
                 afrt: 540,
                 scan_rpm: 2400,
                 scsp: "Initial(2400[rpm])<-Default setting by user",
@@ -116,6 +130,7 @@ impl ModelSpec {
                 has_ff: false,
                 cr_status: *b"04",
                 no_return_code: 1,
+                tick_lead: 0.003,
             },
         }
     }

@@ -14,6 +14,24 @@
 //! command, stamped at its start and sent when it ends, so a GD reply takes
 //! one to two scan periods and back-to-back GDs never repeat a scan. Lines
 //! received meanwhile are answered after it, in order.
+//!
+//! Reply latency (on unless [`Sensor::set_reply_latency`] turns it off), as
+//! the time-stamped captures show:
+//! * every other command (VV, PP, II, BM, CR, QT, RS, SS, HS, TM0, MD/MS,
+//!   RB, errors) is handled at the firmware's command tick, once per
+//!   revolution, [`ModelSpec::tick_lead`] before a revolution starts. In the
+//!   URG-04LX capture the host sends each command right after the previous
+//!   reply, so each reply comes 98-100 ms after its command; the first VV,
+//!   sent mid-revolution, was answered after 10 ms. Lines that arrived
+//!   before a tick are all handled at it, in order (assumed: the captures
+//!   never send two commands at once);
+//! * in time-adjust mode the firmware answers at its millisecond clock's
+//!   next edge: TM1 about 1 ms after the request, TM2 at the second edge
+//!   (about 2 ms), as in the UXM-30LX-E capture (the only one with TM; the
+//!   URG-04LX is assumed to do the same), and TM1 reads the clock at that
+//!   edge;
+//! * GD/GS start measuring at once (the capture's GD reply leaves one
+//!   revolution after the command, not at a tick).
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
@@ -23,6 +41,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::faults::{Faults, ScanFault};
 use super::model::{Model, ModelSpec};
+use super::returns::{self, Step};
 use super::scene::{Echo, Scene};
 use crate::scip::{
     write_status_reply, Cluster, Command, DataKind, DataLineWriter, KvLine, ScanRequest, Status,
@@ -66,9 +85,22 @@ pub struct EmuLog {
     pub unplugs: u32,
     /// Stalls performed.
     pub stalls: u32,
+    /// Steps measured over all scans sent.
+    pub steps: u64,
+    /// Of those, steps sent as an error code (below DMIN).
+    pub error_steps: u64,
 }
 
 impl EmuLog {
+    /// Share of the measured steps sent as error codes (0 before any scan).
+    pub fn error_share(&self) -> f64 {
+        if self.steps == 0 {
+            0.0
+        } else {
+            self.error_steps as f64 / self.steps as f64
+        }
+    }
+
     /// Scans whose data were damaged on the wire.
     pub fn corrupted(&self) -> usize {
         self.sent
@@ -85,6 +117,17 @@ pub enum Action {
     Stall(f64),
     /// Unplug for this many seconds, then replug and power on again.
     Unplug(f64),
+}
+
+/// What [`Sensor::poll`] does next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Due {
+    /// Send the streamed scan.
+    Scan,
+    /// Send the GD reply.
+    Get,
+    /// Handle the first inbox line.
+    Line,
 }
 
 /// A GD waiting for its revolution to end.
@@ -121,8 +164,17 @@ pub struct Sensor {
     get: Option<PendingGet>,
     /// The echo line of the pending GD.
     get_echo: Vec<u8>,
-    /// Command lines received while a GD is pending (LF-terminated).
-    waiting: Vec<u8>,
+    /// Command lines received and not handled yet (LF-terminated, in order).
+    inbox: Vec<u8>,
+    /// When each line of `inbox` arrived (emulator clock, s).
+    inbox_at: VecDeque<f64>,
+    /// Scratch: the line being handled.
+    current: Vec<u8>,
+    /// When the last line was handled, or the last GD reply sent: no line
+    /// is handled before the ones ahead of it.
+    busy_until: f64,
+    /// Whether replies wait for the firmware's ticks (see the module doc).
+    latency: bool,
     /// Offset (s) of the revolution starts from the clock origin.
     phase: f64,
     /// Sensor clock (ms) at `t0`.
@@ -139,6 +191,11 @@ pub struct Sensor {
     action: Option<Action>,
     angles: Vec<f64>,
     echoes: Vec<Echo>,
+    /// Scratch: what each step of the scan being measured saw.
+    steps: Vec<Step>,
+    /// Draws of the return model (apart from `rng`, so fault placement
+    /// does not depend on the scene).
+    optics: ChaCha8Rng,
     block: Vec<u8>,
 }
 
@@ -185,7 +242,11 @@ impl Sensor {
             stream: None,
             get: None,
             get_echo: Vec::with_capacity(64),
-            waiting: Vec::with_capacity(256),
+            inbox: Vec::with_capacity(256),
+            inbox_at: VecDeque::with_capacity(16),
+            current: Vec::with_capacity(64),
+            busy_until: now,
+            latency: true,
             phase: 0.0,
             clock0,
             t0: now,
@@ -199,6 +260,8 @@ impl Sensor {
             action: None,
             angles: Vec::new(),
             echoes: Vec::new(),
+            steps: Vec::new(),
+            optics: ChaCha8Rng::seed_from_u64(seed ^ 0x0971_c5e5),
             block: Vec::with_capacity(8192),
         };
         s.power_on(now, false);
@@ -220,7 +283,9 @@ impl Sensor {
         self.high_sensitivity = false;
         self.stream = None;
         self.get = None;
-        self.waiting.clear();
+        self.inbox.clear();
+        self.inbox_at.clear();
+        self.busy_until = now;
         self.rb_at = None;
         self.hung = false;
         self.boot += 1;
@@ -270,14 +335,64 @@ impl Sensor {
         self.stream.as_ref().map(|s| s.next + self.spec.period())
     }
 
-    /// When the next scan or GD reply is due (emulator clock), if any.
+    /// When the next scan, GD reply or command reply is due (emulator
+    /// clock), if any.
     pub fn next_due(&self) -> Option<f64> {
-        let stream = self.stream_due();
-        let get = self.get.map(|g| g.due);
-        match (stream, get) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
+        self.next_event().map(|(t, _)| t)
+    }
+
+    /// The earliest pending event and its time.
+    fn next_event(&self) -> Option<(f64, Due)> {
+        [
+            self.stream_due().map(|t| (t, Due::Scan)),
+            self.get.map(|g| (g.due, Due::Get)),
+            self.inbox_due().map(|t| (t, Due::Line)),
+        ]
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+    }
+
+    /// Turns the reply latency of the real firmware on (the default) or off
+    /// (every line answered the moment it arrives, for clients that want a
+    /// fast bench sensor).
+    pub fn set_reply_latency(&mut self, on: bool) {
+        self.latency = on;
+    }
+
+    /// When the first line of the inbox is handled, if there is one and no
+    /// GD measurement holds it back.
+    fn inbox_due(&self) -> Option<f64> {
+        if self.get.is_some() {
+            return None;
         }
+        let arrived = *self.inbox_at.front()?;
+        let end = self.inbox.iter().position(|&b| b == b'\n')?;
+        let seen = arrived.max(self.busy_until);
+        Some(self.reply_time(&self.inbox[..end], seen))
+    }
+
+    /// When the firmware handles `line`, first seen at `seen`: see the
+    /// module doc for what the captures show.
+    fn reply_time(&self, line: &[u8], seen: f64) -> f64 {
+        if !self.latency {
+            return seen;
+        }
+        let body = line.split(|&b| b == b';').next().unwrap_or(line);
+        if self.adjust && self.scip2 {
+            let edges = if body == b"TM2" { 2 } else { 1 };
+            return self.clock_edge_after(seen, edges);
+        }
+        if self.scip2 && !self.hung && body.first() == Some(&b'G') {
+            return seen;
+        }
+        self.next_phase(seen, -self.spec.tick_lead)
+    }
+
+    /// The `n`-th edge of the sensor's millisecond clock after `t`.
+    fn clock_edge_after(&self, t: f64, n: u64) -> f64 {
+        let ms = self.elapsed_ms(t) + n;
+        self.t0 + ms as f64 / (1000.0 * self.rate)
     }
 
     /// Sets where in the sensor clock the mirror's revolutions start (s,
@@ -294,8 +409,14 @@ impl Sensor {
     /// line arriving at a revolution start is too late for it; the epsilon
     /// keeps rounding from deciding that).
     fn next_revolution(&self, now: f64) -> f64 {
+        self.next_phase(now, 0.0)
+    }
+
+    /// The first time strictly after `now` that lies `offset` seconds from
+    /// a revolution start.
+    fn next_phase(&self, now: f64, offset: f64) -> f64 {
         let p = self.spec.period();
-        let base = self.t0 + self.phase;
+        let base = self.t0 + self.phase + offset;
         let k = ((now - base) / p + 1e-9).floor() + 1.0;
         base + k * p
     }
@@ -305,17 +426,43 @@ impl Sensor {
         self.action.take()
     }
 
-    /// Answers one received command line (without its line end) at `now`.
+    /// Takes one received command line (without its line end) at `now`;
+    /// it is answered in `out` now or, with reply latency, by a later
+    /// [`Sensor::poll`] (see [`Sensor::next_due`]).
     pub fn on_line(&mut self, line: &[u8], now: f64, out: &mut Vec<u8>) {
         if line.is_empty() {
             return;
         }
-        if self.get.is_some() {
-            // Busy measuring for a GD: the line is answered after it.
-            self.waiting.extend_from_slice(line);
-            self.waiting.push(b'\n');
-            return;
+        self.inbox.extend_from_slice(line);
+        self.inbox.push(b'\n');
+        self.inbox_at.push_back(now);
+        self.serve_lines(now, out);
+    }
+
+    /// Handles the inbox lines due at or before `now`, in order.
+    fn serve_lines(&mut self, now: f64, out: &mut Vec<u8>) {
+        while let Some(due) = self.inbox_due().filter(|&t| t <= now) {
+            self.handle_next_line(due, out);
         }
+    }
+
+    /// Takes the first inbox line off and handles it at `due`.
+    fn handle_next_line(&mut self, due: f64, out: &mut Vec<u8>) {
+        let Some(end) = self.inbox.iter().position(|&b| b == b'\n') else {
+            return;
+        };
+        let mut line = std::mem::take(&mut self.current);
+        line.clear();
+        line.extend_from_slice(&self.inbox[..end]);
+        self.inbox.drain(..=end);
+        self.inbox_at.pop_front();
+        self.busy_until = due;
+        self.handle(&line, due, out);
+        self.current = line;
+    }
+
+    /// Answers one command line at `now`, the time the firmware handles it.
+    fn handle(&mut self, line: &[u8], now: f64, out: &mut Vec<u8>) {
         if let Ok(mut l) = self.log.lock() {
             if l.commands.len() >= 1000 {
                 l.commands.pop_front();
@@ -454,7 +601,10 @@ impl Sensor {
         if req.cluster == Cluster::UrgIntensity && !self.spec.has_ff {
             return Err(st(b"03"));
         }
-        req.check_range(0, self.spec.amax).map_err(Status::Scip2)
+        // The firmware takes any step up to the last one it measures (step
+        // D), not only the detection range PP reports.
+        req.check_range(0, self.spec.last_step)
+            .map_err(Status::Scip2)
     }
 
     fn reboot_request(&mut self, line: &[u8], now: f64, out: &mut Vec<u8>) {
@@ -523,36 +673,34 @@ impl Sensor {
         out.push(b'\n');
     }
 
-    /// Produces what is due at or before `now` (a streamed scan, a GD
-    /// reply and the replies to the lines that waited for it), in time
-    /// order; writes it to `out`.
+    /// Produces what is due at or before `now` (streamed scans, a GD reply,
+    /// command replies), in time order; writes it to `out`.
     pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
-        if self.hung {
-            return;
-        }
-        let get_first = match (self.get, self.stream_due()) {
-            (Some(g), Some(sent)) => g.due <= sent,
-            _ => true,
-        };
-        if get_first {
-            self.poll_get(now, out);
-            self.poll_stream(now, out);
-        } else {
-            self.poll_stream(now, out);
-            self.poll_get(now, out);
+        while let Some((t, what)) = self.next_event() {
+            if t > now {
+                break;
+            }
+            match what {
+                // A hung firmware sends nothing, but still takes lines (RB).
+                Due::Scan | Due::Get if self.hung => {
+                    self.stream = None;
+                    self.get = None;
+                }
+                Due::Scan => self.poll_stream(now, out),
+                Due::Get => self.poll_get(out),
+                Due::Line => self.handle_next_line(t, out),
+            }
         }
     }
 
-    /// Sends the pending GD reply if its revolution has ended, then answers
-    /// the lines that arrived meanwhile.
-    fn poll_get(&mut self, now: f64, out: &mut Vec<u8>) {
+    /// Sends the pending GD reply (its revolution has ended); the lines that
+    /// arrived meanwhile are handled after it.
+    fn poll_get(&mut self, out: &mut Vec<u8>) {
         let Some(g) = self.get else {
             return;
         };
-        if now < g.due {
-            return;
-        }
         self.get = None;
+        self.busy_until = self.busy_until.max(g.due);
         let mut block = std::mem::take(&mut self.block);
         block.clear();
         block.extend_from_slice(&self.get_echo);
@@ -567,15 +715,6 @@ impl Sensor {
         block.push(b'\n');
         out.extend_from_slice(&block);
         self.block = block;
-        let mut waiting = std::mem::take(&mut self.waiting);
-        for line in waiting.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
-            // A GD among them makes the rest wait again (in `self.waiting`).
-            self.on_line(line, g.due, out);
-        }
-        if self.waiting.is_empty() {
-            waiting.clear();
-            self.waiting = waiting;
-        }
     }
 
     /// Produces the scan due at or before `now`, if streaming.
@@ -727,20 +866,11 @@ impl Sensor {
     /// Samples the scene and writes the data lines of one scan of `req` at
     /// time `t`.
     fn measure(&mut self, t: f64, req: &ScanRequest, out: &mut Vec<u8>) {
-        let (start, end) = (req.start, req.end);
-        self.angles.clear();
-        self.angles
-            .extend((start..=end).map(|s| self.spec.angle(s)));
-        self.echoes.clear();
-        self.echoes.resize(self.angles.len(), Echo::NoReturn);
-        // Steps are measured one after another from the first one asked for,
-        // at the time of the stamp.
-        let step_time = self.spec.period() / f64::from(self.spec.ares.max(1));
-        self.scene
-            .sample(t, step_time, &self.angles, &mut self.echoes);
+        self.sample_steps(t, req);
         let spec = &self.spec;
         let mut w = DataLineWriter::new(out);
-        let steps = self.echoes.len();
+        let (start, end) = (req.start, req.end);
+        let steps = self.steps.len();
         match req.cluster {
             Cluster::UrgIntensity => {
                 // Experimental URG-04LX raw intensity mode: the value of an
@@ -752,7 +882,7 @@ impl Sensor {
                     } else {
                         (k.saturating_sub(usize::from(k > 0)), false)
                     };
-                    let (d, i) = reading(spec, self.echoes[base]);
+                    let (d, i) = wire(spec, self.steps[base]);
                     let _ = w.put_value(if is_dist { d } else { i }, Width::Three);
                 }
             }
@@ -760,11 +890,11 @@ impl Sensor {
                 let c = usize::from(c.max(1));
                 let mut k = 0;
                 while k < steps {
-                    let group = &self.echoes[k..(k + c).min(steps)];
+                    let group = &self.steps[k..(k + c).min(steps)];
                     let mut best: Option<(u32, u32)> = None;
                     let mut first_err = None;
                     for e in group {
-                        let (d, i) = reading(spec, *e);
+                        let (d, i) = wire(spec, *e);
                         if d >= spec.dmin {
                             if best.is_none_or(|(bd, _)| d < bd) {
                                 best = Some((d, i));
@@ -792,27 +922,83 @@ impl Sensor {
         }
         let _ = w.finish();
     }
-}
 
-/// The wire values (distance mm or error code, intensity) of one echo.
-fn reading(spec: &ModelSpec, e: Echo) -> (u32, u32) {
-    match e {
-        Echo::Hit {
-            range,
-            reflectivity,
-        } => {
-            let mm = (range * 1000.0).round();
-            if !mm.is_finite() || mm > f64::from(spec.dmax) {
-                (spec.no_return_code, 0)
-            } else if mm < f64::from(spec.dmin) {
-                // Too close to measure.
-                (if spec.model == Model::Urg04lx { 19 } else { 2 }, 0)
-            } else {
-                let i = reflectivity.clamp(0.0, 1.0) * 10_000.0 / range.max(0.25);
-                (mm as u32, i.round() as u32)
-            }
+    /// Samples the scene for the steps of `req` at time `t` and decides what
+    /// each step measures (`self.steps`).
+    fn sample_steps(&mut self, t: f64, req: &ScanRequest) {
+        let (start, end) = (req.start, req.end);
+        self.angles.clear();
+        self.angles
+            .extend((start..=end).map(|s| self.spec.angle(s)));
+        self.echoes.clear();
+        self.echoes.resize(self.angles.len(), Echo::NoReturn);
+        // Steps are measured one after another from the first one asked for,
+        // at the time of the stamp.
+        let step_time = self.spec.period() / f64::from(self.spec.ares.max(1));
+        self.scene
+            .sample(t, step_time, &self.angles, &mut self.echoes);
+        self.steps.clear();
+        for (k, s) in (start..=end).enumerate() {
+            let e = self.echoes.get(k).copied().unwrap_or(Echo::NoReturn);
+            let step = self.step_of(s, e);
+            self.steps.push(step);
         }
-        Echo::NoReturn => (spec.no_return_code, 0),
-        Echo::Error(c) => (c.min(spec.dmin.saturating_sub(1)), 0),
+        if self.spec.model == Model::Urg04lx {
+            returns::mark_neighbours(&mut self.steps, &mut self.optics);
+        }
+        let errors = self
+            .steps
+            .iter()
+            .filter(|s| !matches!(s, Step::Range { .. }))
+            .count();
+        if let Ok(mut l) = self.log.lock() {
+            l.steps += self.steps.len() as u64;
+            l.error_steps += errors as u64;
+        }
+    }
+
+    /// What step `s` measures of echo `e`: see [`returns`] for the URG-04LX
+    /// model (the UTM-30LX keeps plain geometry: too close or too far only).
+    fn step_of(&mut self, s: u16, e: Echo) -> Step {
+        let urg = self.spec.model == Model::Urg04lx;
+        if urg && !(self.spec.amin..=self.spec.amax).contains(&s) {
+            return Step::Code(returns::TOO_CLOSE_CODE);
+        }
+        match e {
+            Echo::Hit {
+                range,
+                reflectivity,
+            } => {
+                let mm = (range * 1000.0).round();
+                if !mm.is_finite() || mm > f64::from(self.spec.dmax) {
+                    Step::NoEcho
+                } else if mm < f64::from(self.spec.dmin) {
+                    Step::Code(if urg { returns::TOO_CLOSE_CODE } else { 2 })
+                } else if urg && !returns::measured(reflectivity, range, &mut self.optics) {
+                    Step::NoEcho
+                } else {
+                    let i = reflectivity.clamp(0.0, 1.0) * 10_000.0 / range.max(0.25);
+                    Step::Range {
+                        mm: mm as u32,
+                        intensity: i.round() as u32,
+                    }
+                }
+            }
+            Echo::NoReturn => Step::NoEcho,
+            Echo::Error(c) => Step::Code(c.min(self.spec.dmin.saturating_sub(1))),
+        }
     }
 }
+
+/// The wire values (distance mm or error code, intensity) of one step.
+fn wire(spec: &ModelSpec, s: Step) -> (u32, u32) {
+    match s {
+        Step::Range { mm, intensity } => (mm, intensity),
+        Step::Code(c) => (c, 0),
+        Step::NoEcho => (spec.no_return_code, 0),
+    }
+}
+
+#[cfg(test)]
+#[path = "sensor_tests.rs"]
+mod tests;
