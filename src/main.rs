@@ -48,10 +48,14 @@ enum Command {
 }
 
 fn main() {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info"))
-        .format_timestamp_millis()
-        .init();
     let cli = Cli::parse();
+    // The simulator's progress lines are on stdout: its log stays at warn
+    // unless RUST_LOG says otherwise. The daemon and the tools log at info.
+    let level = match cli.command {
+        Command::Sim(_) => "warn",
+        _ => "info",
+    };
+    init_logging(level);
     let result = match cli.command {
         Command::Sim(a) => cli::sim::run(a),
         Command::Run(a) => cli::run::run(a),
@@ -71,4 +75,28 @@ fn main() {
         }
         std::process::exit(code);
     }
+}
+
+/// Logs to stderr at `default` (or as `RUST_LOG` says). Under systemd's
+/// journal (`JOURNAL_STREAM` set) each line starts with its syslog priority
+/// `<N>`, so `journalctl -p` filters it, and carries no timestamp of its
+/// own (the journal stamps it).
+fn init_logging(default: &str) {
+    use std::io::Write;
+    let mut b =
+        env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(default));
+    if std::env::var_os("JOURNAL_STREAM").is_some() {
+        b.format(|buf, record| {
+            let priority = match record.level() {
+                log::Level::Error => 3,
+                log::Level::Warn => 4,
+                log::Level::Info => 6,
+                log::Level::Debug | log::Level::Trace => 7,
+            };
+            writeln!(buf, "<{priority}>{}: {}", record.target(), record.args())
+        });
+    } else {
+        b.format_timestamp_millis();
+    }
+    b.init();
 }

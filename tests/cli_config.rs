@@ -215,3 +215,36 @@ fn reaching_the_time_cap_is_its_own_exit_code() {
     assert!(d.join("out/summary.md").is_file(), "the report is written");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn under_the_journal_lines_carry_their_priority_and_no_timestamp() {
+    let d = temp("journal");
+    let run = |journal: bool| {
+        let mut c = sweepline();
+        c.args(["run", "--fresh", "--config"])
+            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml"))
+            .arg("--scanner")
+            .arg(d.join("no-urg"))
+            .arg("--state-dir")
+            .arg(d.join("state"))
+            .env("RUST_LOG", "info")
+            .env_remove("JOURNAL_STREAM");
+        if journal {
+            c.env("JOURNAL_STREAM", "8:12345");
+        }
+        err(&c.output().unwrap())
+    };
+    let plain = run(false);
+    let line = plain
+        .lines()
+        .find(|l| l.contains("--fresh: a new run"))
+        .unwrap_or_else(|| panic!("{plain}"));
+    assert!(line.starts_with("[20"), "a timestamp first: {line}");
+    let journal = run(true);
+    let line = journal
+        .lines()
+        .find(|l| l.contains("--fresh: a new run"))
+        .unwrap_or_else(|| panic!("{journal}"));
+    assert!(line.starts_with("<6>sweepline::cli::run: "), "{line}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -103,7 +103,8 @@ fn rooms_are_cut_as_the_benchmark_does() {
         "{e}"
     );
     // A plan named by its file is the plan.
-    let by_file = floorplan::rooms(&dir, "office_f_furnitures", floorplan::MIN_ROOM_PIXELS).unwrap();
+    let by_file =
+        floorplan::rooms(&dir, "office_f_furnitures", floorplan::MIN_ROOM_PIXELS).unwrap();
     assert_eq!(by_file.len(), rooms.len());
     // Without furniture: the same rooms under the same numbers, more floor.
     let bare = floorplan::rooms_as(

@@ -203,8 +203,8 @@ fn a_real_time_run_writes_metrics_and_a_budget_report() {
         "| motor |",
         "End-to-end latency",
         "of one core",
-        "| scan | DropOldest | 4 |",
-        "| wheel_cmd | DropOldest | 1 |",
+        "| scan | newest wins | 4 |",
+        "| wheel_cmd | newest wins | 1 |",
         "Watchdog pets",
     ] {
         assert!(md.contains(want), "report lacks {want:?}:\n{md}");

@@ -94,6 +94,29 @@ pub enum SafetyEvent {
     LinkRestored,
 }
 
+impl std::fmt::Display for SafetyEvent {
+    /// The event in plain words, as the log shows it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let side = |s: &Sides| match (s.left, s.right) {
+            (true, true) => "both sides",
+            (true, false) => "left",
+            (false, true) => "right",
+            (false, false) => "no side",
+        };
+        match self {
+            SafetyEvent::Bumper(s) => write!(f, "bumper closed ({}): wheels stopped", side(s)),
+            SafetyEvent::BumperReleased => f.write_str("bumper open again"),
+            SafetyEvent::WheelDrop(s) => write!(f, "wheel dropped ({}): wheels stopped", side(s)),
+            SafetyEvent::WheelDropCleared => f.write_str("wheels back on the floor"),
+            SafetyEvent::DeadMan => {
+                f.write_str("no wheel command within the dead-man time: wheels stopped")
+            }
+            SafetyEvent::LinkLost => f.write_str("link lost: wheels stopped"),
+            SafetyEvent::LinkRestored => f.write_str("link restored"),
+        }
+    }
+}
+
 /// Counters of the wheel-base link, for the health report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LinkHealth {

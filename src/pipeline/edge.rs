@@ -35,6 +35,17 @@ pub enum Overflow {
     Block,
 }
 
+impl std::fmt::Display for Overflow {
+    /// The policy in plain words, as reports show it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Overflow::DropOldest => "newest wins",
+            Overflow::RejectNewest => "oldest kept",
+            Overflow::Block => "waits",
+        })
+    }
+}
+
 /// Counters of one edge, shared by both ends and the supervisor.
 #[derive(Debug)]
 pub struct EdgeStats {

@@ -280,6 +280,10 @@ pub struct MetricsSnapshot {
     pub supervisor: SupervisorMetrics,
     /// cgroup CPU throttling, where the cgroup's `cpu.stat` is readable.
     pub throttling: Option<ThrottleMetrics>,
+    /// Seconds of the run's clock per wall-clock second: 1 on a robot, the
+    /// simulator's `--speed` in a simulation (0 in files written before it
+    /// was recorded: read as 1).
+    pub time_scale: f64,
 }
 
 /// Version written into metrics files by this build.
@@ -317,6 +321,22 @@ impl MetricsSnapshot {
         } else {
             0.0
         }
+    }
+
+    /// The clock's rate against the wall (1 when not recorded).
+    pub fn scale(&self) -> f64 {
+        if self.time_scale > 0.0 {
+            self.time_scale
+        } else {
+            1.0
+        }
+    }
+
+    /// CPU seconds per second of the run's clock, as a share of one core:
+    /// what a robot running the same work in real time would use, the
+    /// figure the budget is about. Equals [`Self::cpu_share`] at scale 1.
+    pub fn real_time_share(&self) -> f64 {
+        self.cpu_share() / self.scale()
     }
 
     /// The end-to-end histogram merged over every stage that records it.

@@ -274,13 +274,14 @@ impl Pipeline {
                 .map(|(name, cpu)| ThreadMetrics { name, cpu })
                 .collect(),
             cpu_budget: self.params.cpu_budget,
+            time_scale: self.params.time_scale,
             stages: self.stages().map(|s| s.metrics()).collect(),
             edges: self
                 .edges
                 .iter()
                 .map(|e| EdgeMetrics {
                     name: e.stats.name().to_string(),
-                    policy: format!("{:?}", e.stats.policy()),
+                    policy: e.stats.policy().to_string(),
                     capacity: e.stats.capacity(),
                     sent: e.stats.sent(),
                     received: e.stats.received(),

@@ -78,19 +78,40 @@ pub fn budget_markdown(s: &MetricsSnapshot) -> String {
     let mut md = String::new();
     let share = s.cpu_share();
     let _ = writeln!(md, "# Latency and CPU budget\n");
-    let _ = writeln!(
-        md,
-        "Run of {:.1} s wall time on {} core{}. Process CPU {:.2} s = **{} of one core** \
-         ({} of the machine) against a budget of {} of one core: **{}** budget.\n",
-        s.wall,
-        s.cores,
-        if s.cores == 1 { "" } else { "s" },
-        s.process_cpu,
-        pct(share),
-        pct(share / s.cores.max(1) as f64),
-        pct(s.cpu_budget),
-        ok_mark(share <= s.cpu_budget),
-    );
+    if s.scale() == 1.0 {
+        let _ = writeln!(
+            md,
+            "Run of {:.1} s wall time on {} core{}. Process CPU {:.2} s = **{} of one core** \
+             ({} of the machine) against a budget of {} of one core: **{}** budget.\n",
+            s.wall,
+            s.cores,
+            if s.cores == 1 { "" } else { "s" },
+            s.process_cpu,
+            pct(share),
+            pct(share / s.cores.max(1) as f64),
+            pct(s.cpu_budget),
+            ok_mark(share <= s.cpu_budget),
+        );
+    } else {
+        // A simulation at N times real time does N seconds of robot work
+        // per wall second: the budget is about one second of robot time.
+        let real = s.real_time_share();
+        let _ = writeln!(
+            md,
+            "Run of {:.1} s wall time on {} core{}, the clock at {} × real time. Process CPU \
+             {:.2} s = {} of one core per wall second; **{} of one core per second of robot \
+             time** against a budget of {} of one core: **{}** budget.\n",
+            s.wall,
+            s.cores,
+            if s.cores == 1 { "" } else { "s" },
+            s.scale(),
+            s.process_cpu,
+            pct(share),
+            pct(real),
+            pct(s.cpu_budget),
+            ok_mark(real <= s.cpu_budget),
+        );
+    }
 
     match &s.throttling {
         Some(t) if t.periods > 0 => {
@@ -246,7 +267,7 @@ fn write_threads(md: &mut String, s: &MetricsSnapshot) {
             share(emulated),
             share(rest),
             pct(s.cpu_budget),
-            ok_mark(s.wall > 0.0 && rest / s.wall <= s.cpu_budget),
+            ok_mark(s.wall > 0.0 && rest / s.wall / s.scale() <= s.cpu_budget),
         );
     }
     let _ = writeln!(md, "| thread | CPU | share of one core |");
@@ -364,6 +385,15 @@ mod tests {
         let md = budget_markdown(&snapshot(&[("emu-create2", 1.0)]));
         assert!(md.contains("without them: 8.33 % of one core"), "{md}");
         assert!(md.contains("5.00 %: **OVER**"), "{md}");
+        // At 5 × real time, 10 % of one core per wall second is 2 % per
+        // second of robot time: within the 5 % budget.
+        let mut fast = snapshot(&[("supervisor", 0.2)]);
+        fast.time_scale = 5.0;
+        let md = budget_markdown(&fast);
+        assert!(
+            md.contains("**2.00 % of one core per second of robot time** against a budget of 5.00 % of one core: **within**"),
+            "{md}"
+        );
         // On a robot: no emulator line, the thread table only.
         let md = budget_markdown(&snapshot(&[("supervisor", 0.2)]));
         assert!(

@@ -644,6 +644,9 @@ fn drive(
         .path()
         .ok_or_else(|| SimError::Emulator("the scanner emulator has no pty path".into()))?;
     let mut cfg = opts.config.clone();
+    // The daemon's clock runs `speed` times the wall: the report judges
+    // the CPU per second of that clock.
+    cfg.pipeline.time_scale = opts.speed;
     cfg.motor.kind = opts.base;
     cfg.motor.device = base_path.display().to_string();
     cfg.scanner.port = urg_path.display().to_string();

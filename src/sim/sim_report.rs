@@ -168,10 +168,11 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
     let m = &r.metrics;
     let mut s = String::new();
     let _ = writeln!(s, "# sweepline sim: {}\n", opts.world.name);
-    let _ = writeln!(
+    let _ =
+        writeln!(
         s,
-        "Closed loop through the ptys: emulated URG-04LX + emulated {:?} base, speed ×{}, seed {}.\n",
-        opts.base, opts.speed, opts.seed
+        "Closed loop through the ptys: emulated URG-04LX + emulated {} base, speed ×{}, seed {}.\n",
+        opts.base.name(), opts.speed, opts.seed
     );
     let _ = writeln!(s, "| figure | value |\n|---|---|");
     let rows = [
@@ -300,10 +301,11 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             format!("{} ({})", r.contacts.len(), r.marks_taken_out),
         ),
         (
-            "process CPU",
+            "process CPU per second of robot time (per wall second)",
             format!(
-                "{:.1} % of one core",
-                100.0 * r.pipeline.process_cpu / r.pipeline.wall.max(1e-9)
+                "{:.1} % of one core ({:.1} %)",
+                100.0 * r.pipeline.real_time_share(),
+                100.0 * r.pipeline.cpu_share()
             ),
         ),
         ("end-to-end latency p50 / p99 / max", {
@@ -347,12 +349,7 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
          wants the newest map); `scans` dropped = scans the localiser never saw."
     );
     let _ = writeln!(s, "\n## Scanner link\n\n```\n{}\n```", r.urg);
-    let _ = writeln!(
-        s,
-        "\n## Wheel-base link (daemon side)\n\n```\n{:#?}\n```",
-        r.base
-    );
-    let _ = writeln!(s, "\n## Wheel-base emulator\n\n```\n{:#?}\n```", r.base_emu);
+    write_base_health(&mut s, r);
     let _ = writeln!(
         s,
         "\nPictures: `map.svg` (map, true track green, estimate red), `cells.svg`, `path.svg`. \
@@ -363,4 +360,58 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             .unwrap_or_default()
     );
     s
+}
+
+/// The wheel-base link as the daemon counted it and as the emulator did,
+/// as two tables.
+fn write_base_health(s: &mut String, r: &SimReport) {
+    let b = &r.base;
+    write_counts(
+        s,
+        "Wheel-base link (daemon side)",
+        &[
+            ("requests or frames sent", b.sent),
+            ("valid replies or frames received", b.received),
+            ("replies with a bad CRC or checksum", b.checksum_errors),
+            ("bytes thrown away resynchronising", b.discarded_bytes),
+            ("requests unanswered in time", b.timeouts),
+            ("writes not acknowledged", b.nacks),
+            ("link losses", b.link_losses),
+            ("reconnects", b.reconnects),
+            ("dead-man stops", b.deadman_stops),
+            ("safety stops", b.safety_stops),
+            ("odometry readings rejected as jumps", b.odometry_glitches),
+            ("odometry re-based on a counter reset", b.odometry_rebases),
+        ],
+    );
+    let e = &r.base_emu;
+    let d = &e.device;
+    write_counts(
+        s,
+        "Wheel-base emulator",
+        &[
+            ("bytes received", d.bytes_in),
+            ("bytes skipped (no packet start)", d.bytes_skipped),
+            ("packets or commands handled", d.packets_ok),
+            (
+                "packets refused (what the manual does not allow)",
+                d.packets_rejected,
+            ),
+            ("sensor frames sent", d.frames_out),
+            ("motor stops by the device's own timeout", d.device_timeouts),
+            ("bytes corrupted by fault injection", e.corrupted_bytes),
+            ("bytes swallowed by a silence fault", e.silenced_bytes),
+            ("bumper closures", e.bumps),
+            ("kinematics steps refused by a collision", e.blocked_steps),
+            ("cable pulls", e.unplugs),
+        ],
+    );
+}
+
+/// A section `title` with a two-column table of counters.
+fn write_counts(s: &mut String, title: &str, rows: &[(&str, u64)]) {
+    let _ = writeln!(s, "\n## {title}\n\n| counter | count |\n|---|--:|");
+    for (k, v) in rows {
+        let _ = writeln!(s, "| {k} | {v} |");
+    }
 }

@@ -166,7 +166,7 @@ impl MotorStage {
                 }
                 SafetyEvent::DeadMan | SafetyEvent::LinkLost => {
                     self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
-                    log::warn!("wheel base: {e:?}");
+                    log::warn!("wheel base: {e}");
                 }
                 _ => {}
             }

@@ -174,8 +174,8 @@ impl Stage for PlanStage {
         let covered = self.planner.covered().iter().filter(|c| **c).count() as f64 * res * res;
         let snapshot = (self.updates % 5 == 1).then(|| Arc::new(decomp.clone()));
         let task = match status {
-            PlanStatus::Working { task, .. } => format!("{task:?}"),
-            PlanStatus::Done(_) => "Done".into(),
+            PlanStatus::Working { task, .. } => task.to_string(),
+            PlanStatus::Done(_) => crate::plan::Task::Done.to_string(),
         };
         let swept = self.planner.swept().map(Arc::new);
         let lattice = self.planner.lattice();

@@ -58,6 +58,23 @@ pub enum Task {
     Done,
 }
 
+impl std::fmt::Display for Task {
+    /// The task in plain words, as progress lines and logs show it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Task::Idle => f.write_str("waiting for a plan"),
+            Task::LookAround => f.write_str("looking around"),
+            Task::Escape => f.write_str("leaving an obstacle's margin"),
+            Task::Cover(Some(c)) => write!(f, "covering cell {}", c.0),
+            Task::Cover(None) => f.write_str("covering a leftover patch"),
+            Task::Explore => f.write_str("exploring"),
+            Task::Wait => f.write_str("waiting for a way to clear"),
+            Task::Home => f.write_str("driving home"),
+            Task::Done => f.write_str("done"),
+        }
+    }
+}
+
 /// What the robot does on its way to one waypoint of the path (for the
 /// overlap breakdown of the metrics).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
