@@ -14,7 +14,7 @@ set SWEEPLINE_SHARED to the shared data folder if that one is gone.
 
 Why interleaved: the closed loop does not repeat itself. Runs of one binary
 with one seed spread by several points of overlap, and batches run at
-different times of a shared machine drift apart (session 31: two batches
+different times of a shared machine drift apart (2026-11-28: two batches
 of 8 office_f:0 runs that took the same decisions differed by 3.7 points).
 Pairs run back to back see the same machine.
 """

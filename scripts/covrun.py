@@ -14,7 +14,7 @@ Options after `--` go to every `sweepline coverage` run, e.g.
 `-- --grid-offset 0.025 --range-noise 0.005` (the map as the daemon's grid
 holds it, from noisy scans; `--grid-offset 0.0` with the noise puts the
 surfaces on the cell boundaries instead, the hardest case, see
-docs/coverage-history.md, session 34), or `-- --bare` (the floor-plan rooms without
+measured 2026-11-29), or `-- --bare` (the floor-plan rooms without
 their furniture; the paper world is left out then). Prints per world the online / offline overlap (%), coverage (%), the
 online/offline path ratio, and the means; two runs at a time."""
 import sys, subprocess, re, os, concurrent.futures as cf

@@ -60,7 +60,7 @@ fn spread(rel: &str, every: usize) -> Option<Spread> {
 
 /// The rectilinear buildings: every 5th scan, the share of scans that must
 /// turn the frame, and the bounds (degrees) on the median and the 95th
-/// percentile of their error and on the worst. Measured (session 17):
+/// percentile of their error and on the worst. Measured (2026-11-26):
 /// intel 144 of 182 scans, median 0.58°, p95 3.03°, worst 7.28°; fr079 749
 /// of 959, 0.64° / 2.43° / 5.15°; aces 77 of 88, 0.39° / 2.05° / 4.43°.
 const BUILDINGS: [(&str, f64, f64, f64, f64); 3] = [

@@ -248,3 +248,17 @@ fn under_the_journal_lines_carry_their_priority_and_no_timestamp() {
     assert!(line.starts_with("<6>sweepline::cli::run: "), "{line}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn a_wrong_choice_lists_the_possible_values_and_exits_2() {
+    for args in [
+        &["sim", "--base", "roomba2"][..],
+        &["emulate", "motor"][..],
+        &["emulate", "urg", "--model", "lms100"][..],
+    ] {
+        let out = sweepline().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {out:?}");
+        let e = err(&out);
+        assert!(e.contains("possible values"), "{args:?}: {e}");
+    }
+}

@@ -21,13 +21,13 @@
 //! * `lab_c_scan:11`: 89.4 %: the transits into a ring of chairs kept being
 //!   blocked by chair legs seen from closer, and the floor inside was given
 //!   up after two (blocked transits forgiven, within a bound). Its online
-//!   path measured 1.34 x the offline one in session 3 and `lab_c_scan:0`'s
-//!   1.305; since travel is priced by the overlap it adds (session 5) they
+//!   path measured 1.34 x the offline one on 2026-11-22 and `lab_c_scan:0`'s
+//!   1.305; since travel is priced by the overlap it adds (2026-11-25) they
 //!   measure 0.905 and 1.033, and both are held to the 1.25 target.
 //!
 //! `lab_a_scan:8`: 1.5 m² (9 %) of its reachable floor lies behind a gap
 //! between chair legs 0.35 m wide, 5 mm a side for the 0.34 m body. Until
-//! session 7 the online map put the hits on the legs' faces into the free
+//! 2026-11-25 the online map put the hits on the legs' faces into the free
 //! cells in front of them half the time (every wall of these rasters lies on
 //! a cell boundary), the gap showed narrower than the body, the robot left
 //! the floor behind it and measured 97.9 %. With the hit in the surface's

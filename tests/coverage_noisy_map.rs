@@ -8,7 +8,7 @@
 //!
 //! The floor-plan rooms lie tens of metres from the world origin: a heading
 //! error that turned the scan about the origin instead of the robot (the
-//! noise model of session 9) moved whole scans by centimetres, and these
+//! noise model of 2026-11-25) moved whole scans by centimetres, and these
 //! runs then ended at 94-96 %.
 //!
 //! The protective field (`control.guard`) must not take those noisy walls

@@ -57,7 +57,7 @@ fn people_crossing_the_room_are_covered_around_and_never_touched() {
 }
 
 /// The five furnished floor-plan rooms and three more, two people
-/// each (drawn with seed 1, as `--people 2`). Before session 37's fixes,
+/// each (drawn with seed 1, as `--people 2`). Before the fixes of 2026-11-29,
 /// paths blocked by the people again and again had most of
 /// Freiburg52_scan:5 given up (38.58 %), and in Freiburg52_scan:1 and :7 a
 /// person who stepped beside the stretch the robot was on was touched.

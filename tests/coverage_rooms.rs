@@ -42,9 +42,9 @@ fn five_floor_plan_rooms() {
         let (m, o) = (&on.metrics, &off.metrics);
         // Target <= 15 %, not reached: measured 0.22-0.27 online and
         // 0.14-0.28 offline since no lane piece or fix-up is laid for a
-        // few cells (session 22); 0.18-0.36 / 0.17-0.39 since the lanes
+        // few cells (2026-11-27); 0.18-0.36 / 0.17-0.39 since the lanes
         // left once the room is explored are driven in one tour lane by
-        // lane (session 21); 0.17-0.44 /
+        // lane (2026-11-27); 0.17-0.44 /
         // 0.18-0.39 with the session-7 grid (exact beam walk, faces
         // seen at a grazing angle no frontier); 0.21-0.43 / 0.18-0.39 with
         // travel priced by the overlap it adds (0.28-0.55 / 0.20-0.50 before; 0.28-0.55 / 0.26-0.51 before the lane order was

@@ -129,7 +129,7 @@ fn the_field_does_not_stop_real_robots_where_they_drove_on() {
         wide_false > 0,
         "the check finds no false stop even for a field too wide"
     );
-    // Measured (session 38): 0 of 1831.
+    // Measured (2026-11-29): 0 of 1831.
     assert!(
         false_stops * 200 <= driven,
         "{false_stops} false stops in {driven} scans (at most 0.5 %)"

@@ -179,7 +179,7 @@ fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
 /// the end of the ±80° arc marked straight ahead is 2 (r + gap) sin 40° =
 /// 0.23 m from where it is; seen since: up to 0.13 m (a stool's corner
 /// 35° to the side), and 0.20 m with the corner 67° to the side of a robot
-/// turning in place (session 20; the bound was 0.2 m until then, below its
+/// turning in place (2026-11-27; the bound was 0.2 m until then, below its
 /// own worst case). A mark at the leading end of that turn was 0.32-0.36 m
 /// off, so a one-bit bumper is no longer marked there.
 fn assert_marks_on_obstacles(opts: &SimOptions, r: &closed_loop::SimReport) {

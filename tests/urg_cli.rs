@@ -31,7 +31,7 @@ fn emulate_then_probe_with_the_binary() {
     }
     let svg = dir.join("scan.svg");
     let probe = Command::new(exe)
-        .args(["probe", "--port"])
+        .args(["probe", "--scanner"])
         .arg(&link)
         .arg("--svg")
         .arg(&svg)

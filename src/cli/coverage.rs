@@ -37,8 +37,8 @@ pub struct Args {
     /// Lists the rooms of a floor plan (MAP) with their areas, then exits.
     #[arg(long, value_name = "MAP")]
     pub list_rooms: Option<String>,
-    /// Output folder for metrics and pictures.
-    #[arg(long, default_value = "coverage-out")]
+    /// Output folder for metrics and pictures (every command writes under out/).
+    #[arg(long, default_value = "out/coverage")]
     pub out: PathBuf,
     /// Also run the offline reference (room known in advance) and compare.
     #[arg(long)]

@@ -15,13 +15,14 @@ use crate::urg::{Clock, MonotonicClock, ScaledClock};
 /// Arguments of `sweepline emulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Which device to emulate: urg, roboclaw or create2.
+    /// Which device to emulate.
+    #[arg(value_parser = ["urg", "roboclaw", "create2"])]
     pub device: String,
     /// Also make this symlink to the pty (kept pointing at it over unplug/replug).
     #[arg(long)]
     pub link: Option<PathBuf>,
-    /// Sensor model: urg-04lx or utm-30lx.
-    #[arg(long, default_value = "urg-04lx")]
+    /// Sensor model.
+    #[arg(long, default_value = "urg-04lx", value_parser = ["urg-04lx", "utm-30lx"])]
     pub model: String,
     /// Boot in SCIP 1.1, as many URG-04LX units do (clients must send SCIP2.0).
     #[arg(long)]

@@ -7,16 +7,16 @@ use std::sync::{Arc, Mutex};
 
 use super::CliResult;
 use crate::scip::{ErrorKind, Reading};
-use crate::serial::{Connector, DeviceConnector, TcpConnector};
 use crate::urg::{Clock, MonotonicClock, UrgError, UrgHealth, UrgParams, UrgScan, UrgSession};
 
 /// Arguments of `sweepline probe`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Serial device of the scanner, e.g. /dev/ttyACM0 or a pty path, or
-    /// HOST:PORT of an Ethernet model (e.g. 192.168.0.10:10940).
-    #[arg(long)]
-    pub port: PathBuf,
+    /// The scanner: a serial device (e.g. /dev/sweepline-urg or a pty path)
+    /// or HOST:PORT of an Ethernet model (e.g. 192.168.0.10:10940); the same
+    /// flag as `sweepline run --scanner`.
+    #[arg(long, alias = "port")]
+    pub scanner: PathBuf,
     /// Skip the TM clock sync (stamps then use the arrival time).
     #[arg(long)]
     pub no_time_sync: bool,
@@ -28,17 +28,17 @@ pub struct Args {
 /// Runs `sweepline probe`.
 pub fn run(args: Args) -> CliResult {
     let params = UrgParams {
-        port: args.port.display().to_string(),
+        port: args.scanner.display().to_string(),
         time_sync_samples: if args.no_time_sync { 0 } else { 10 },
         // A diagnostic never reboots what it is pointed at (it may not
         // even be a URG).
         reboot_last_resort: false,
         ..UrgParams::default()
     };
-    let (text, scan) = probe_scan(&args.port, &params, Arc::new(MonotonicClock::new()))?;
+    let (text, scan) = probe_scan(&args.scanner, &params, Arc::new(MonotonicClock::new()))?;
     print!("{text}");
     if let (Some(path), Some(scan)) = (&args.svg, scan) {
-        let title = args.port.display().to_string();
+        let title = args.scanner.display().to_string();
         crate::urg::picture::write_scan_svg(&scan, 12.0, &title, path)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         println!("scan picture written to {}", path.display());
@@ -58,20 +58,7 @@ pub fn probe_scan(
     params: &UrgParams,
     clock: Arc<dyn Clock>,
 ) -> Result<(String, Option<UrgScan>), UrgError> {
-    let mut conn: Box<dyn Connector> = match port
-        .to_str()
-        .and_then(|p| p.parse::<std::net::SocketAddr>().ok())
-    {
-        Some(addr) => Box::new(TcpConnector {
-            addr,
-            connect_timeout: std::time::Duration::from_secs(2),
-        }),
-        None => {
-            let mut c = DeviceConnector::new(port);
-            c.baud = params.baud;
-            Box::new(c)
-        }
-    };
+    let mut conn = crate::serial::scanner_connector(&port.display().to_string(), params.baud);
     let link = conn
         .open(std::time::Duration::from_secs_f64(
             params.poll.clamp(0.001, 1.0),

@@ -21,7 +21,6 @@ use crate::pipeline::checkpoint::CheckpointStore;
 use crate::pipeline::notify::Notifier;
 use crate::pipeline::signals::SignalForwarder;
 use crate::report::run_folder::RunFolderHooks;
-use crate::serial::DeviceConnector;
 
 /// State folder when neither `--state-dir` nor systemd's `STATE_DIRECTORY` is set.
 pub const DEFAULT_STATE_DIR: &str = "/var/lib/sweepline";
@@ -40,7 +39,9 @@ pub struct Args {
     /// the devices, print the devices it would open, then exit (0 when valid).
     #[arg(long)]
     pub check_config: bool,
-    /// Scanner serial device (default: the config's `[scanner] port`).
+    /// The scanner: a serial device or HOST:PORT of an Ethernet model
+    /// (default: the config's `[scanner] port`); the same flag as
+    /// `sweepline probe --scanner`.
     #[arg(long)]
     pub scanner: Option<PathBuf>,
     /// Wheel-base serial device (default: the config's `[motor] device`).
@@ -178,8 +179,13 @@ pub fn run(args: Args) -> CliResult {
         keep_previous_run(&dir.join(RUN_FOLDER));
     }
 
-    let devices =
-        check_device("scanner", &scanner).and_then(|()| check_device("wheel-base", &base_dev));
+    let scanner_name = scanner.display().to_string();
+    let devices = if crate::serial::is_network_address(&scanner_name) {
+        Ok(())
+    } else {
+        check_device("scanner", &scanner)
+    }
+    .and_then(|()| check_device("wheel-base", &base_dev));
     if let Err(msg) = devices {
         notifier.status(&format!("failed: {msg}"));
         return Err(msg.into());
@@ -210,7 +216,7 @@ pub fn run(args: Args) -> CliResult {
     let daemon = Daemon::start(DaemonSetup {
         config: cfg.clone(),
         clock,
-        scanner: Box::new(DeviceConnector::new(&scanner)),
+        scanner: crate::serial::scanner_connector(&scanner_name, cfg.scanner.baud),
         base,
         start,
         map,

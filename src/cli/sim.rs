@@ -6,7 +6,7 @@
 //! sweepline sim                                  # hw/worlds/paper.world into out/sim
 //! sweepline sim --room office_f:3 --out out/office_f_3
 //! sweepline sim --map lab.yaml --region 2,3,9,8   # a room of a ROS map_server map
-//! sweepline sim --base create2 --speed 10       # faster, see docs/coverage-history.md (session 10)
+//! sweepline sim --base create2 --speed 10       # faster, at the price of occasional simulator artefacts
 //! ```
 
 use std::path::PathBuf;
@@ -28,14 +28,14 @@ pub struct Args {
     #[command(flatten)]
     pub world: WorldArgs,
     /// Simulated seconds per wall-clock second (at 10, host stalls on 2
-    /// cores let wheel commands run long: docs/coverage-history.md, session 10).
+    /// cores let wheel commands run long: occasional simulator artefacts, measured 2026-11-26).
     #[arg(long, default_value_t = 5.0)]
     pub speed: f64,
     /// Report folder.
     #[arg(long, default_value = "out/sim")]
     pub out: PathBuf,
-    /// Emulated wheel base: roboclaw or create2.
-    #[arg(long, default_value = "roboclaw")]
+    /// Emulated wheel base.
+    #[arg(long, default_value = "roboclaw", value_parser = ["roboclaw", "create2"])]
     pub base: String,
     /// Robot configuration.
     #[arg(long, default_value = "hw/robot.toml")]

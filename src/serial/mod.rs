@@ -81,6 +81,29 @@ pub fn write_chunked(w: &mut dyn Write, data: &[u8], chunk: usize) -> io::Result
     Ok(())
 }
 
+/// The connector for a scanner named as the user names it: `HOST:PORT` (an
+/// Ethernet model, e.g. 192.168.0.10:10940) over TCP, anything else a serial
+/// device path opened at `baud`. `sweepline run` and `probe` both take it.
+pub fn scanner_connector(name: &str, baud: u32) -> Box<dyn Connector> {
+    match name.parse::<std::net::SocketAddr>() {
+        Ok(addr) => Box::new(TcpConnector {
+            addr,
+            connect_timeout: std::time::Duration::from_secs(2),
+        }),
+        Err(_) => {
+            let mut c = DeviceConnector::new(name);
+            c.baud = baud;
+            Box::new(c)
+        }
+    }
+}
+
+/// Whether a scanner name is a network address (`HOST:PORT`) rather than
+/// a device path.
+pub fn is_network_address(name: &str) -> bool {
+    name.parse::<std::net::SocketAddr>().is_ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -96,12 +96,12 @@ const NEW_FLOOR_SETTLE: usize = 5;
 /// Least new floor (grid cells, 0.04 m² at 5 cm) that takes the lane tour
 /// again: four times the smallest cluster the planner lays a lane for,
 /// since cells at the edges of furniture in a map built from noisy scans
-/// come and go. Measured (session 29, the debug log gives the count): the
+/// come and go. Measured (2026-11-28, the debug log gives the count): the
 /// closed loop in office_f:0 at ×5 took the tour again 8-19 times a run,
 /// nearly always for 8-11 cells; with 8 cells, 9 runs gave overlap 37.3 %,
 /// coverage 99.08 %, path 74.4 m (means), with 16 cells 8 runs 33.9 %,
 /// 99.21 %, 69.1 m; the 24 lock-step rooms' means are the same both ways
-/// (session 24 chose 8 on them: 4 cells gave 1.5 points less overlap on
+/// (2026-11-27 chose 8 on them: 4 cells gave 1.5 points less overlap on
 /// ideal maps but lost coverage on noisy ones).
 const NEW_FLOOR_MIN_CELLS: usize = 16;
 

@@ -498,7 +498,7 @@ fn a_speck_of_floor_seen_near_the_robot_does_not_take_the_tour_again() {
     // The pillar's top three rows (12 cells) seen free: 15 cells of new
     // floor the rest of the tour does not sweep, as much as a noisy
     // map's cells at the edges of furniture come and go (8-11 cells at
-    // most looks in a closed-loop run, session 29).
+    // most looks in a closed-loop run, 2026-11-28).
     let (new, before, after) = pillar_part_seen_free(true, 16..21);
     assert_eq!(new, None, "{before:?} -> {after:?}");
     assert_eq!(after.retours, before.retours);
