@@ -1,6 +1,8 @@
 //! The shipped systemd unit and udev rules: the directives the daemon relies
-//! on are present, every udev rule line is well-formed, and, where
-//! `systemd-analyze` is installed, the unit verifies without a warning.
+//! on are present, every udev rule line is well-formed, real-time priority
+//! is refused as shipped and granted by `systemd/realtime.conf`, and, where
+//! `systemd-analyze` is installed, the unit (with and without that drop-in)
+//! verifies without a warning.
 
 use std::process::Command;
 
@@ -118,4 +120,96 @@ fn udev_rules_are_well_formed_and_name_both_devices() {
     assert!(with("15d1", "0000", "sweepline-urg"), "URG-04LX rule");
     assert!(with("03eb", "2404", "sweepline-base"), "RoboClaw rule");
     assert!(with("0403", "6001", "sweepline-base"), "Create 2 FTDI rule");
+}
+
+/// The system-call filter a unit's `[Service]` lines leave, read as systemd
+/// does: an empty assignment resets it; `~` lines deny, others allow.
+fn filter(lines: &[(String, String)]) -> (Vec<String>, Vec<String>) {
+    let (mut allow, mut deny) = (Vec::new(), Vec::new());
+    for (_, v) in lines.iter().filter(|(k, _)| k == "SystemCallFilter") {
+        if v.is_empty() {
+            allow.clear();
+            deny.clear();
+        } else if let Some(d) = v.strip_prefix('~') {
+            deny.extend(d.split_whitespace().map(str::to_string));
+        } else {
+            allow.extend(v.split_whitespace().map(str::to_string));
+        }
+    }
+    (allow, deny)
+}
+
+fn last<'a>(lines: &'a [(String, String)], key: &str) -> Option<&'a str> {
+    lines
+        .iter()
+        .rev()
+        .find(|(k, _)| k == key)
+        .map(|(_, v)| v.as_str())
+}
+
+const DROP_IN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/systemd/realtime.conf");
+
+#[test]
+fn real_time_priority_is_refused_as_shipped_and_granted_by_the_drop_in() {
+    let unit = directives(&std::fs::read_to_string(UNIT).unwrap());
+    // As shipped: no real-time scheduling, and the calls for it denied.
+    assert_eq!(last(&unit, "RestrictRealtime"), Some("yes"));
+    assert!(last(&unit, "LimitRTPRIO").is_none());
+    let (_, deny) = filter(&unit);
+    assert!(deny.iter().any(|d| d == "@resources"), "{deny:?}");
+    // With the drop-in (read after the unit, as systemd reads drop-ins).
+    let mut both = unit.clone();
+    both.extend(directives(&std::fs::read_to_string(DROP_IN).unwrap()));
+    assert_eq!(last(&both, "RestrictRealtime"), Some("no"));
+    assert_eq!(last(&both, "LimitRTPRIO"), Some("20"));
+    let (allow, deny) = filter(&both);
+    assert!(allow.iter().any(|a| a == "@system-service"), "{allow:?}");
+    assert!(deny.iter().any(|d| d == "@privileged"), "{deny:?}");
+    for call in ["@resources", "sched_setscheduler", "sched_setparam"] {
+        assert!(
+            !deny.iter().any(|d| d == call),
+            "{call} still denied: {deny:?}"
+        );
+    }
+}
+
+#[test]
+fn unit_with_the_real_time_drop_in_verifies_with_systemd_analyze() {
+    let probe = Command::new("systemd-analyze").arg("--version").output();
+    if probe.map(|o| !o.status.success()).unwrap_or(true) {
+        eprintln!("skipped: systemd-analyze is not installed");
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("sweepline-unit-rt-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // The drop-in's [Service] lines appended to the unit: what systemd
+    // makes of the pair.
+    let unit = std::fs::read_to_string(UNIT)
+        .unwrap()
+        .replace("/usr/local/bin/sweepline", env!("CARGO_BIN_EXE_sweepline"));
+    let drop_in = std::fs::read_to_string(DROP_IN).unwrap();
+    let service_lines = drop_in
+        .split_once("[Service]")
+        .map(|(_, rest)| rest)
+        .unwrap();
+    let (head, install) = unit.split_once("[Install]").unwrap();
+    let merged = format!("{head}{service_lines}\n[Install]{install}");
+    let path = dir.join("sweepline.service");
+    std::fs::write(&path, merged).unwrap();
+    let out = Command::new("systemd-analyze")
+        .arg("verify")
+        .arg(&path)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let ours: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("sweepline.service"))
+        .collect();
+    assert!(
+        out.status.success() && ours.is_empty(),
+        "systemd-analyze verify: {err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
