@@ -257,15 +257,25 @@ fn write_threads(md: &mut String, s: &MetricsSnapshot) {
         .sum();
     if emulated > 0.0 {
         let rest = (s.process_cpu - emulated).max(0.0);
+        // At a time scale other than 1 the figure judged is per second of
+        // robot time, the one the budget is about.
+        let judged = if s.scale() == 1.0 {
+            format!("{} of one core", share(rest))
+        } else {
+            format!(
+                "{} of one core per second of robot time ({} per wall second)",
+                core_share(rest / s.scale(), s.wall),
+                share(rest)
+            )
+        };
         let _ = writeln!(
             md,
             "In-process device emulators (threads `{}`…, the simulator's, not run on a robot): \
-             {:.2} s = {} of one core; **the process without them: {} of one core** \
+             {:.2} s = {} of one core; **the process without them: {judged}** \
              (against the budget of {}: **{}**).\n",
             crate::pipeline::threads::EMULATOR_PREFIXES.join("`…, `"),
             emulated,
             share(emulated),
-            share(rest),
             pct(s.cpu_budget),
             ok_mark(s.wall > 0.0 && rest / s.wall / s.scale() <= s.cpu_budget),
         );
@@ -392,6 +402,15 @@ mod tests {
         let md = budget_markdown(&fast);
         assert!(
             md.contains("**2.00 % of one core per second of robot time** against a budget of 5.00 % of one core: **within**"),
+            "{md}"
+        );
+        // The daemon without the emulators, at 5 x: 4.8 s of 60 s is 8 %
+        // per wall second, 1.6 % per robot second: within.
+        let mut fast = snapshot(&[("emu-roboclaw", 1.2)]);
+        fast.time_scale = 5.0;
+        let md = budget_markdown(&fast);
+        assert!(
+            md.contains("**the process without them: 1.60 % of one core per second of robot time (8.00 % per wall second)** (against the budget of 5.00 %: **within**)"),
             "{md}"
         );
         // On a robot: no emulator line, the thread table only.
