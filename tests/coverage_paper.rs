@@ -64,7 +64,7 @@ fn paper_workspace_online_against_offline() {
     // transits between cells, exploration and lane connections with the
     // tool always on, the seam between neighbouring lanes and the one lane
     // hugging the far wall. The online run moves by ±3 points with any
-    // change of the cell order. See the README's coverage section.
+    // change of the cell order. See `docs/coverage-planning.md`.
     assert!(o.overlap <= 0.22, "offline overlap {}", o.overlap);
     assert!(m.overlap <= 0.25, "online overlap {}", m.overlap);
     // The breakdown by cause adds up to the overlap.

@@ -3,7 +3,7 @@
 //! online and offline in the lock-step simulation. Bounds are what this build
 //! reaches, with a small margin. Of the targets, coverage >= 99 %,
 //! zero collisions and online <= 1.25 x offline are met when this was
-//! written; overlap <= 15 % is not (see the README's coverage section),
+//! written; overlap <= 15 % is not (see `docs/coverage-planning.md`),
 //! though the same rooms without furniture (`Furnishing::Bare`) meet it.
 
 mod coverage_support;

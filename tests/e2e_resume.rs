@@ -47,7 +47,7 @@ const HEARTBEAT_WALL: f64 = 0.02;
 /// Ground-truth coverage at which the daemon is killed.
 const KILL_AT: f64 = 0.40;
 /// Set to run the same world without the kill: the uninterrupted baseline
-/// the resumed run's time is compared with (README, "Crash test").
+/// the resumed run's time is compared with (`docs/checkpoints.md`, "Crash test").
 const NO_KILL_ENV: &str = "SWEEPLINE_E2E_NO_KILL";
 /// Coverage the whole run must reach (the in-process e2e test's bound).
 const MIN_COVERAGE: f64 = 0.97;

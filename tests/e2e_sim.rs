@@ -152,7 +152,7 @@ fn daemon_covers_a_small_world_through_the_ptys() {
 /// A robot switched on at an angle to the walls (its map frame is its start
 /// pose): the daemon lays its map frame along the walls of the first scan,
 /// and the lanes run along them. With `daemon.align_to_walls = false` the
-/// same run crosses the room in slanted lanes (README, "Map frame").
+/// same run crosses the room in slanted lanes (`docs/localisation.md`, the map frame).
 #[test]
 fn a_robot_switched_on_at_an_angle_to_the_walls_lays_its_map_along_them() {
     let r = small_run(config(), |o| o.heading_error = 27f64.to_radians());

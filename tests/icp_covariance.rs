@@ -131,7 +131,7 @@ fn report(name: &str, s: &Spread) {
 /// (at most twice it), and every axis's reported standard deviation within
 /// a factor of two of the one seen. The bias is `max_bias` × the range
 /// noise at most (the matcher's thinning of the scan causes it; see the
-/// README's "The match's covariance").
+/// `docs/evaluation.md`).
 fn assert_consistent(name: &str, s: &Spread, noise: f64, max_bias: f64) {
     report(name, s);
     let bias = s.bias.xy().norm();

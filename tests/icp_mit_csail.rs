@@ -1,6 +1,6 @@
 //! The matcher on real data: the MIT CSAIL log of the Kümmerle et al. 2009
 //! benchmark, scored with its hand-made relations. The thresholds are what
-//! the default configuration reaches (see the README) plus a small margin, so
+//! the default configuration reaches (see `docs/evaluation.md`) plus a small margin, so
 //! a regression fails. The run is deterministic.
 
 use sweepline::cli::replay::replay_log;
@@ -55,7 +55,7 @@ fn mit_csail_accuracy_with_default_parameters() {
     assert!(noise.floor_rot_deg.value > 0.2, "{noise}");
 }
 
-// Reached: see README "Scan matching on real data".
+// Reached: see `docs/evaluation.md`.
 const ALL_TRANS: f64 = 0.10;
 const ALL_ROT: f64 = 1.0;
 const LOCAL_TRANS: f64 = 0.026;

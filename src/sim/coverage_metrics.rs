@@ -3,7 +3,7 @@
 //! how often, how far it drove, how often it turned, and whether its body
 //! ever touched an obstacle.
 //!
-//! Definitions (see also the README section "Coverage metrics"):
+//! Definitions (see also `docs/coverage-planning.md`):
 //! * **reachable**: ground-truth cells where a disk of the robot radius centred
 //!   on the cell is free, 8-connected to the start cell: where the robot's
 //!   centre can go. Coverage % is the share of these cells the tool swept.

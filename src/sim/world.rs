@@ -2,7 +2,7 @@
 //! free-space raster for ground truth (coverage, collisions).
 //!
 //! A world is written by hand in a small text format (one directive a line,
-//! `#` starts a comment), documented in the README:
+//! `#` starts a comment), documented in `docs/simulator.md`:
 //!
 //! ```text
 //! name paper-workspace

@@ -6,7 +6,7 @@
 //! hostile files without panicking or allocating what a length field claims,
 //! and every length here is checked against the bytes actually left before
 //! anything is allocated. The format is a page of documentation
-//! (`README.md`, "Checkpoints"), stable, and readable from any language.
+//! (`docs/checkpoints.md`), stable, and readable from any language.
 
 use super::CheckpointError;
 use crate::geom::IPoint;
