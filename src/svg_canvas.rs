@@ -30,6 +30,16 @@ pub fn label(x: f64, y: f64, content: impl Into<String>, size: u32) -> Text {
         .set("font-size", size)
 }
 
+/// A one-line caption under a picture `width` pixels wide, at baseline `y`:
+/// [`label`] at `size` pixels, smaller when the line would not fit (a
+/// sans-serif glyph is taken as 0.55 of its size wide on average).
+pub fn caption(width: f64, y: f64, content: impl Into<String>, size: u32) -> Text {
+    let content = content.into();
+    let chars = content.chars().count().max(1) as f64;
+    let fits = ((width - 16.0) / (0.55 * chars)).floor().max(6.0);
+    label(8.0, y, content, size.min(fits as u32))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -40,6 +50,16 @@ mod tests {
         assert!(text.contains(r#"viewBox="0 0 120 80.5""#), "{text}");
         assert!(text.contains(r#"width="120""#) && text.contains(r#"height="80.5""#));
         assert!(text.contains(r##"fill="#f4f4f4""##), "{text}");
+    }
+
+    #[test]
+    fn a_long_caption_is_set_smaller_to_fit_its_picture() {
+        let short = canvas(900.0, 50.0, "white").add(caption(900.0, 20.0, "room", 14));
+        assert!(short.to_string().contains(r#"font-size="14""#));
+        let long = "x".repeat(200);
+        let doc = canvas(900.0, 50.0, "white").add(caption(900.0, 20.0, long, 14));
+        // (900 - 16) / (0.55 * 200) = 8.03: 8 px.
+        assert!(doc.to_string().contains(r#"font-size="8""#), "{doc}");
     }
 
     #[test]

@@ -14,7 +14,7 @@ use crate::geom::Pose;
 use crate::plan::Motion;
 use crate::sim::coverage_metrics::{CoverageMetrics, OVERLAP_CAUSES};
 use crate::sim::world::{FreeRaster, World};
-use crate::svg_canvas::{canvas, label};
+use crate::svg_canvas::{canvas, caption, label};
 
 /// Pixels per metre.
 const SCALE: f64 = 100.0;
@@ -132,7 +132,7 @@ pub fn cells_svg(
     decomp: &Decomposition,
     track_so_far: &[Pose],
     robot_radius: f64,
-    caption: &str,
+    caption_text: &str,
 ) -> Document {
     let v = View::of(&world.free);
     let mut doc = v.doc(30.0);
@@ -170,7 +170,7 @@ pub fn cells_svg(
             .add(track(track_so_far, &v, "#3182bd", 1.5))
             .add(robot(last, robot_radius, &v));
     }
-    doc.add(label(8.0, v.h + 22.0, caption, 16))
+    doc.add(caption(v.w, v.h + 22.0, caption_text, 16))
 }
 
 /// The final path over the world, with pass counts per ground-truth cell.
@@ -209,7 +209,7 @@ pub fn path_svg(
                 .set("fill", "#31a354"),
         );
     }
-    let caption = format!(
+    let caption_text = format!(
         "{title}: coverage {:.1}% of reachable ({:.1}% footprint), overlap {:.1}%, path {:.1} m, {} turns, {:.0} s, {} collisions",
         m.coverage * 100.0,
         m.footprint_coverage * 100.0,
@@ -219,7 +219,7 @@ pub fn path_svg(
         m.time,
         m.collisions
     );
-    doc.add(label(8.0, v.h + 22.0, caption, 14))
+    doc.add(caption(v.w, v.h + 22.0, caption_text, 14))
 }
 
 /// [`raster_cells`] with every non-free cell grey and `colour` deciding the
@@ -298,7 +298,7 @@ pub fn overlap_svg(
         .add(cells)
         .add(walls(world, &v))
         .add(track(trajectory, &v, "#08306b", 0.8))
-        .add(label(8.0, v.h + 22.0, &title, 14));
+        .add(caption(v.w, v.h + 22.0, &title, 14));
     let entries = legend
         .iter()
         .enumerate()
@@ -403,7 +403,7 @@ pub fn motions_svg(
         }
         last_task = task;
     }
-    doc = doc.add(label(8.0, v.h + 22.0, title, 14));
+    doc = doc.add(caption(v.w, v.h + 22.0, title, 14));
     let entries = MOTION_STYLES.iter().map(|(_, col, name)| (*col, *name));
     add_legend(doc, v.h + 30.0, line, 3.0, entries)
 }
