@@ -1,4 +1,4 @@
-//! Decomposition update time (issue 5 target: ≤ 5 ms p99 per map update in
+//! Decomposition update time (the coverage target: ≤ 5 ms p99 per map update in
 //! the largest room).
 //!
 //! Rooms cut from the IPA floor plans (shared data) are explored scan by scan

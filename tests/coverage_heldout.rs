@@ -1,5 +1,5 @@
 //! Rooms nobody tuned the planner on, each of which once made the online
-//! planner fail (issue 5: coverage >= 99 % of the reachable floor, zero
+//! planner fail (the coverage targets: coverage >= 99 % of the reachable floor, zero
 //! collisions, online path <= 1.25 x the offline reference, in every room).
 //! Lock-step simulation at the default 0.2 s scan period, online and
 //! offline, real floor plans from `../shared/maps/`; one test per room, so
