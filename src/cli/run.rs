@@ -69,12 +69,18 @@ pub fn config_path(flag: Option<&Path>) -> PathBuf {
     if let Some(p) = flag {
         return p.to_path_buf();
     }
-    std::env::var("CONFIGURATION_DIRECTORY")
+    systemd_dir("CONFIGURATION_DIRECTORY")
+        .map(|d| d.join("robot.toml"))
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_CONFIG))
+}
+
+/// The first entry of the colon-separated folder list systemd puts in
+/// `var` (`STATE_DIRECTORY`, `CONFIGURATION_DIRECTORY`), if set and not empty.
+fn systemd_dir(var: &str) -> Option<PathBuf> {
+    std::env::var(var)
         .ok()
         .and_then(|v| v.split(':').next().map(PathBuf::from))
         .filter(|p| !p.as_os_str().is_empty())
-        .map(|d| d.join("robot.toml"))
-        .unwrap_or_else(|| PathBuf::from(DEFAULT_CONFIG))
 }
 
 /// The state folder: the flag, else the first entry of `$STATE_DIRECTORY`
@@ -83,11 +89,7 @@ pub fn state_dir(flag: Option<&Path>) -> PathBuf {
     if let Some(p) = flag {
         return p.to_path_buf();
     }
-    std::env::var("STATE_DIRECTORY")
-        .ok()
-        .and_then(|v| v.split(':').next().map(PathBuf::from))
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or_else(|| PathBuf::from(DEFAULT_STATE_DIR))
+    systemd_dir("STATE_DIRECTORY").unwrap_or_else(|| PathBuf::from(DEFAULT_STATE_DIR))
 }
 
 /// The run folder in the state folder: metrics, the report, `mount.toml`,

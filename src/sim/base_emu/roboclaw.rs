@@ -271,18 +271,15 @@ impl RoboClawDevice {
     /// A controller at `address`; `counts_per_metre` converts wheel travel to
     /// encoder counts; `m1_is_left` says which wheel motor 1 drives.
     pub fn new(address: u8, counts_per_metre: f64, m1_is_left: bool) -> Self {
-        // Until told otherwise (`with_motors`): 1 m/s, 1 m/s².
-        let top = counts_per_metre.max(0.0);
-        let qpps = top.round().clamp(0.0, u32::MAX as f64) as u32;
         Self {
             address,
             counts_per_metre,
             m1_is_left,
             strict: false,
             decoder: CommandDecoder::new(),
-            ch: [Channel::new(qpps), Channel::new(qpps)],
-            top,
-            decel: top,
+            ch: [Channel::new(0), Channel::new(0)],
+            top: 0.0,
+            decel: 1.0,
             last_tick: None,
             start: None,
             timeout_tenths: 0,
@@ -293,6 +290,8 @@ impl RoboClawDevice {
             latched: [0; 2],
             stats: DeviceStats::default(),
         }
+        // Until told otherwise: motors of 1 m/s top speed braking at 1 m/s².
+        .with_motors(1.0, 1.0)
     }
 
     /// The same controller refusing (and counting) packets the manual does
