@@ -277,6 +277,62 @@ impl RoboClawDriver {
         }
     }
 
+    /// The poll's reads: both encoders (odometry), the status word (the
+    /// bumper) and, every [`BATTERY_EVERY`] polls, the battery. Returns
+    /// whether the port closed, and the odometry if a reading was taken.
+    fn read_state(&mut self) -> (bool, Option<Odometry>) {
+        let mut closed = false;
+        let mut odometry: Option<Odometry> = None;
+        let asked = self.clock.now();
+        match self.transact(&Command::Query(Query::Encoders), self.retries + 1) {
+            Ok(Reply::Pair32(m1, m2)) => {
+                let (l, r) = if self.m1_is_left { (m1, m2) } else { (m2, m1) };
+                // The counters were latched somewhere between request and
+                // reply: stamp the reading with the midpoint. (A retried
+                // request widens the window; the last attempt is what
+                // counts, so use the reply time minus half the last RTT.)
+                let answered = self.clock.now();
+                let stamp = answered - 0.5 * (answered - asked).min(self.reply_timeout);
+                match self.odo.update_within(l, r, stamp, (asked, answered)) {
+                    Ok(Accepted::Rebased(o)) => {
+                        self.health.odometry_rebases += 1;
+                        log::warn!(
+                            "wheel base: encoder counters continue from the jump rejected before (reset by the controller?); odometry re-based there, the jump itself not counted as travel"
+                        );
+                        odometry = Some(o);
+                    }
+                    Ok(a) => odometry = a.odometry(),
+                    Err(g) => {
+                        self.health.odometry_glitches += 1;
+                        log::warn!("wheel base: {g}");
+                    }
+                }
+            }
+            Ok(_) => {}
+            Err(e) => closed |= e == TxError::Closed,
+        }
+        match self.transact(&Command::Query(Query::Status), self.retries + 1) {
+            Ok(Reply::U32(s)) => {
+                let pressed = s & STATUS_ESTOP != 0;
+                self.apply_bumper(Sides {
+                    left: pressed,
+                    right: pressed,
+                });
+            }
+            Ok(_) => {}
+            Err(e) => closed |= e == TxError::Closed,
+        }
+        // The battery changes slowly: once every BATTERY_EVERY polls.
+        if self.polls.is_multiple_of(BATTERY_EVERY) {
+            match self.transact(&Command::Query(Query::MainBattery), 1) {
+                Ok(Reply::U16(dv)) => self.battery = Some(dv as f64 / 10.0),
+                Ok(_) => {}
+                Err(e) => closed |= e == TxError::Closed,
+            }
+        }
+        (closed, odometry)
+    }
+
     fn apply_bumper(&mut self, s: Sides) {
         if self.cmd.set_bumper(s, &mut self.health) {
             let w = self.cmd.effective();
@@ -306,53 +362,15 @@ impl DiffDriveBase for RoboClawDriver {
         }
         if self.up {
             let w = self.cmd.effective();
-            let mut closed = self.send_speeds(w) == Err(TxError::Closed);
-            let asked = self.clock.now();
-            match self.transact(&Command::Query(Query::Encoders), self.retries + 1) {
-                Ok(Reply::Pair32(m1, m2)) => {
-                    let (l, r) = if self.m1_is_left { (m1, m2) } else { (m2, m1) };
-                    // The counters were latched somewhere between request and
-                    // reply: stamp the reading with the midpoint. (A retried
-                    // request widens the window; the last attempt is what
-                    // counts, so use the reply time minus half the last RTT.)
-                    let answered = self.clock.now();
-                    let stamp = answered - 0.5 * (answered - asked).min(self.reply_timeout);
-                    match self.odo.update_within(l, r, stamp, (asked, answered)) {
-                        Ok(Accepted::Rebased(o)) => {
-                            self.health.odometry_rebases += 1;
-                            log::warn!(
-                                "wheel base: encoder counters continue from the jump rejected before (reset by the controller?); odometry re-based there, the jump itself not counted as travel"
-                            );
-                            odometry = Some(o);
-                        }
-                        Ok(a) => odometry = a.odometry(),
-                        Err(g) => {
-                            self.health.odometry_glitches += 1;
-                            log::warn!("wheel base: {g}");
-                        }
-                    }
-                }
-                Ok(_) => {}
-                Err(e) => closed |= e == TxError::Closed,
-            }
-            match self.transact(&Command::Query(Query::Status), self.retries + 1) {
-                Ok(Reply::U32(s)) => {
-                    let pressed = s & STATUS_ESTOP != 0;
-                    self.apply_bumper(Sides {
-                        left: pressed,
-                        right: pressed,
-                    });
-                }
-                Ok(_) => {}
-                Err(e) => closed |= e == TxError::Closed,
-            }
-            // The battery changes slowly: once every BATTERY_EVERY polls.
-            if self.polls.is_multiple_of(BATTERY_EVERY) {
-                match self.transact(&Command::Query(Query::MainBattery), 1) {
-                    Ok(Reply::U16(dv)) => self.battery = Some(dv as f64 / 10.0),
-                    Ok(_) => {}
-                    Err(e) => closed |= e == TxError::Closed,
-                }
+            let sent = self.send_speeds(w);
+            let mut closed = sent == Err(TxError::Closed);
+            // A set-point unanswered through all its retries means a silent
+            // link: the reads would only wait out their own timeouts and
+            // put off noticing it by a whole poll.
+            if sent != Err(TxError::Timeout) {
+                let (c, o) = self.read_state();
+                closed |= c;
+                odometry = o;
             }
             self.polls += 1;
             if closed {
