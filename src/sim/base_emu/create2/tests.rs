@@ -447,3 +447,22 @@ fn battery_drains_with_use_and_songs_play() {
     assert_eq!(&g5[1..3], &[2, 1]);
     assert_eq!(d.stats().packets_rejected, 0);
 }
+
+proptest::proptest! {
+    /// Any bytes, in any chunks: the robot answers what it answers and
+    /// never panics, strict or not.
+    #[test]
+    fn garbage_never_panics(
+        chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..40), 0..40),
+        strict in proptest::prelude::any::<bool>(),
+    ) {
+        let mut d = Create2Device::new(CPM, BASE, strict);
+        let mut out = Vec::new();
+        let mut t = 0.0;
+        for c in &chunks {
+            t += 0.004;
+            d.on_bytes(c, t, &BodyState::default(), &mut out);
+            d.tick(t, &BodyState::default(), &mut out);
+        }
+    }
+}

@@ -354,3 +354,27 @@ fn every_query_is_answered_with_its_layout() {
         assert!(r.is_some(), "query {code} unanswered");
     }
 }
+
+proptest::proptest! {
+    /// Any bytes, in any chunks, at any times: the controller answers what
+    /// it answers and never panics, strict or not, whatever its wheels do.
+    #[test]
+    fn garbage_never_panics(
+        chunks in proptest::collection::vec(proptest::collection::vec(proptest::prelude::any::<u8>(), 0..40), 0..40),
+        strict in proptest::prelude::any::<bool>(),
+        travel in -1e4f64..1e4,
+    ) {
+        let mut d = RoboClawDevice::new(0x80, CPM, true).strict(strict);
+        let mut out = Vec::new();
+        let mut t = 0.0;
+        for (i, c) in chunks.iter().enumerate() {
+            t += 0.003 * (i % 7) as f64;
+            let body = BodyState {
+                encoder: (travel * i as f64, -travel),
+                ..BodyState::default()
+            };
+            d.on_bytes(c, t, &body, &mut out);
+            d.tick(t, &body, &mut out);
+        }
+    }
+}
