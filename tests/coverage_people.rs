@@ -14,6 +14,7 @@ fn world(name: &str) -> World {
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_person_standing_in_the_doorway_is_waited_for_and_the_far_room_covered() {
     let w = world("doorway.world");
     assert_eq!(w.walkers.len(), 1);
@@ -44,6 +45,7 @@ fn a_person_standing_in_the_doorway_is_waited_for_and_the_far_room_covered() {
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn people_crossing_the_room_are_covered_around_and_never_touched() {
     let mut w = world("paper.world");
     // One across the robot's start, four times; one down the middle later.
@@ -62,6 +64,7 @@ fn people_crossing_the_room_are_covered_around_and_never_touched() {
 /// Freiburg52_scan:5 given up (38.58 %), and in Freiburg52_scan:1 and :7 a
 /// person who stepped beside the stretch the robot was on was touched.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn two_people_in_each_of_eight_furnished_rooms_are_never_touched() {
     let dir = sweepline::require_shared!(floorplan::MAPS_DIR);
     for spec in [

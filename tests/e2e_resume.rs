@@ -133,12 +133,14 @@ enum Restart {
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn killed_daemon_resumes_its_coverage() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     crash_and_resume("e2e_resume", Restart::SameConfig);
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_mount_corrected_in_the_configuration_wins_over_the_checkpointed_one() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     crash_and_resume("e2e_resume_mount", Restart::MountCorrected);

@@ -87,6 +87,7 @@ fn small_run(cfg: Config, set: impl FnOnce(&mut SimOptions)) -> closed_loop::Sim
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn daemon_covers_a_small_world_through_the_ptys() {
     let dir = out_dir("e2e_small");
     let d = dir.clone();
@@ -154,6 +155,7 @@ fn daemon_covers_a_small_world_through_the_ptys() {
 /// and the lanes run along them. With `daemon.align_to_walls = false` the
 /// same run crosses the room in slanted lanes (`docs/localisation.md`, the map frame).
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_robot_switched_on_at_an_angle_to_the_walls_lays_its_map_along_them() {
     let r = small_run(config(), |o| o.heading_error = 27f64.to_radians());
     let turn = r.frame_turn.expect("the frame was not decided");
@@ -168,6 +170,7 @@ fn a_robot_switched_on_at_an_angle_to_the_walls_lays_its_map_along_them() {
 /// turned 20° left: the daemon reads its scans through that mount (as set
 /// in `[robot]`), and the poses it reports are the robot's.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_scanner_mounted_upside_down_and_turned_is_read_through_its_mount() {
     let mut cfg = config();
     cfg.robot.scanner_offset_x = 0.08;
@@ -191,6 +194,7 @@ fn a_scanner_mounted_upside_down_and_turned_is_read_through_its_mount() {
 /// quarter turn, naming the key, instead of mapping nonsense (without the
 /// check the run ended "coverage finished" at 1.19 %).
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_scanner_upside_down_but_configured_upright_stops_the_daemon() {
     let mut opts = SimOptions::new(World::parse(SMALL).unwrap(), config());
     opts.speed = 8.0;
@@ -257,6 +261,7 @@ fn yaw_off_run(deg: f64, fit: bool, cap: f64) -> closed_loop::SimReport {
 /// with the right value (without the fit, 3° in the bench room cost 1.2
 /// points of coverage and 18 of overlap).
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_scanner_yaw_a_few_degrees_off_is_refitted_on_the_first_metre() {
     let r = yaw_off_run(4.0, true, 900.0);
     let fit = r.travel_fit.expect("no metre driven straight");
@@ -280,6 +285,7 @@ fn a_scanner_yaw_a_few_degrees_off_is_refitted_on_the_first_metre() {
 /// Off by 30° (no mounting tolerance), or by 4° with the fit turned off:
 /// the daemon stops after its first metre instead of steering crabwise.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_scanner_yaw_far_off_or_unfitted_stops_the_daemon() {
     for (deg, fit) in [(30.0, true), (4.0, false)] {
         let r = yaw_off_run(deg, fit, 300.0);
@@ -299,6 +305,7 @@ fn a_scanner_yaw_far_off_or_unfitted_stops_the_daemon() {
 /// reports 19 % more turn than the robot makes, and the turn check
 /// measures the scans' share of it (a warning names the base that fits).
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_wheel_base_configured_short_shows_in_the_turn_check() {
     let r = small_report(config(), |o| {
         o.time_cap = 40.0;
@@ -318,6 +325,7 @@ fn a_wheel_base_configured_short_shows_in_the_turn_check() {
 /// scans turn against the wheels and stops the daemon (its message names
 /// `motor.roboclaw.m1_is_left` beside `robot.scanner_upside_down`).
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn wheels_swapped_left_for_right_stop_the_daemon() {
     let r = small_report(config(), |o| {
         o.time_cap = 120.0;
@@ -341,6 +349,7 @@ fn offset_off_run(dx: f64, dy: f64, fit: bool, cap: f64) -> closed_loop::SimRepo
 /// the daemon takes the fitted offset into the mount and covers the room
 /// with its pose where the robot is.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_scanner_offset_off_is_refitted_on_the_first_half_turn() {
     let r = offset_off_run(0.10, 0.05, true, 900.0);
     let fit = r.offset_fit.expect("no half turn in place");
@@ -361,6 +370,7 @@ fn a_scanner_offset_off_is_refitted_on_the_first_half_turn() {
 /// Off by 25 cm (no measuring error), or by 4 cm with the fit turned off:
 /// the daemon stops at its first half turn in place.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_scanner_offset_far_off_or_unfitted_stops_the_daemon() {
     for (dx, fit) in [(0.25, true), (-0.04, false)] {
         let r = offset_off_run(dx, 0.0, fit, 120.0);
@@ -377,6 +387,7 @@ fn a_scanner_offset_far_off_or_unfitted_stops_the_daemon() {
 /// 11 % farther than the odometry says, which the travel check's scale
 /// shows over the first metre; mount.toml notes the radius that fits.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_wheel_radius_configured_small_shows_in_the_travel_scale() {
     let name = "e2e_wheel_radius";
     let r = small_report(config(), |o| {
@@ -403,9 +414,16 @@ fn a_wheel_radius_configured_small_shows_in_the_travel_scale() {
         .unwrap_or_else(|| panic!("{line}"));
     assert!((fitted - 0.040).abs() <= 0.0012, "{line}");
     // The turn is off by the same factor: the base fitted from it, with
-    // the scale taken out, is the configured (true) one.
+    // the first metre's scale taken out, is the configured (true) one, to
+    // within what that scale itself is off by (the base is the turn ratio
+    // divided by the scale) and 4 mm.
     let base = mount_toml_value(name, "wheel_base");
-    assert!((base - 0.235).abs() <= 0.006, "wheel_base {base}\n{text}");
+    let scale_error = (fit.scale - want).abs() / want;
+    assert!(
+        (base - 0.235).abs() <= 0.004 + 0.235 * scale_error,
+        "wheel_base {base} (distance scale off by {:.1} %)\n{text}",
+        scale_error * 100.0
+    );
 }
 
 /// The large room of the lab_ipa building (shared `map.pgm`, a gmapping
@@ -421,6 +439,7 @@ fn a_wheel_radius_configured_small_shows_in_the_travel_scale() {
 /// varies). Without the gate this test failed in 4 of 4 runs; with it, it
 /// passed 3 of 3 (the offset read up to 10 mm, under the 15 mm tolerance).
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_large_room_does_not_refit_a_scanner_mounted_right() {
     let image = sweepline::require_shared!(ros_map_support::MAP);
     let yaml = ros_map_support::write_yaml(&out_dir("e2e_large_room"), "map.yaml", &image);
@@ -466,6 +485,7 @@ fn a_large_room_does_not_refit_a_scanner_mounted_right() {
 /// (`daemon.deskew_scans`). Without that, scans taken while turning at
 /// 0.78 rad/s are skewed by 3° across and the pose drifts.
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn scans_swept_while_turning_are_deskewed_by_the_odometry() {
     let run = |deskew: bool| {
         let mut cfg = config();

@@ -70,6 +70,7 @@ fn out(name: &str) -> Option<std::path::PathBuf> {
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn coverage_survives_scanner_unplug_motor_silence_and_corruption() {
     let _ = env_logger::builder().is_test(true).try_init();
     let mut opts = SimOptions::new(World::parse(ROOM).unwrap(), config());
@@ -136,6 +137,7 @@ fn coverage_survives_scanner_unplug_motor_silence_and_corruption() {
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn a_bumper_hit_on_an_unseen_obstacle_stops_and_the_run_goes_on() {
     let _ = env_logger::builder().is_test(true).try_init();
     let mut opts = SimOptions::new(World::parse(ROOM_WITH_STOOL).unwrap(), config());
@@ -197,6 +199,7 @@ fn assert_marks_on_obstacles(opts: &SimOptions, r: &closed_loop::SimReport) {
 }
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn create2_bumper_sides_place_the_contact_and_the_run_goes_on() {
     // The Create 2 reports which side closed: the contact is marked on that
     // side of the shell instead of straight ahead.

@@ -11,6 +11,7 @@ use sweepline::sim::closed_loop::{self, SimOptions};
 use sweepline::sim::world::World;
 
 #[test]
+#[ignore = "slow tier: a whole simulated run; cargo test --release -- --ignored"]
 fn the_daemon_waits_for_a_person_in_the_doorway_and_covers_the_far_room() {
     let _ = env_logger::builder().is_test(true).try_init();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));

@@ -6,7 +6,7 @@
 //! sweepline sim                                  # hw/worlds/paper.world into out/sim
 //! sweepline sim --room office_f:3 --out out/office_f_3
 //! sweepline sim --map lab.yaml --region 2,3,9,8   # a room of a ROS map_server map
-//! sweepline sim --base create2 --speed 10       # faster, at the price of occasional simulator artefacts
+//! sweepline sim --base create2 --speed 5 --fixed-speed  # the clock at exactly ×5, not waiting for the daemon
 //! ```
 
 use std::path::PathBuf;
@@ -27,10 +27,16 @@ pub struct Args {
     /// The world to cover (default: hw/worlds/paper.world).
     #[command(flatten)]
     pub world: WorldArgs,
-    /// Simulated seconds per wall-clock second (at 10, host stalls on 2
-    /// cores let wheel commands run long: occasional simulator artefacts, measured 2026-11-26).
-    #[arg(long, default_value_t = 5.0)]
+    /// Simulated seconds per wall-clock second at most: the simulated
+    /// clock waits whenever the daemon is behind with a scan, so a loaded
+    /// host slows the run down instead of starving the daemon.
+    #[arg(long, default_value_t = 15.0)]
     pub speed: f64,
+    /// Run the simulated clock at exactly `--speed`, never waiting for the
+    /// daemon: a loaded host then starves the daemon and the figures suffer
+    /// (for comparing with the paced clock).
+    #[arg(long)]
+    pub fixed_speed: bool,
     /// Report folder.
     #[arg(long, default_value = "out/sim")]
     pub out: PathBuf,
@@ -108,6 +114,9 @@ pub fn run(args: Args) -> CliResult {
     let config = Config::load(&args.config)?;
     let mut opts = SimOptions::new(world, config);
     opts.speed = args.speed;
+    if args.fixed_speed {
+        opts.pace = None;
+    }
     opts.base = parse_base(&args.base)?;
     opts.out = Some(args.out.clone());
     opts.seed = args.seed;
@@ -130,10 +139,11 @@ pub fn run(args: Args) -> CliResult {
         std::fs::remove_dir_all(args.out.join("state"))?;
     }
     println!(
-        "sweepline sim: {} ({:.1} m² free), {:?} base, speed ×{}, report in {}",
+        "sweepline sim: {} ({:.1} m² free), {:?} base, speed {}×{}, report in {}",
         opts.world.name,
         opts.world.free.free_area(),
         opts.base,
+        if opts.pace.is_some() { "up to " } else { "" },
         opts.speed,
         args.out.display()
     );

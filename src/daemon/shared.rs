@@ -313,6 +313,37 @@ pub struct Shared {
     pub fixes: Mutex<Vec<(f64, Pose)>>,
     /// Whether to keep [`Shared::fixes`].
     pub keep_fixes: AtomicBool,
+    /// Told the stamp of every scan the localise stage is through with,
+    /// and infinity when it stops (the simulator paces its clock by it).
+    pub scan_done: ScanObserver,
+}
+
+/// A callback for every scan through localisation, set at most once.
+#[derive(Default)]
+pub struct ScanObserver(std::sync::OnceLock<Box<dyn Fn(f64) + Send + Sync>>);
+
+impl ScanObserver {
+    /// Sets the callback; false if one was set before.
+    pub fn set(&self, f: Box<dyn Fn(f64) + Send + Sync>) -> bool {
+        self.0.set(f).is_ok()
+    }
+
+    /// Tells the callback, if any, that the scan stamped `stamp` is done.
+    pub fn notify(&self, stamp: f64) {
+        if let Some(f) = self.0.get() {
+            f(stamp);
+        }
+    }
+}
+
+impl std::fmt::Debug for ScanObserver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.get().is_some() {
+            "ScanObserver(set)"
+        } else {
+            "ScanObserver(none)"
+        })
+    }
 }
 
 impl Shared {

@@ -10,13 +10,13 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use nalgebra::Point2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::clock::{ScaledClock, SharedClock};
+use crate::clock::{PaceStats, PacedClock, ScaledClock, SharedClock};
 use crate::config::Config;
 use crate::control::{integrate, Twist, WheelCmd};
 use crate::daemon::{urg_clock, Daemon, DaemonSetup, MapFrame};
@@ -74,6 +74,28 @@ pub struct TimedFault {
     pub fault: Fault,
 }
 
+/// How the simulated clock waits for the daemon (see [`PacedClock`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pace {
+    /// Simulated seconds a scan handed out may go unprocessed before the
+    /// clock stands still.
+    pub lead: f64,
+    /// Wall time the clock stands still for one scan at most.
+    pub max_hold: Duration,
+}
+
+impl Default for Pace {
+    /// A scan may be 50 ms of simulated time out before time waits for
+    /// it: on the robot's 2 cores the daemon localises a scan within
+    /// 10 ms of its last byte (see docs/latency-cpu-report.md).
+    fn default() -> Self {
+        Self {
+            lead: 0.05,
+            max_hold: Duration::from_secs(1),
+        }
+    }
+}
+
 /// Settings of one closed-loop run.
 #[derive(Clone)]
 pub struct SimOptions {
@@ -81,8 +103,12 @@ pub struct SimOptions {
     pub world: Arc<World>,
     /// The robot configuration the daemon runs with.
     pub config: Config,
-    /// Time scale (simulated seconds per wall second).
+    /// Time scale (simulated seconds per wall second): the most the
+    /// simulated clock runs when [`SimOptions::pace`] is set.
     pub speed: f64,
+    /// Hold the simulated clock while the daemon is behind with a scan
+    /// (see [`PacedClock`]); `None`: a fixed time scale.
+    pub pace: Option<Pace>,
     /// Report folder (none: no files).
     pub out: Option<PathBuf>,
     /// Which wheel base is emulated.
@@ -138,12 +164,14 @@ impl SimOptions {
             .unwrap_or(self.config.robot.wheel_base)
     }
 
-    /// Defaults for `world`: RoboClaw base, speed 10, 1 h cap.
+    /// Defaults for `world`: RoboClaw base, at most ×10 paced by the
+    /// daemon, 1 h cap.
     pub fn new(world: World, config: Config) -> Self {
         Self {
             world: Arc::new(world),
             config,
             speed: 10.0,
+            pace: Some(Pace::default()),
             out: None,
             base: BaseKind::Roboclaw,
             seed: 1,
@@ -242,6 +270,8 @@ pub struct SimReport {
     pub plan_stats: crate::plan::planner::PlanStats,
     /// Times the daemon held the wheels because no scan came.
     pub scan_holds: u64,
+    /// What the paced clock did (`None`: a fixed time scale).
+    pub pace: Option<PaceStats>,
     /// The bumper contacts marked in the map (robot centre and contact
     /// point, map frame).
     pub contacts: Vec<crate::pipeline::checkpoint::ContactArc>,
@@ -404,6 +434,8 @@ struct WorldScene {
     rng: ChaCha8Rng,
     /// People walking through the room (stepped by the base emulator).
     crowd: Arc<Mutex<Crowd>>,
+    /// The paced clock, told of every scan handed out.
+    pace: Option<Arc<PacedClock>>,
     /// Scratch: where the people are for this scan.
     bodies: Vec<Body>,
     /// Scratch: the base's true poses since the scan's stamp.
@@ -463,6 +495,9 @@ impl Scene for WorldScene {
             };
         }
         self.path = path;
+        if let Some(pace) = &self.pace {
+            pace.pending(t);
+        }
     }
 }
 
@@ -525,6 +560,7 @@ fn link_dir() -> PathBuf {
 fn start_emulators(
     opts: &SimOptions,
     clock: &SharedClock,
+    pace: Option<Arc<PacedClock>>,
     seen: TruthLog,
     crowd: Arc<Mutex<Crowd>>,
     links: &Path,
@@ -562,6 +598,7 @@ fn start_emulators(
         noise: opts.range_noise,
         rng: ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5ca1),
         crowd,
+        pace,
         bodies: Vec::new(),
         path: Vec::new(),
     };
@@ -585,7 +622,7 @@ pub fn spawn_emulators(
     links: &Path,
 ) -> Result<(Arc<EmulatorHandle>, urg_emu::Emulator), SimError> {
     let crowd = Arc::new(Mutex::new(Crowd::new(&opts.world.walkers)));
-    start_emulators(opts, clock, Arc::default(), crowd, links)
+    start_emulators(opts, clock, None, Arc::default(), crowd, links)
 }
 
 /// Runs one closed-loop coverage of `opts.world` and writes the report
@@ -608,12 +645,25 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
     )?
     .with_clearance(opts.config.plan.safety_margin);
     let wall0 = Instant::now();
-    let clock: SharedClock = Arc::new(ScaledClock::new(opts.speed));
+    let pace = opts
+        .pace
+        .map(|p| Arc::new(PacedClock::new(opts.speed, p.lead, p.max_hold)));
+    let clock: SharedClock = match &pace {
+        Some(p) => p.clone(),
+        None => Arc::new(ScaledClock::new(opts.speed)),
+    };
     let seen: TruthLog = Arc::default();
     let links = link_dir();
     let crowd = Arc::new(Mutex::new(Crowd::new(&opts.world.walkers)));
-    let started = start_emulators(opts, &clock, seen.clone(), crowd.clone(), &links);
-    let truth = Truth { seen, crowd };
+    let started = start_emulators(
+        opts,
+        &clock,
+        pace.clone(),
+        seen.clone(),
+        crowd.clone(),
+        &links,
+    );
+    let truth = Truth { seen, crowd, pace };
     let result =
         started.and_then(|(base, urg)| drive(opts, clock, truth, base, urg, tracker, wall0));
     let _ = std::fs::remove_dir_all(&links);
@@ -625,6 +675,7 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
 struct Truth {
     seen: TruthLog,
     crowd: Arc<Mutex<Crowd>>,
+    pace: Option<Arc<PacedClock>>,
 }
 
 fn drive(
@@ -636,7 +687,7 @@ fn drive(
     mut tracker: CoverageTracker,
     wall0: Instant,
 ) -> Result<SimReport, SimError> {
-    let Truth { seen, crowd } = truth;
+    let Truth { seen, crowd, pace } = truth;
     let base_path = base
         .path()
         .ok_or_else(|| SimError::Emulator("the base emulator has no pty path".into()))?;
@@ -669,6 +720,9 @@ fn drive(
         state_dir: opts.out.as_ref().map(|o| o.join("state")),
     })?;
     let shared = daemon.shared();
+    if let Some(p) = pace.clone() {
+        shared.scan_done.set(Box::new(move |t| p.done(t)));
+    }
     shared
         .keep_fixes
         .store(true, std::sync::atomic::Ordering::Relaxed);
@@ -823,6 +877,7 @@ fn drive(
             .safety_events
             .load(std::sync::atomic::Ordering::Relaxed),
         scan_holds: shared.scan_holds.load(std::sync::atomic::Ordering::Relaxed),
+        pace: pace.as_ref().map(|p| p.stats()),
         contacts: shared.with_status(|s| {
             s.contacts
                 .as_deref()

@@ -275,6 +275,7 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
         ),
         ("simulated time", format!("{:.1} s", r.sim_time)),
         ("wall time", format!("{:.1} s", r.wall)),
+        ("simulated clock", pace_line(r)),
         (
             "scans localised / odometry fallbacks",
             format!("{} / {}", r.scans.0, r.scans.1),
@@ -413,5 +414,17 @@ fn write_counts(s: &mut String, title: &str, rows: &[(&str, u64)]) {
     let _ = writeln!(s, "\n## {title}\n\n| counter | count |\n|---|--:|");
     for (k, v) in rows {
         let _ = writeln!(s, "| {k} | {v} |");
+    }
+}
+
+/// How the simulated clock ran: paced by the daemon (how often and how long
+/// it waited for a scan) or at a fixed scale.
+fn pace_line(r: &SimReport) -> String {
+    match r.pace {
+        Some(p) => format!(
+            "paced by the daemon: waited for {} of {} scans ({:.1} s wall in all), {} waits given up",
+            p.holds, p.scans, p.held_wall, p.timeouts
+        ),
+        None => "fixed time scale".to_string(),
     }
 }

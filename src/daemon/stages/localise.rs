@@ -120,7 +120,23 @@ impl Stage for LocaliseStage {
         }
     }
 
-    fn process(&mut self, mut msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+    fn process(&mut self, msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        let stamp = msg.stamp;
+        let r = self.localise(msg, ctx);
+        self.shared.scan_done.notify(stamp);
+        r
+    }
+
+    fn on_stop(&mut self) {
+        // No scan will be processed any more: nobody should wait for one.
+        self.shared.scan_done.notify(f64::INFINITY);
+    }
+}
+
+impl LocaliseStage {
+    /// One scan: deskewed, matched against the map (or aligned, or laid
+    /// onto a restored map), its pose handed to the control and map stages.
+    fn localise(&mut self, mut msg: ScanMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         ctx.note_age(msg.t0);
         if self.deskew {
             deskew(&mut msg.scan, &msg.motion, &self.mount);

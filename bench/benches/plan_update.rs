@@ -21,7 +21,7 @@
 //! lanes in a 9 m × 4 m room, straight-line costs): the tour search alone,
 //! its worst case per decision.
 
-#[path = "../tests/ros_map_support/mod.rs"]
+#[path = "../../tests/ros_map_support/mod.rs"]
 mod ros_map_support;
 
 use std::hint::black_box;
@@ -38,7 +38,7 @@ use sweepline::sim::ros_map;
 use sweepline::sim::world::World;
 
 fn setup() -> (World, Grid, Decomposition) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/worlds/paper.world");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../hw/worlds/paper.world");
     let world = World::load(std::path::Path::new(path)).expect("paper.world");
     let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
     fill_from_truth(&world, &mut grid);

@@ -9,7 +9,7 @@
 //! Criterion then times a steady-state update (fully explored room) and an
 //! update after one more scan.
 
-#[path = "../tests/decomp_support/mod.rs"]
+#[path = "../../tests/decomp_support/mod.rs"]
 mod decomp_support;
 
 use std::hint::black_box;

@@ -6,7 +6,7 @@
 //! Before criterion runs, the bench prints its own p50 / p99 / max over 10,000
 //! updates (with and without snapshot publication).
 
-#[path = "../tests/map_support/mod.rs"]
+#[path = "../../tests/map_support/mod.rs"]
 mod map_support;
 
 use std::time::Instant;

@@ -1,9 +1,13 @@
 //! Injected time. Every part that reads time or sleeps takes a [`Clock`], so
-//! the same code runs in real time on the robot, time-scaled in the simulator
-//! (`sweepline sim --speed N`) and stepped in deterministic tests.
+//! the same code runs in real time on the robot, time-scaled for the emulators
+//! (`sweepline emulate --rate N`), paced by the daemon's progress in the
+//! simulator ([`PacedClock`]) and stepped in deterministic tests.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+mod paced;
+pub use paced::{PaceStats, PacedClock};
 
 /// A monotonic clock in seconds, with a matching sleep.
 pub trait Clock: Send + Sync {

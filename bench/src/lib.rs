@@ -1,0 +1,1 @@
+//! Criterion benchmarks of sweepline's hot paths: see `benches/`.
