@@ -2,7 +2,7 @@
 //! segment correction + grid + snapshot publication) for a 682-beam URG-04LX
 //! scan against a map of at least 20,000 points.
 //!
-//! Run: `cargo bench --bench map_merge -- --warm-up-time 1 --measurement-time 3`.
+//! Run: `cargo bench -p sweepline-bench --bench map_merge -- --warm-up-time 1 --measurement-time 3`.
 //! Before criterion runs, the bench prints its own p50 / p99 / max over 10,000
 //! updates (with and without snapshot publication).
 

@@ -1,6 +1,6 @@
 //! Cost of the pipeline machinery per item: edges, clocks, histograms, the
 //! cross-thread hand-over, and checkpoints of a realistic size.
-//! `cargo bench --bench pipeline_machinery -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p sweepline-bench --bench pipeline_machinery -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};

@@ -2,7 +2,7 @@
 //! typed reply → values (and → `LaserScan`, and deskewed). Prints its own median/p99 over
 //! 10,000 timed runs before criterion's estimate.
 //!
-//! `cargo bench --bench scip_decode -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench -p sweepline-bench --bench scip_decode -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 use std::time::Instant;

@@ -1,0 +1,311 @@
+#!/usr/bin/env python3
+"""Regenerates the results tables: runs the command behind each figure,
+stores what it measured in docs/results.json (figure, date, version, command)
+and rewrites the table of current figures in docs/results.md (between its
+`results:begin` / `results:end` markers) and every `<!-- fig:KEY -->...
+<!-- /fig -->` span in README.md and docs/*.md from that file. No figure in
+those tables is edited by hand.
+
+Usage: scripts/results.py [KEY...] [--list] [--write-only] [--out DIR]
+  KEY           rows to measure again (default: none; `all`: every row)
+  --list        the rows, their commands and when each was last measured
+  --write-only  rewrite the tables from docs/results.json, measuring nothing
+  --out DIR     where the runs write their folders (default: out/results)
+
+Builds target/release/sweepline first (cargo build --release). Rows that
+need ../shared fail with a message when it is missing. The closed loop's
+figures spread between runs (thread timing): the main job is given for
+three seeds. Machines are shared: a timing stands for the run it came from.
+"""
+import datetime
+import json
+import os
+import re
+import subprocess
+import sys
+
+ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import covrun  # noqa: E402
+import simrun  # noqa: E402
+
+BIN = os.path.join(ROOT, "target", "release", "sweepline")
+STORE = os.path.join(ROOT, "docs", "results.json")
+RESULTS_MD = os.path.join(ROOT, "docs", "results.md")
+BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
+SEEDS = (1, 2, 3)
+
+
+def sh(cmd, **kw):
+    """Runs `cmd` (a list) from the repository root; its output as text."""
+    p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, **kw)
+    if p.returncode not in (0, 3):
+        raise RuntimeError(f"{' '.join(cmd)} exited {p.returncode}:\n{p.stdout[-800:]}\n{p.stderr[-800:]}")
+    return p.stdout + p.stderr
+
+
+def cell(md, name):
+    """The value column of the summary.md row starting with `name`."""
+    m = re.search(r"^\| " + re.escape(name) + r"[^|]*\|\s*([^|]*)\|", md, re.M)
+    return m.group(1).strip() if m else ""
+
+
+def nums(text):
+    return [float(v) for v in re.findall(r"-?[0-9]+(?:\.[0-9]+)?", text)]
+
+
+def sim_run(out, name, args):
+    """One `sweepline sim` run into OUT/NAME; its summary.md and report.md."""
+    d = os.path.join(out, name)
+    sh([BIN, "sim", "--out", d, *args])
+    read = lambda f: open(os.path.join(d, f)).read()
+    return read("summary.md"), read("report.md")
+
+
+def span(vals, fmt="{:.2f}"):
+    lo, hi = min(vals), max(vals)
+    return fmt.format(lo) if lo == hi else f"{fmt.format(lo)}-{fmt.format(hi)}"
+
+
+def main_job(out, extra, tag):
+    """The default room, seeds 1-3, with `extra` options."""
+    cov, ov, pos, head, wall, simt, e2e = [], [], [], [], [], [], []
+    for s in SEEDS:
+        md, _ = sim_run(out, f"{tag}_s{s}", ["--seed", str(s), *extra])
+        cov.append(nums(cell(md, "coverage of reachable floor"))[0])
+        ov.append(nums(cell(md, "overlap"))[0])
+        loc = nums(cell(md, "localisation error at scan times"))
+        pos.append(loc[0])
+        head.append(loc[2])
+        wall.append(nums(cell(md, "wall time"))[0])
+        simt.append(nums(cell(md, "simulated time"))[0])
+        e2e.append(nums(cell(md, "end-to-end latency"))[:2])
+    return (f"coverage {span(cov)} %, overlap {span(ov, '{:.1f}')} %, "
+            f"pose RMSE {span(pos, '{:.1f}')} mm / {span(head)}°, "
+            f"end-to-end p50 {span([e[0] for e in e2e])} ms, p99 {span([e[1] for e in e2e])} ms; "
+            f"{span(simt, '{:.0f}')} s simulated in {span(wall, '{:.1f}')} s wall")
+
+
+def row_main(out):
+    return main_job(out, [], "main")
+
+
+def row_main_fixed5(out):
+    return main_job(out, ["--speed", "5", "--fixed-speed"], "fixed5")
+
+
+def row_realtime(out):
+    md, rep = sim_run(out, "realtime", ["--speed", "1", "--fixed-speed", "--time-cap", "600"])
+    m = re.search(r"the process without them: ([0-9.]+) % of one core per second of robot time", rep)
+    cpu = m.group(1) if m else "?"
+    e2e = nums(cell(md, "end-to-end latency"))
+    return f"daemon CPU {cpu} % of one core (budget 5 %); end-to-end p50 {e2e[0]:.2f} ms, p99 {e2e[1]:.2f} ms"
+
+
+def row_lockstep24(out):
+    rooms = covrun.expand(["@rooms24"])
+    rs = covrun.run_all(BIN, os.path.join(ROOT, "hw", "robot.toml"), os.path.join(out, "rooms24"), rooms)
+    bad = [r for r in rs if "error" in r]
+    if bad:
+        raise RuntimeError(f"lock-step runs failed: {bad[:2]}")
+    n = len(rs)
+    mean = lambda k: sum(r[k] for r in rs) / n
+    low = min(rs, key=lambda r: r["cov_on"])
+    return (f"{n} rooms: coverage {mean('cov_on'):.2f} / {mean('cov_off'):.2f} % mean (online / room known), "
+            f"lowest {low['cov_on']:.2f} % ({low['world']}); overlap {mean('ov_on'):.1f} / {mean('ov_off'):.1f} %; "
+            f"path at most {max(r['ratio'] for r in rs):.3f} × the room-known one")
+
+
+def row_closed12(out):
+    rs = []
+    for w in covrun.TEST12:
+        rs.append(simrun.run(BIN, os.path.join(out, "closed12"), w, 1, []))
+    ok = [r for r in rs if r and r["cov"] is not None]
+    if len(ok) != len(rs):
+        raise RuntimeError("a closed-loop room wrote no report")
+    n = len(ok)
+    return (f"coverage {min(r['cov'] for r in ok):.2f}-{max(r['cov'] for r in ok):.2f} %, "
+            f"mean {sum(r['cov'] for r in ok) / n:.2f} %; overlap mean {sum(r['ov'] for r in ok) / n:.1f} %; "
+            f"collisions {sum(r['coll'] for r in ok):.0f}")
+
+
+def row_doorway(out):
+    md, _ = sim_run(out, "doorway", ["--world", "hw/worlds/doorway.world"])
+    cov = nums(cell(md, "coverage of reachable floor"))[0]
+    return f"{cov:.2f} %, contacts with a person: {cell(md, 'contacts with a person') or '0'}"
+
+
+def row_csail(out):
+    d = os.path.join(out, "csail")
+    log = os.path.join(ROOT, "..", "shared", "datasets", "mit-csail", "mit-csail.clf")
+    rel = os.path.join(ROOT, "..", "shared", "datasets", "mit-csail", "mit-csail.relations")
+    if not os.path.exists(log):
+        raise RuntimeError("../shared/datasets/mit-csail missing")
+    sh([BIN, "replay", log, "--out", d])
+    text = sh([BIN, "eval", "--relations", rel, os.path.join(d, "trajectory.txt")])
+    first = " ".join(l.strip() for l in text.strip().splitlines()[:3])
+    return first
+
+
+def bench(name, *filt):
+    text = sh(["cargo", "bench", "-p", "sweepline-bench", "--bench", name, "--", *filt,
+               "--warm-up-time", "1", "--measurement-time", "3"])
+    out = []
+    for m in re.finditer(r"^(\S+)\s+time:\s+\[\S+ \S+ (\S+) (\S+) \S+ \S+\]", text, re.M):
+        out.append(f"{m.group(1)} {m.group(2)} {m.group(3)}")
+    return "; ".join(out) or "no criterion output"
+
+
+def row_bench_scip(out):
+    return bench("scip_decode")
+
+
+def row_bench_decomp(out):
+    return bench("decomp_update")
+
+
+def row_bench_plan(out):
+    return bench("plan_update", "plan_decision")
+
+
+def row_faults(out):
+    text = sh(["cargo", "test", "--release", "--test", "sim_faults", "--", "--ignored", "--nocapture",
+               "--test-threads=1"])
+    cov = [float(v) for v in re.findall(r"coverage ([0-9.]+) %", text)]
+    if not cov:
+        raise RuntimeError("no coverage figures in the test output")
+    return f"{len(cov)} runs: coverage {min(cov):.2f}-{max(cov):.2f} %, mean {sum(cov) / len(cov):.2f} %"
+
+
+def row_resume(out):
+    text = sh(["cargo", "test", "--release", "--test", "e2e_resume", "--", "--ignored", "--nocapture",
+               "--test-threads=1", "killed_daemon_resumes_its_coverage"])
+    m = re.search(r"checkpointed pose vs truth: max ([0-9.]+) m before the kill, ([0-9.]+) m after", text)
+    f = re.search(r"finished at ([0-9.]+) % true coverage", text)
+    if not (m and f):
+        raise RuntimeError("no pose error in the test output")
+    return (f"checkpointed pose {float(m.group(1)) * 1e3:.0f} mm from the truth before the kill, "
+            f"{float(m.group(2)) * 1e3:.0f} mm after the resume; finished at {f.group(1)} %")
+
+
+# key, metric, command as shown, function
+ROWS = [
+    ("main", "main job, default room, seeds 1-3 (paced clock, at most ×15)",
+     "`sweepline sim --seed N`", row_main),
+    ("main-fixed5", "the same at a fixed ×5 (the simulator's clock before it was paced)",
+     "`sweepline sim --seed N --speed 5 --fixed-speed`", row_main_fixed5),
+    ("realtime", "real time: CPU of the daemon (without the in-process emulators), end-to-end latency",
+     "`sweepline sim --speed 1 --fixed-speed --time-cap 600`", row_realtime),
+    ("lockstep24", "lock-step coverage, 24 rooms, ideal localisation",
+     "`python3 scripts/covrun.py target/release/sweepline hw/robot.toml OUT @rooms24`", row_lockstep24),
+    ("closed12", "closed loop, twelve rooms, seed 1",
+     "`python3 scripts/simrun.py target/release/sweepline OUT paper Freiburg52_scan:0 ...` (the rooms of `covrun.py @test12`)",
+     row_closed12),
+    ("doorway", "person standing in a doorway, closed loop",
+     "`sweepline sim --world hw/worlds/doorway.world`", row_doorway),
+    ("csail", "scan matching, MIT CSAIL log (translation / rotation error over the relations)",
+     "`sweepline replay ../shared/datasets/mit-csail/mit-csail.clf --out OUT`; `sweepline eval --relations ../shared/datasets/mit-csail/mit-csail.relations OUT/trajectory.txt`",
+     row_csail),
+    ("faults", "faults end to end (cable pulled, link silent, corrupted bytes; bumper on RoboClaw and Create 2)",
+     "`cargo test --release --test sim_faults -- --ignored --nocapture --test-threads=1`", row_faults),
+    ("resume", "crash and resume (the daemon killed mid-run and started again)",
+     "`cargo test --release --test e2e_resume -- --ignored --nocapture killed_daemon_resumes_its_coverage`",
+     row_resume),
+    ("bench-scip", "scan decode and deskew, 682 beams (criterion median)",
+     "`cargo bench -p sweepline-bench --bench scip_decode`", row_bench_scip),
+    ("bench-decomp", "decomposition update (criterion median)",
+     "`cargo bench -p sweepline-bench --bench decomp_update`", row_bench_decomp),
+    ("bench-plan", "lane-tour decision (criterion median)",
+     "`cargo bench -p sweepline-bench --bench plan_update -- plan_decision`", row_bench_plan),
+]
+
+
+def load():
+    try:
+        with open(STORE) as f:
+            return json.load(f)
+    except FileNotFoundError:
+        return {}
+
+
+def version():
+    m = re.search(r'^version = "([^"]+)"', open(os.path.join(ROOT, "Cargo.toml")).read(), re.M)
+    return m.group(1) if m else "?"
+
+
+def table(store):
+    lines = ["| metric | figure | measured | command |", "|---|---|---|---|"]
+    for key, metric, cmd, _ in ROWS:
+        r = store.get(key)
+        fig, when = (r["figure"], f"{r['date']} ({r['version']})") if r else ("not measured yet", "")
+        lines.append(f"| {metric} | {fig} | {when} | {cmd} (`scripts/results.py {key}`) |")
+    return "\n".join(lines)
+
+
+def figure(store, key):
+    """A stored figure with its date, for a `fig:KEY` span."""
+    r = store.get(key)
+    return f"{r['figure']} ({r['date']}, {r['version']})" if r else "not measured yet"
+
+
+def write(store):
+    md = open(RESULTS_MD).read()
+    i, j = md.find(BEGIN), md.find(END)
+    if i < 0 or j < i:
+        raise RuntimeError(f"{RESULTS_MD} has no {BEGIN} ... {END} markers")
+    md = md[:i + len(BEGIN)] + "\n" + table(store) + "\n" + md[j:]
+    with open(RESULTS_MD, "w") as f:
+        f.write(md)
+    spans = re.compile(r"<!-- fig:([a-z0-9-]+) -->.*?<!-- /fig -->", re.S)
+    docs = [os.path.join(ROOT, "README.md")] + [
+        os.path.join(ROOT, "docs", f) for f in sorted(os.listdir(os.path.join(ROOT, "docs"))) if f.endswith(".md")]
+    for path in docs:
+        text = open(path).read()
+        new = spans.sub(lambda m: f"<!-- fig:{m.group(1)} -->{figure(store, m.group(1))}<!-- /fig -->", text)
+        if new != text:
+            with open(path, "w") as f:
+                f.write(new)
+
+
+def main():
+    args = sys.argv[1:]
+    out = os.path.join(ROOT, "out", "results")
+    if "--out" in args:
+        k = args.index("--out")
+        out = os.path.abspath(args[k + 1])
+        del args[k:k + 2]
+    store = load()
+    if "--list" in args:
+        for key, metric, cmd, _ in ROWS:
+            when = store.get(key, {}).get("date", "never")
+            print(f"{key:13s} {when:11s} {metric}\n{'':25s}{cmd}")
+        return
+    keys = [a for a in args if not a.startswith("--")]
+    if keys == ["all"]:
+        keys = [r[0] for r in ROWS]
+    unknown = set(keys) - {r[0] for r in ROWS}
+    if unknown:
+        sys.exit(f"unknown rows: {', '.join(sorted(unknown))} (see --list)")
+    if keys and "--write-only" not in args:
+        sh(["cargo", "build", "--release"])
+        os.makedirs(out, exist_ok=True)
+    for key, metric, cmd, fn in ROWS:
+        if key not in keys or "--write-only" in args:
+            continue
+        print(f"== {key}: {metric}", flush=True)
+        try:
+            fig = fn(out)
+        except RuntimeError as e:
+            print(f"   failed: {e}", flush=True)
+            continue
+        store[key] = {"figure": fig, "date": datetime.date.today().isoformat(), "version": version(),
+                      "command": cmd}
+        print(f"   {fig}", flush=True)
+        with open(STORE, "w") as f:
+            json.dump(store, f, indent=1, sort_keys=True, ensure_ascii=False)
+            f.write("\n")
+    write(store)
+
+
+if __name__ == "__main__":
+    main()
