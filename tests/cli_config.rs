@@ -262,3 +262,37 @@ fn a_wrong_choice_lists_the_possible_values_and_exits_2() {
         assert!(e.contains("possible values"), "{args:?}: {e}");
     }
 }
+
+/// The simulator's clock is not the robot's configuration: a config file
+/// that sets it is refused naming the key, and the run flag that replaces
+/// it checks its values.
+#[test]
+fn the_simulated_clock_is_a_flag_not_a_config_key() {
+    let d = temp("simclock");
+    let cfg = write(&d, &with("pipeline", "time_scale", "5.0"));
+    let o = sweepline()
+        .args(["run", "--check-config", "--config"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", err(&o));
+    assert!(err(&o).contains("time_scale"), "{}", err(&o));
+    for bad in ["0,0", "5", "2000,0", "5,-1", "x,1"] {
+        let o = sweepline()
+            .args(["run", "--check-config", "--config"])
+            .arg(write(&d, &shipped()))
+            .args(["--sim-clock", bad])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "--sim-clock {bad}: {}", err(&o));
+        assert!(err(&o).contains("SCALE,EPOCH"), "{}", err(&o));
+    }
+    let o = sweepline()
+        .args(["run", "--check-config", "--config"])
+        .arg(write(&d, &shipped()))
+        .args(["--sim-clock", "10,1700000000"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", err(&o));
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,6 +1,6 @@
 //! Crash test: the daemon as a separate `sweepline run` process against the
 //! emulated URG-04LX and RoboClaw on ptys (in this test process, on one
-//! scaled clock whose epoch the child gets through `[pipeline] clock_epoch`),
+//! scaled clock whose epoch the child gets through `run --sim-clock`),
 //! killed with SIGKILL at about 40 % ground-truth coverage and started again
 //! on the same state folder. The second daemon must resume from the last
 //! checkpoint (map, pose, swept floor), finish the coverage, and not have
@@ -86,7 +86,7 @@ impl Drop for Daemon {
     }
 }
 
-fn spawn(dir: &Path, links: &Path, n: u32) -> Daemon {
+fn spawn(dir: &Path, links: &Path, n: u32, sim_clock: &str) -> Daemon {
     let log = std::fs::File::create(dir.join(format!("daemon{n}.log"))).unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_sweepline"))
         .arg("run")
@@ -98,6 +98,8 @@ fn spawn(dir: &Path, links: &Path, n: u32) -> Daemon {
         .arg(links.join("base"))
         .arg("--state-dir")
         .arg(dir.join("state"))
+        .arg("--sim-clock")
+        .arg(sim_clock)
         .env("RUST_LOG", "info")
         .env_remove("NOTIFY_SOCKET")
         .env_remove("WATCHDOG_USEC")
@@ -176,8 +178,7 @@ fn crash_and_resume(name: &str, restart: Restart) {
     let mut cfg = base_cfg;
     cfg.motor.kind = BaseKind::Roboclaw;
     cfg.motor.deadman = cfg.motor.deadman.max(DEADMAN_WALL * SPEED);
-    cfg.pipeline.time_scale = SPEED;
-    cfg.pipeline.clock_epoch = epoch;
+    let sim_clock = format!("{SPEED},{epoch}");
     cfg.pipeline.checkpoint_period = CHECKPOINT_WALL;
     cfg.pipeline.heartbeat_period = HEARTBEAT_WALL;
     cfg.pipeline.supervise_period = HEARTBEAT_WALL;
@@ -186,7 +187,7 @@ fn crash_and_resume(name: &str, restart: Restart) {
     let store = CheckpointStore::new(&dir.join("state"));
     let wall0 = Instant::now();
     let t0 = clock.now();
-    let mut daemon = spawn(&dir, &links, 1);
+    let mut daemon = spawn(&dir, &links, 1, &sim_clock);
     // (sequence, daemon coverage, ground-truth coverage when first seen)
     let mut last_seen: Option<(RunProgress, f64)> = None;
     let mut killed: Option<(f64, f64)> = None; // (truth coverage, sim time) at the kill
@@ -283,7 +284,7 @@ fn crash_and_resume(name: &str, restart: Restart) {
                 cfg.robot.scanner_offset_x = SCANNER_AHEAD;
                 std::fs::write(dir.join("robot.toml"), toml::to_string(&cfg).unwrap()).unwrap();
             }
-            daemon = spawn(&dir, &links, 2);
+            daemon = spawn(&dir, &links, 2, &sim_clock);
             continue;
         }
         if let Some(s) = daemon.0.try_wait().unwrap() {

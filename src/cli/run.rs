@@ -55,6 +55,11 @@ pub struct Args {
     /// robot can cover from where it is switched on is half of it each way.
     #[arg(long, default_value_t = 16.0)]
     pub map_extent: f64,
+    /// For a simulator that runs the daemon as a separate process: the
+    /// daemon's clock runs SCALE times the wall clock and read 0 at UNIX
+    /// time EPOCH (s), the simulator's own clock (see docs/simulator.md).
+    #[arg(long, value_name = "SCALE,EPOCH", hide = true, value_parser = parse_sim_clock)]
+    pub sim_clock: Option<(f64, f64)>,
     /// Start a new run even if the state folder holds the checkpoint of one
     /// that was stopped before it finished (the robot was carried to
     /// another room meanwhile). A finished run is never resumed.
@@ -194,6 +199,10 @@ pub fn run(args: Args) -> CliResult {
     }
     cfg.scanner.port = scanner.display().to_string();
     cfg.motor.device = base_dev.display().to_string();
+    if let Some((scale, epoch)) = args.sim_clock {
+        cfg.pipeline.time_scale = scale;
+        cfg.pipeline.clock_epoch = epoch;
+    }
     let p = &cfg.pipeline;
     let clock: SharedClock = if p.time_scale != 1.0 || p.clock_epoch > 0.0 {
         log::info!(
@@ -235,5 +244,20 @@ pub fn run(args: Args) -> CliResult {
         Err(format!("the daemon stopped: {}", outcome.reason).into())
     } else {
         Ok(())
+    }
+}
+
+/// `--sim-clock SCALE,EPOCH`: a time scale in (0, 1000] and a UNIX time >= 0.
+fn parse_sim_clock(s: &str) -> Result<(f64, f64), String> {
+    let bad = || {
+        format!("expected SCALE,EPOCH (a speed in (0, 1000] and a UNIX time in seconds), got `{s}`")
+    };
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let scale: f64 = a.trim().parse().map_err(|_| bad())?;
+    let epoch: f64 = b.trim().parse().map_err(|_| bad())?;
+    if scale > 0.0 && scale <= 1000.0 && epoch.is_finite() && epoch >= 0.0 {
+        Ok((scale, epoch))
+    } else {
+        Err(bad())
     }
 }

@@ -70,6 +70,11 @@ impl StageBudgets {
     }
 }
 
+/// The clock's speed on a robot.
+fn real_time() -> f64 {
+    1.0
+}
+
 /// Pipeline budgets and rates.
 /// Loaded from the `[pipeline]` table of the config file; every field is documented
 /// in `hw/robot.toml`.
@@ -110,12 +115,14 @@ pub struct PipelineParams {
     /// state folder (s): unsynced and cheap, it tells a resumed daemon how
     /// far the crashed one had got after its last checkpoint.
     pub heartbeat_period: f64,
-    /// Speed of the daemon's clock against the wall clock: 1 on a robot;
-    /// a simulator driving `sweepline run` as a separate process sets its own
-    /// time scale so both read the same simulated time.
+    /// Speed of the daemon's clock against the wall clock: 1 on a robot.
+    /// Not a config key: a simulator driving `sweepline run` as a separate
+    /// process sets it with `--sim-clock`, so both read one simulated time.
+    #[serde(skip, default = "real_time")]
     pub time_scale: f64,
     /// UNIX time (s) at which the daemon's clock reads 0; 0 = when the daemon
-    /// starts. A simulator passes its own clock's epoch with `time_scale`.
+    /// starts. Not a config key: set with `--sim-clock` beside `time_scale`.
+    #[serde(skip)]
     pub clock_epoch: f64,
     /// Real-time (`SCHED_FIFO`) priority for the threads of
     /// [`PipelineParams::realtime_stages`], 1..=99; 0 = normal scheduling.
@@ -192,22 +199,6 @@ impl PipelineParams {
                 &format!(
                     "must be a finite number >= 0, got {:?}",
                     self.watchdog_period
-                ),
-            ));
-        }
-        positive("pipeline.time_scale", self.time_scale)?;
-        if self.time_scale > 1000.0 {
-            return Err(invalid(
-                "pipeline.time_scale",
-                &format!("must be at most 1000, got {:?}", self.time_scale),
-            ));
-        }
-        if !(self.clock_epoch.is_finite() && self.clock_epoch >= 0.0) {
-            return Err(invalid(
-                "pipeline.clock_epoch",
-                &format!(
-                    "must be a UNIX time in seconds (>= 0), got {:?}",
-                    self.clock_epoch
                 ),
             ));
         }
