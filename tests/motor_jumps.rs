@@ -9,13 +9,13 @@ use std::io::{self, Read, Write};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use sweepline::clock::ManualClock;
 use sweepline::clock::{Clock, SharedClock};
 use sweepline::config::Config;
 use sweepline::motor::link::{ByteLink, LinkOpener};
 use sweepline::motor::odometry::counts_per_metre;
 use sweepline::motor::roboclaw::driver::RoboClawDriver;
 use sweepline::motor::{DiffDriveBase, Sides, WheelSpeeds};
-use sweepline::sim::base_emu::loopback::ManualClock;
 use sweepline::sim::base_emu::roboclaw::RoboClawDevice;
 use sweepline::sim::base_emu::{BaseDevice, BodyState};
 
@@ -120,7 +120,7 @@ struct Rig {
 impl Rig {
     fn new() -> Self {
         let cfg = Config::default();
-        let clock = Arc::new(ManualClock::new());
+        let clock = Arc::new(ManualClock::default());
         let script = Arc::new(Mutex::new(Script::default()));
         let cpm = counts_per_metre(cfg.motor.roboclaw.counts_per_rev, cfg.robot.wheel_radius);
         let link = ScriptedLink {

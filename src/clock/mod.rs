@@ -71,9 +71,9 @@ pub struct ScaledClock {
 
 impl ScaledClock {
     /// A clock starting now at 0 and running `speed` times real time
-    /// (clamped to 0.01..=1000).
+    /// (clamped to 0.01..=1000; not a positive number: 1).
     pub fn new(speed: f64) -> Self {
-        let speed = if speed.is_finite() {
+        let speed = if speed.is_finite() && speed > 0.0 {
             speed.clamp(0.01, 1000.0)
         } else {
             1.0
@@ -120,6 +120,46 @@ impl Clock for ScaledClock {
     }
 }
 
+/// A clock that only moves when told to (lock-step simulation, tests):
+/// `sleep` advances it instead of waiting.
+#[derive(Debug, Default)]
+pub struct ManualClock {
+    bits: std::sync::atomic::AtomicU64,
+}
+
+impl ManualClock {
+    /// A clock reading `t` seconds.
+    pub fn new(t: f64) -> Self {
+        Self {
+            bits: std::sync::atomic::AtomicU64::new(t.to_bits()),
+        }
+    }
+
+    /// Sets the time; a value earlier than now is ignored (monotonic).
+    pub fn set(&self, t: f64) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let _ = self.bits.fetch_update(Relaxed, Relaxed, |b| {
+            (t > f64::from_bits(b)).then_some(t.to_bits())
+        });
+    }
+
+    /// Moves the time forward by `dt` seconds.
+    pub fn advance(&self, dt: f64) {
+        if dt > 0.0 && dt.is_finite() {
+            self.set(self.now() + dt);
+        }
+    }
+}
+
+impl Clock for ManualClock {
+    fn now(&self) -> f64 {
+        f64::from_bits(self.bits.load(std::sync::atomic::Ordering::Relaxed))
+    }
+    fn sleep(&self, dt: f64) {
+        self.advance(dt);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,8 +188,20 @@ mod tests {
     }
 
     #[test]
+    fn manual_clock_moves_only_forward() {
+        let c = ManualClock::new(1.0);
+        c.sleep(0.5);
+        assert_eq!(c.now(), 1.5);
+        c.set(1.0);
+        assert_eq!(c.now(), 1.5);
+        c.advance(f64::NAN);
+        assert_eq!(c.now(), 1.5);
+    }
+
+    #[test]
     fn silly_speeds_are_clamped() {
         assert_eq!(ScaledClock::new(f64::NAN).speed(), 1.0);
         assert_eq!(ScaledClock::new(1e9).speed(), 1000.0);
+        assert_eq!(ScaledClock::new(-1.0).speed(), 1.0);
     }
 }

@@ -70,10 +70,10 @@ pub struct PacedClock {
 
 impl PacedClock {
     /// A clock at 0 now, running at most `speed` times the wall clock
-    /// (clamped to 0.01..=1000), held `lead` s past an unprocessed scan, for
-    /// at most `max_hold` of wall time per scan.
+    /// (clamped to 0.01..=1000; not a positive number: 1), held `lead` s
+    /// past an unprocessed scan, for at most `max_hold` of wall time per scan.
     pub fn new(speed: f64, lead: f64, max_hold: Duration) -> Self {
-        let speed = if speed.is_finite() {
+        let speed = if speed.is_finite() && speed > 0.0 {
             speed.clamp(0.01, 1000.0)
         } else {
             1.0

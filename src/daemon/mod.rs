@@ -166,27 +166,6 @@ pub struct DaemonSetup {
     pub state_dir: Option<PathBuf>,
 }
 
-/// Bridges the daemon's clock to the scanner driver's clock trait.
-struct UrgClock(SharedClock);
-
-impl crate::urg::Clock for UrgClock {
-    fn now(&self) -> f64 {
-        self.0.now()
-    }
-    fn sleep(&self, dt: f64) {
-        self.0.sleep(dt)
-    }
-    fn rate(&self) -> f64 {
-        self.0.speed()
-    }
-}
-
-/// The scanner driver's clock trait over a daemon clock (also used by the
-/// simulator for the URG emulator, so both read one time base).
-pub fn urg_clock(clock: SharedClock) -> Arc<dyn crate::urg::Clock> {
-    Arc::new(UrgClock(clock))
-}
-
 /// A daemon whose stages are running, not yet supervised.
 pub struct Daemon {
     pipeline: Pipeline,
@@ -308,8 +287,7 @@ impl Daemon {
             .map_err(|e| DaemonError::Config(e.to_string()))?
             .with_command_horizon(cfg.motor.deadman);
 
-        let driver =
-            UrgDriver::start(setup.scanner, cfg.scanner.clone(), urg_clock(clock.clone()))?;
+        let driver = UrgDriver::start(setup.scanner, cfg.scanner.clone(), clock.clone())?;
         let urg_health = driver.health();
         let now = clock.now();
 

@@ -19,7 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::clock::{PaceStats, PacedClock, ScaledClock, SharedClock};
 use crate::config::Config;
 use crate::control::{integrate, Twist, WheelCmd};
-use crate::daemon::{urg_clock, Daemon, DaemonSetup, MapFrame};
+use crate::daemon::{Daemon, DaemonSetup, MapFrame};
 use crate::geom::{heading, interpolate, pose_error, wrap_angle, Pose};
 use crate::motor::{BaseKind, LinkHealth};
 use crate::pipeline::metrics::MetricsSnapshot;
@@ -608,7 +608,7 @@ fn start_emulators(
         seed: opts.seed,
         ..Default::default()
     };
-    let urg = urg_emu::Emulator::spawn(ucfg, Box::new(scene), urg_clock(clock.clone()))
+    let urg = urg_emu::Emulator::spawn(ucfg, Box::new(scene), clock.clone())
         .map_err(|e| SimError::Emulator(e.to_string()))?;
     Ok((base, urg))
 }

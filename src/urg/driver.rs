@@ -16,11 +16,11 @@ use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 
-use super::clock::Clock;
 use super::health::UrgHealth;
 use super::session::{SessionInfo, UrgError, UrgSession};
 use super::UrgParams;
 use crate::capacity::MAX_BEAMS;
+use crate::clock::Clock;
 use crate::scan::LaserScan;
 use crate::scip::{ModelFamily, Reading};
 use crate::serial::Connector;
@@ -200,7 +200,7 @@ impl Worker {
         let end = self.clock.now() + dt;
         while !self.stopping() && self.clock.now() < end {
             self.clock
-                .sleep((end - self.clock.now()).clamp(0.0, 0.01 * self.clock.rate()));
+                .sleep((end - self.clock.now()).clamp(0.0, 0.01 * self.clock.speed()));
         }
     }
 

@@ -11,17 +11,15 @@
 //!   into a bounded newest-wins channel.
 //! * [`health`]: lock-free counters for the rest of the daemon.
 //! * [`timesync`]: clock offset/drift estimation, dropped-scan detection.
-//! * [`clock`]: the injected clock.
 //! * [`picture`]: an SVG of one scan (for `sweepline probe --svg`).
 
-pub mod clock;
 pub mod driver;
 pub mod health;
 pub mod picture;
 pub mod session;
 pub mod timesync;
 
-pub use clock::{Clock, ManualClock, MonotonicClock, ScaledClock};
+pub use crate::clock::{Clock, ManualClock, MonotonicClock, ScaledClock};
 pub use driver::{UrgDriver, UrgScan};
 pub use health::{HealthSnapshot, UrgHealth};
 pub use session::{SessionInfo, UrgError, UrgSession};

@@ -9,11 +9,11 @@ use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use super::clock::Clock;
 use super::driver::UrgScan;
 use super::health::UrgHealth;
 use super::timesync::{continuity, ClockModel, Continuity, SyncHistory, TimeSample};
 use super::UrgParams;
+use crate::clock::Clock;
 use crate::scip::{
     fill_laser_scan, ClockUnwrapper, Cluster, Command, CommandKind, DataKind, Decoder,
     DecoderOptions, Event, FrameError, RawReply, ReplyBody, ScanRequest, SensorInfo, SensorParams,
@@ -295,7 +295,7 @@ impl UrgSession {
             }
             // Sleep in the read until the deadline, but wake at least every
             // `poll` seconds to notice a shutdown request.
-            let rate = self.core.clock.rate().max(1e-9);
+            let rate = self.core.clock.speed().max(1e-9);
             let wait =
                 ((deadline - now) / rate).clamp(0.001, self.core.params.poll.clamp(0.001, 1.0));
             let wait_ms = (wait * 1e3).ceil() as u64;

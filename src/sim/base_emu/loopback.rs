@@ -9,42 +9,12 @@ use std::io;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use crate::clock::{Clock, SharedClock};
+use crate::clock::{Clock, ManualClock, SharedClock};
 use crate::geom::Pose;
 use crate::motor::link::{ByteLink, LinkOpener};
 use crate::motor::{base_driver, DiffDriveBase, WheelSpeeds};
 use crate::sim::base_emu::{BaseDevice, BodyState, EmulatorConfig};
 use crate::sim::kinematics::DiffDriveSim;
-
-/// A clock that moves only when told to: `sleep` advances it.
-#[derive(Debug, Default)]
-pub struct ManualClock {
-    t: Mutex<f64>,
-}
-
-impl ManualClock {
-    /// A clock at time 0.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Moves the clock forward by `secs` (ignored unless finite and > 0).
-    pub fn advance(&self, secs: f64) {
-        if secs.is_finite() && secs > 0.0 {
-            let mut t = self.t.lock().unwrap_or_else(|p| p.into_inner());
-            *t += secs;
-        }
-    }
-}
-
-impl Clock for ManualClock {
-    fn now(&self) -> f64 {
-        *self.t.lock().unwrap_or_else(|p| p.into_inner())
-    }
-    fn sleep(&self, secs: f64) {
-        self.advance(secs);
-    }
-}
 
 struct State {
     device: Box<dyn BaseDevice>,
@@ -230,7 +200,7 @@ mod tests {
         let mut e = EmulatorConfig::from_config(&cfg, kind);
         e.kinematics.seed = seed;
         e.start = pose(1.0, 2.0, 0.3);
-        let clock = Arc::new(ManualClock::new());
+        let clock = Arc::new(ManualClock::default());
         let (mut base, truth) = loopback_base(e, &cfg.robot, clock.clone());
         let mut odom = Vec::new();
         let mut events = Vec::new();
@@ -270,7 +240,7 @@ mod tests {
     fn odometry_stamps_are_continuous_and_not_in_the_future() {
         for kind in [BaseKind::Roboclaw, BaseKind::Create2] {
             let cfg = Config::default();
-            let clock = Arc::new(ManualClock::new());
+            let clock = Arc::new(ManualClock::default());
             let e = EmulatorConfig::from_config(&cfg, kind);
             let (mut base, _truth) = loopback_base(e, &cfg.robot, clock.clone());
             let mut prev: Option<f64> = None;

@@ -11,9 +11,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use super::sensor::Sensor;
+use crate::clock::{Clock, ManualClock};
 use crate::scip::{LineEvent, LineFramer};
 use crate::serial::Port;
-use crate::urg::clock::{Clock, ManualClock};
 
 /// The sensor behind a [`Port`].
 pub struct SensorLink {

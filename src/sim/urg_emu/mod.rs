@@ -13,7 +13,7 @@
 //!   stalls and unplug/replug.
 //!
 //! Time comes from an injected [`Clock`]: tests run the 10 Hz sensor faster
-//! with a [`crate::urg::clock::ScaledClock`].
+//! with a [`crate::clock::ScaledClock`].
 
 pub mod faults;
 pub mod link;
@@ -39,9 +39,9 @@ pub use model::{Model, ModelSpec};
 pub use scene::{capture_stream, Echo, RectRoom, ReplayError, ReplayScan, Scene, WallPatch};
 pub use sensor::{Action, EmuLog, Sensor, SentScan};
 
+use crate::clock::Clock;
 use crate::scip::{LineEvent, LineFramer};
 use crate::serial::{Pty, PtyError, PtyHost};
-use crate::urg::clock::Clock;
 
 /// Settings of one emulated sensor.
 #[derive(Clone, Debug)]
@@ -216,7 +216,7 @@ fn sleep_while(clock: &dyn Clock, dt: f64, keep_going: &dyn Fn() -> bool) {
         if left <= 0.0 {
             break;
         }
-        clock.sleep(left.min(0.01 * clock.rate()));
+        clock.sleep(left.min(0.01 * clock.speed()));
     }
 }
 
@@ -282,7 +282,7 @@ impl Engine {
         let wait = self
             .sensor
             .next_due()
-            .map(|t| (t - now) / clock.rate())
+            .map(|t| (t - now) / clock.speed())
             .unwrap_or(0.01)
             .clamp(0.0, 0.01);
         io.set_read_timeout(Duration::from_secs_f64(wait))?;
@@ -365,7 +365,7 @@ pub fn run(
         };
         if let Err(e) = eng.turn(pty, &*clock) {
             log::warn!("urg emulator: pty: {e}");
-            clock.sleep(0.01 * clock.rate());
+            clock.sleep(0.01 * clock.speed());
         }
     }
     Ok(())
