@@ -6,10 +6,12 @@ and rewrites the table of current figures in docs/results.md (between its
 <!-- /fig -->` span in README.md and docs/*.md from that file. No figure in
 those tables is edited by hand.
 
-Usage: scripts/results.py [KEY...] [--list] [--write-only] [--out DIR]
+Usage: scripts/results.py [KEY...] [--list] [--write-only] [--reuse] [--out DIR]
   KEY           rows to measure again (default: none; `all`: every row)
   --list        the rows, their commands and when each was last measured
   --write-only  rewrite the tables from docs/results.json, measuring nothing
+  --reuse       read `sweepline sim` run folders already in DIR instead of
+                running them again (the other commands run anyway)
   --out DIR     where the runs write their folders (default: out/results)
 
 Builds target/release/sweepline first (cargo build --release). Rows that
@@ -54,10 +56,14 @@ def nums(text):
     return [float(v) for v in re.findall(r"-?[0-9]+(?:\.[0-9]+)?", text)]
 
 
+REUSE = False
+
+
 def sim_run(out, name, args):
     """One `sweepline sim` run into OUT/NAME; its summary.md and report.md."""
     d = os.path.join(out, name)
-    sh([BIN, "sim", "--out", d, *args])
+    if not (REUSE and os.path.exists(os.path.join(d, "report.md"))):
+        sh([BIN, "sim", "--out", d, *args])
     read = lambda f: open(os.path.join(d, f)).read()
     return read("summary.md"), read("report.md")
 
@@ -96,7 +102,7 @@ def row_main_fixed5(out):
 
 def row_realtime(out):
     md, rep = sim_run(out, "realtime", ["--speed", "1", "--fixed-speed", "--time-cap", "600"])
-    m = re.search(r"the process without them: ([0-9.]+) % of one core per second of robot time", rep)
+    m = re.search(r"the process without them: ([0-9.]+) % of one core", rep)
     cpu = m.group(1) if m else "?"
     e2e = nums(cell(md, "end-to-end latency"))
     return f"daemon CPU {cpu} % of one core (budget 5 %); end-to-end p50 {e2e[0]:.2f} ms, p99 {e2e[1]:.2f} ms"
@@ -141,10 +147,61 @@ def row_csail(out):
     rel = os.path.join(ROOT, "..", "shared", "datasets", "mit-csail", "mit-csail.relations")
     if not os.path.exists(log):
         raise RuntimeError("../shared/datasets/mit-csail missing")
-    sh([BIN, "replay", log, "--out", d])
+    replay = sh([BIN, "replay", log, "--out", d])
     text = sh([BIN, "eval", "--relations", rel, os.path.join(d, "trajectory.txt")])
-    first = " ".join(l.strip() for l in text.strip().splitlines()[:3])
-    return first
+    groups = {}
+    for name in ("all", "<= 1 s"):
+        m = re.search(r"^" + re.escape(name) + r"\s+\d+\s+([0-9.]+) ±\s*\S+\s+\S+ ±\s*\S+\s+([0-9.]+) ±", text, re.M)
+        if not m:
+            raise RuntimeError(f"no `{name}` line in the eval output:\n{text}")
+        groups[name] = (float(m.group(1)), float(m.group(2)))
+    cpu = re.search(r"thread CPU time per scan.*?median ([0-9.]+) ms", replay)
+    (ta, ra), (tl, rl) = groups["all"], groups["<= 1 s"]
+    return (f"all relations {ta:.3f} m / {ra:.2f}°, relations ≤ 1 s {tl:.4f} m / {rl:.2f}° "
+            f"(CSM PL-ICP: 0.261 m / 2.12° and 0.0275 m / 0.41°, measured in ../shared/research/scan-matching.md); "
+            f"CPU per scan {cpu.group(1) if cpu else '?'} ms median")
+
+
+def row_rooms3(out):
+    figs = []
+    for room in ("office_f:0", "lab_a_scan:1", "Freiburg52_scan:0"):
+        md, _ = sim_run(out, room.replace(":", "_"), ["--room", room, "--time-cap", "1500"])
+        cov = nums(cell(md, "coverage of reachable floor"))[0]
+        coll = nums(cell(md, "collisions"))[0]
+        figs.append(f"{room} {cov:.2f} % ({coll:.0f} collisions)")
+    return ", ".join(figs)
+
+
+def row_deskew(out):
+    cfg = os.path.join(out, "no-deskew.toml")
+    text = open(os.path.join(ROOT, "hw", "robot.toml")).read()
+    text, n = re.subn(r"^deskew_scans = true$", "deskew_scans = false", text, flags=re.M)
+    if n != 1:
+        raise RuntimeError("hw/robot.toml has no `deskew_scans = true` line")
+    with open(cfg, "w") as f:
+        f.write(text)
+    figs = []
+    for s in (1, 2):
+        on, _ = sim_run(out, f"deskew_s{s}", ["--time-cap", "300", "--seed", str(s)])
+        off, _ = sim_run(out, f"no_deskew_s{s}", ["--time-cap", "300", "--seed", str(s), "--config", cfg])
+        a = nums(cell(on, "localisation error at scan times"))
+        b = nums(cell(off, "localisation error at scan times"))
+        figs.append(f"seed {s}: {a[0]:.1f} mm / {a[2]:.2f}° deskewed, {b[0]:.1f} mm / {b[2]:.2f}° not")
+    return "; ".join(figs)
+
+
+def row_large_room(out):
+    image = os.path.join(ROOT, "..", "shared", "maps", "ipa_coverage_planning_test_maps", "map.pgm")
+    if not os.path.exists(image):
+        raise RuntimeError("../shared/maps missing")
+    yaml = os.path.join(out, "lab_ipa.yaml")
+    with open(yaml, "w") as f:
+        f.write(f"image: {os.path.abspath(image)}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n"
+                "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    md, _ = sim_run(out, "large_room", ["--map", yaml, "--region", "16.5,9.0,25.5,21.2", "--seed", "1"])
+    cov = nums(cell(md, "coverage of reachable floor"))[0]
+    loc = nums(cell(md, "localisation error at scan times"))
+    return f"{cov:.2f} %, pose RMSE {loc[0]:.1f} mm / {loc[2]:.2f}° (see Known gaps)"
 
 
 def bench(name, *filt):
@@ -201,6 +258,13 @@ ROWS = [
     ("closed12", "closed loop, twelve rooms, seed 1",
      "`python3 scripts/simrun.py target/release/sweepline OUT paper Freiburg52_scan:0 ...` (the rooms of `covrun.py @test12`)",
      row_closed12),
+    ("rooms3", "closed loop, three floor-plan rooms, seed 1",
+     "`sweepline sim --room MAP:N --time-cap 1500`", row_rooms3),
+    ("deskew", "deskewing, default room, 300 s, seeds 1 and 2 (with `daemon.deskew_scans = false` for the second figure)",
+     "`sweepline sim --time-cap 300 --seed N [--config NO-DESKEW.toml]`", row_deskew),
+    ("large-room", "large open room (9 m × 12 m, walls beyond 5.6 m), seed 1",
+     "`sweepline sim --map MAP.yaml --region 16.5,9.0,25.5,21.2 --seed 1` (MAP: the lab_ipa building's map in `../shared/maps`)",
+     row_large_room),
     ("doorway", "person standing in a doorway, closed loop",
      "`sweepline sim --world hw/worlds/doorway.world`", row_doorway),
     ("csail", "scan matching, MIT CSAIL log (translation / rotation error over the relations)",
@@ -275,6 +339,8 @@ def main():
         out = os.path.abspath(args[k + 1])
         del args[k:k + 2]
     store = load()
+    global REUSE
+    REUSE = "--reuse" in args
     if "--list" in args:
         for key, metric, cmd, _ in ROWS:
             when = store.get(key, {}).get("date", "never")
