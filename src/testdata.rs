@@ -13,6 +13,12 @@ pub fn shared_dir() -> PathBuf {
     }
 }
 
+/// The path of `rel` inside this repository (`hw/worlds/paper.world`...),
+/// the same for tests of this crate and for the benchmarks' package.
+pub fn repo_file(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
 /// The path of `rel` inside the shared folder, if it exists.
 pub fn shared_file(rel: &str) -> Option<PathBuf> {
     let p = shared_dir().join(rel);

@@ -108,8 +108,8 @@ fn bench(c: &mut Criterion) {
     // The defaults, and the daemon's matcher: hw/robot.toml's [icp] table
     // (40 keyframes, so a larger k-d tree to query and to rebuild at each
     // keyframe).
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../hw/robot.toml");
-    let daemon = sweepline::config::Config::load(std::path::Path::new(path))
+    let path = sweepline::testdata::repo_file("hw/robot.toml");
+    let daemon = sweepline::config::Config::load(&path)
         .expect("hw/robot.toml loads")
         .icp;
     for (name, p) in [

@@ -38,8 +38,8 @@ use sweepline::sim::ros_map;
 use sweepline::sim::world::World;
 
 fn setup() -> (World, Grid, Decomposition) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../hw/worlds/paper.world");
-    let world = World::load(std::path::Path::new(path)).expect("paper.world");
+    let world =
+        World::load(&sweepline::testdata::repo_file("hw/worlds/paper.world")).expect("paper.world");
     let mut grid = grid_for(&world, 0.05, 0.5, 0.0);
     fill_from_truth(&world, &mut grid);
     let cfg = Config::default();

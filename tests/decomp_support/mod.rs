@@ -91,8 +91,8 @@ pub fn seen_segments(world: &World, poses: &[Pose]) -> Vec<Segment> {
 
 /// The paper's workspace.
 pub fn paper_world() -> World {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/worlds/paper.world");
-    World::load(std::path::Path::new(path)).expect("paper world loads")
+    let path = sweepline::testdata::repo_file("hw/worlds/paper.world");
+    World::load(&path).expect("paper world loads")
 }
 
 /// Scan poses for exploring `world`: free points (0.3 m clearance) on a

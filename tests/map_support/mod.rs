@@ -166,7 +166,7 @@ pub fn world_points(s: &LaserScan, at: &Pose) -> Vec<IPoint> {
 
 /// Writes an SVG document under `target/map-pictures/` and returns its path.
 pub fn save_svg(name: &str, doc: &svg::Document) -> std::path::PathBuf {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/map-pictures");
+    let dir = sweepline::testdata::repo_file("target/map-pictures");
     let _ = std::fs::create_dir_all(&dir);
     let path = dir.join(name);
     let _ = svg::save(&path, doc);
@@ -175,11 +175,8 @@ pub fn save_svg(name: &str, doc: &svg::Document) -> std::path::PathBuf {
 
 /// A few hand-written rectilinear test worlds (name, text).
 pub fn worlds() -> Vec<(&'static str, String)> {
-    let paper = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/hw/worlds/paper.world"
-    ))
-    .expect("hw/worlds/paper.world is in the repository");
+    let paper = std::fs::read_to_string(sweepline::testdata::repo_file("hw/worlds/paper.world"))
+        .expect("hw/worlds/paper.world is in the repository");
     vec![
         ("paper", paper),
         (
