@@ -124,6 +124,7 @@ def row_lockstep24(out):
 
 def row_closed12(out):
     rs = []
+    os.makedirs(os.path.join(out, "closed12"), exist_ok=True)
     for w in covrun.TEST12:
         rs.append(simrun.run(BIN, os.path.join(out, "closed12"), w, 1, []))
     ok = [r for r in rs if r and r["cov"] is not None]
