@@ -86,8 +86,9 @@ pub struct Pace {
 
 impl Default for Pace {
     /// A scan may be 50 ms of simulated time out before time waits for
-    /// it: on the robot's 2 cores the daemon localises a scan within
-    /// 10 ms of its last byte (see docs/latency-cpu-report.md).
+    /// it: half a URG-04LX scan period, many times the localise stage's
+    /// median time per scan (about 1 ms in `report.md`), so a daemon
+    /// keeping up is never held.
     fn default() -> Self {
         Self {
             lead: 0.05,
