@@ -460,6 +460,54 @@ fn fatal_fault_stops_the_run_with_failure() {
     }
 }
 
+/// Fails at once, dropping the sender its neighbour listens on.
+struct Cause {
+    _tx: crossbeam_channel::Sender<()>,
+}
+
+impl Stage for Cause {
+    type Work = ();
+    fn wait(&mut self, _timeout: Duration) -> Poll<()> {
+        Poll::Work(())
+    }
+    fn process(&mut self, _: (), _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        Err(StageFault::Fatal("device gone".into()))
+    }
+}
+
+/// Fails when its neighbour has gone (as a stage whose input closed).
+struct Consequence {
+    rx: crossbeam_channel::Receiver<()>,
+}
+
+impl Stage for Consequence {
+    type Work = ();
+    fn wait(&mut self, timeout: Duration) -> Poll<()> {
+        match self.rx.recv_timeout(timeout) {
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => Poll::Work(()),
+            _ => Poll::Idle,
+        }
+    }
+    fn process(&mut self, _: (), _ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        Err(StageFault::Fatal("the map stage is gone".into()))
+    }
+}
+
+/// Two stages failed when the supervisor looks: the one that failed first
+/// is named, not the first in the list (the second failed because the
+/// first had gone).
+#[test]
+fn the_stage_that_failed_first_is_the_reason() {
+    for _ in 0..5 {
+        let mut p = Pipeline::new(&params());
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        p.spawn("scanner", Consequence { rx }).unwrap();
+        p.spawn("map", Cause { _tx: tx }).unwrap();
+        let out = Supervisor::new(p.params()).run(p, &mut NoHooks);
+        assert_eq!(out.reason, StopReason::StageFailed("map".into()));
+    }
+}
+
 /// Records the order of shutdown steps.
 struct Recorder {
     log: Vec<String>,

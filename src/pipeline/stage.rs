@@ -118,6 +118,9 @@ pub struct StageHealth {
     cpu_ns: AtomicU64,
     busy_ns: AtomicU64,
     state: AtomicU8,
+    /// When the stage failed (a [`Stamp`]; `u64::MAX` while it has not):
+    /// the first failure is the cause, later ones its consequences.
+    failed_at: AtomicU64,
     pub(crate) published: Mutex<Published>,
 }
 
@@ -137,8 +140,19 @@ impl StageHealth {
             cpu_ns: AtomicU64::new(0),
             busy_ns: AtomicU64::new(0),
             state: AtomicU8::new(RUNNING),
+            failed_at: AtomicU64::new(u64::MAX),
             published: Mutex::new(Published::default()),
         }
+    }
+
+    /// Notes the time of the stage's failure (the first one counts).
+    fn note_failure(&self) {
+        let _ = self.failed_at.compare_exchange(
+            u64::MAX,
+            Stamp::now().0,
+            Ordering::AcqRel,
+            Ordering::Acquire,
+        );
     }
 
     /// Stage name.
@@ -173,6 +187,12 @@ impl StageHealth {
             STOPPED => RunState::Stopped,
             _ => RunState::Failed,
         }
+    }
+
+    /// When the stage failed; `None` while it has not.
+    pub fn failed_at(&self) -> Option<Stamp> {
+        let t = self.failed_at.load(Ordering::Acquire);
+        (t != u64::MAX).then_some(Stamp(t))
     }
 
     /// Whether the stage is running and its heartbeat is younger than `stall_after`.
@@ -356,6 +376,7 @@ pub(crate) fn run_stage<S: Stage>(
             }
             Err(StageFault::Fatal(msg)) => {
                 health.errors.fetch_add(1, Ordering::Relaxed);
+                health.note_failure();
                 log::error!("stage {} failed: {msg}", health.name);
                 final_state = FAILED;
                 break;
@@ -391,5 +412,6 @@ fn publish(health: &StageHealth, latency: &LatencyHistogram, end_to_end: &Latenc
 
 /// Marks a stage failed (used when its thread panicked).
 pub(crate) fn mark_failed(health: &StageHealth) {
+    health.note_failure();
     health.state.store(FAILED, Ordering::Release);
 }

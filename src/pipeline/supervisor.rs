@@ -188,7 +188,13 @@ impl Supervisor {
                 recv(ticker) -> _ => {}
             }
             let now = Stamp::now();
-            if let Some(f) = pipeline.stages().find(|s| s.state() == RunState::Failed) {
+            // The stage that failed first is the cause: a stage whose
+            // neighbour has gone fails after it.
+            if let Some(f) = pipeline
+                .stages()
+                .filter(|s| s.state() == RunState::Failed)
+                .min_by_key(|s| s.failed_at().map_or(u64::MAX, |t| t.0))
+            {
                 break StopReason::StageFailed(f.name().to_string());
             }
             let mut stages = pipeline.stages().peekable();

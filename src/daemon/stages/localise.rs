@@ -325,7 +325,9 @@ impl LocaliseStage {
         }
         if let Some(fit) = self
             .travel_check
-            .step(pinned.then_some(&robot), &robot_odom)
+            // Odometry held at its newest reading (none came after the
+            // scan) breaks the chain: see `TravelCheck::step`.
+            .step((pinned && msg.odom_current).then_some(&robot), &robot_odom)
         {
             self.shared.with_status(|s| s.travel_fit = Some(fit));
             if check_travel(&fit, self.wheel_radius, self.fit_mount)? {
