@@ -4,7 +4,8 @@
 //! The crate is layered as `../shared/DESIGN.md` describes; lower layers never
 //! depend on higher ones:
 //!
-//! 1. codecs (sans-IO): [`scip`], [`motor`] codecs;
+//! 1. codecs (sans-IO): the `sweepline-wire` crate (`crates/wire`):
+//!    [`scip`] and the wheel bases' codecs, re-exported here;
 //! 2. drivers: [`urg`], [`motor`] drivers, over [`serial`] ports and ptys;
 //! 3. algorithms: [`icp`], [`map`], [`decomp`], [`plan`], [`control`], over
 //!    plain data ([`geom`], [`scan`], [`grid`]);
@@ -28,7 +29,8 @@ pub mod pipeline;
 pub mod plan;
 pub mod report;
 pub mod scan;
-pub mod scip;
+/// The SCIP 2.0 codec, from the `sweepline-wire` crate.
+pub use sweepline_wire::scip;
 pub mod serial;
 pub mod sim;
 pub mod svg_canvas;

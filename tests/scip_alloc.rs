@@ -77,7 +77,8 @@ fn decode_all(
                 match raw.decode() {
                     Ok(reply) => {
                         if let ReplyBody::Scan(s) = &reply.body {
-                            scip::fill_laser_scan(s, params, 0.0, scans as u64, out).unwrap();
+                            sweepline::urg::fill_laser_scan(s, params, 0.0, scans as u64, out)
+                                .unwrap();
                             valid += out.valid_count();
                             scans += 1;
                         }

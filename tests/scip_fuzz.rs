@@ -72,7 +72,7 @@ fn encoded_corpus(rng: &mut ChaCha8Rng, out: &mut Vec<Vec<u8>>) {
         firmware: "3.1.04(02/Aug./2007)".into(),
         protocol: "SCIP 2.0".into(),
         serial: "H0706400".into(),
-        extra: vec![],
+        extra: Default::default(),
     };
     push(Command::Vv, ok, ReplyBody::Version(version));
     push(Command::Pp, ok, ReplyBody::Params(SensorParams::urg_04lx()));
@@ -228,7 +228,7 @@ fn run(
                             let ff_odd = s.is_ff_intensity() && s.request.start % 2 == 1;
                             assert_eq!(n + usize::from(ff_odd), want);
                             if want <= sweepline::capacity::MAX_BEAMS {
-                                scip::fill_laser_scan(s, params, 0.0, 0, scan).unwrap();
+                                sweepline::urg::fill_laser_scan(s, params, 0.0, 0, scan).unwrap();
                                 assert!(scan.beams.iter().all(|b| b.angle.is_finite()));
                             }
                         }

@@ -189,7 +189,7 @@ fn urg_04lx_typed_values() {
             assert_eq!(p.family(), ModelFamily::Urg04lx);
 
             let mut ls = sweepline::scan::LaserScan::default();
-            let n = scip::fill_laser_scan(scan, p, 12.5, 7, &mut ls).unwrap();
+            let n = sweepline::urg::fill_laser_scan(scan, p, 12.5, 7, &mut ls).unwrap();
             assert_eq!(n, 682);
             assert_eq!(ls.seq, 7);
             let beyond = values.iter().filter(|v| v.distance > 5600).count();
@@ -304,7 +304,7 @@ fn utm_30lx_me_scan_with_intensities() {
             assert!(values.iter().all(|v| v.intensity.is_some()));
             let p = params.as_ref().unwrap();
             let mut ls = sweepline::scan::LaserScan::default();
-            scip::fill_laser_scan(scan, p, 0.0, 0, &mut ls).unwrap();
+            sweepline::urg::fill_laser_scan(scan, p, 0.0, 0, &mut ls).unwrap();
             assert_eq!(ls.beams.len(), 1081);
             assert!(ls
                 .beams
@@ -371,7 +371,7 @@ fn urg_04lx_scan_picture() {
         ReplyBody::Scan(scan) => {
             let p = params.as_ref().unwrap();
             let mut ls = sweepline::scan::LaserScan::default();
-            scip::fill_laser_scan(scan, p, 0.0, 0, &mut ls).unwrap();
+            sweepline::urg::fill_laser_scan(scan, p, 0.0, 0, &mut ls).unwrap();
             let mut d = picture.take().unwrap();
             for b in ls.beams.iter() {
                 // SVG y grows downwards: flip so the picture is x right, y up.

@@ -328,10 +328,15 @@ fn every_reply_round_trips_through_the_decoder() {
         firmware: "3.1.04(02/Aug./2007)".into(),
         protocol: "SCIP 2.0".into(),
         serial: "H0706400".into(),
-        extra: vec![("XTRA".into(), "a:b;c".into())],
+        extra: [("XTRA".try_into().unwrap(), "a:b;c".into())]
+            .into_iter()
+            .collect(),
     };
     let mut params = SensorParams::urg_04lx();
-    params.extra.push(("SDIR".into(), "CCW".into()));
+    params
+        .extra
+        .push(("SDIR".try_into().unwrap(), "CCW".into()))
+        .unwrap();
     let info = SensorInfo {
         model: params.model.clone(),
         laser: "OFF".into(),
@@ -340,7 +345,7 @@ fn every_reply_round_trips_through_the_decoder() {
         bit_rate: "19200[bps]<-Default setting by user".into(),
         time_raw: "6A55F8".into(),
         state: "Sensor works well.".into(),
-        extra: vec![],
+        extra: Default::default(),
     };
     let bodies: Vec<(Command, Status, ReplyBody<'_>)> = vec![
         (Command::Vv, OK, ReplyBody::Version(version)),
@@ -928,7 +933,7 @@ fn ff_intensity_mode_pairs_even_and_odd_steps() {
             ]
         );
         let mut ls = LaserScan::default();
-        scip::fill_laser_scan(&s, &params, 0.0, 0, &mut ls).unwrap();
+        sweepline::urg::fill_laser_scan(&s, &params, 0.0, 0, &mut ls).unwrap();
         assert_eq!(ls.beams.len(), 8);
         assert_eq!(ls.beams[0].intensity, 111.0);
         // An error code gives no intensity (and no range).
@@ -972,7 +977,7 @@ fn clustered_beams_point_at_the_centre_of_their_steps() {
     with_reply(&bytes, |r| {
         let ReplyBody::Scan(s) = r.body else { panic!() };
         let mut ls = LaserScan::default();
-        scip::fill_laser_scan(&s, &params, 1.0, 2, &mut ls).unwrap();
+        sweepline::urg::fill_laser_scan(&s, &params, 1.0, 2, &mut ls).unwrap();
         assert_eq!(ls.beams.len(), 228);
         let inc = std::f64::consts::TAU / 1024.0;
         assert!((ls.beams[0].angle - (45.0 - 384.0) * inc).abs() < 1e-12);

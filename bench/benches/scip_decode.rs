@@ -76,7 +76,7 @@ fn decode_fill(
 ) -> usize {
     let mut n_beams = 0;
     each_scan(dec, bytes, |s| {
-        n_beams = scip::fill_laser_scan(s, params, 0.0, 0, out).unwrap_or(0);
+        n_beams = sweepline::urg::fill_laser_scan(s, params, 0.0, 0, out).unwrap_or(0);
     });
     n_beams
 }

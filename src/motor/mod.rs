@@ -46,7 +46,7 @@
 //! ```
 
 pub mod command;
-pub mod crc16;
+pub use sweepline_wire::crc16;
 pub mod create2;
 pub mod link;
 pub mod odometry;

@@ -57,21 +57,9 @@ pub struct Odometry {
     pub right: f64,
 }
 
-/// Which side of the robot a contact or drop is on.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Sides {
-    /// Left side.
-    pub left: bool,
-    /// Right side.
-    pub right: bool,
-}
-
-impl Sides {
-    /// Whether either side is active.
-    pub fn any(&self) -> bool {
-        self.left || self.right
-    }
-}
+/// Which side of the robot a contact or drop is on (the Create 2 codec's
+/// bumper and wheel-drop pair, used for every base).
+pub use sweepline_wire::create2::Sides;
 
 /// Something the base or the link did that the planner must know about.
 #[derive(Clone, Copy, Debug, PartialEq)]

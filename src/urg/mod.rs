@@ -9,11 +9,13 @@
 //!   the recovery ladder (timeout → QT and restart; repeated failures → RS and
 //!   re-open; device gone → wait for the path, re-open with back-off), scans
 //!   into a bounded newest-wins channel.
+//! * [`fill`]: a SCIP scan reply as the daemon's `LaserScan`.
 //! * [`health`]: lock-free counters for the rest of the daemon.
 //! * [`timesync`]: clock offset/drift estimation, dropped-scan detection.
 //! * [`picture`]: an SVG of one scan (for `sweepline probe --svg`).
 
 pub mod driver;
+pub mod fill;
 pub mod health;
 pub mod picture;
 pub mod session;
@@ -21,6 +23,7 @@ pub mod timesync;
 
 pub use crate::clock::{Clock, ManualClock, MonotonicClock, ScaledClock};
 pub use driver::{UrgDriver, UrgScan};
+pub use fill::fill_laser_scan;
 pub use health::{HealthSnapshot, UrgHealth};
 pub use session::{SessionInfo, UrgError, UrgSession};
 

@@ -10,14 +10,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use super::driver::UrgScan;
+use super::fill::fill_laser_scan;
 use super::health::UrgHealth;
 use super::timesync::{continuity, ClockModel, Continuity, SyncHistory, TimeSample};
 use super::UrgParams;
 use crate::clock::Clock;
 use crate::scip::{
-    fill_laser_scan, ClockUnwrapper, Cluster, Command, CommandKind, DataKind, Decoder,
-    DecoderOptions, Event, FrameError, RawReply, ReplyBody, ScanRequest, SensorInfo, SensorParams,
-    Status, StatusCode, StreamRequest, TaggedCommand, VersionInfo,
+    ClockUnwrapper, Cluster, Command, CommandKind, DataKind, Decoder, DecoderOptions, Event,
+    FrameError, RawReply, ReplyBody, ScanRequest, SensorInfo, SensorParams, Status, StatusCode,
+    StreamRequest, TaggedCommand, VersionInfo,
 };
 use crate::serial::{is_link_gone, write_chunked, Port};
 

@@ -23,16 +23,16 @@ pub struct SensorFrame {
 
 impl SensorFrame {
     /// Bumper bits as sides (right = bit 0, left = bit 1).
-    pub fn bumps(&self) -> Option<crate::motor::Sides> {
-        self.bumps_drops.map(|b| crate::motor::Sides {
+    pub fn bumps(&self) -> Option<super::Sides> {
+        self.bumps_drops.map(|b| super::Sides {
             right: b & 0x01 != 0,
             left: b & 0x02 != 0,
         })
     }
 
     /// Wheel-drop bits as sides (right = bit 2, left = bit 3).
-    pub fn wheel_drops(&self) -> Option<crate::motor::Sides> {
-        self.bumps_drops.map(|b| crate::motor::Sides {
+    pub fn wheel_drops(&self) -> Option<super::Sides> {
+        self.bumps_drops.map(|b| super::Sides {
             right: b & 0x04 != 0,
             left: b & 0x08 != 0,
         })

@@ -88,14 +88,14 @@ fn encoders_bumps_and_mode_decode() {
     assert_eq!(f.voltage_mv, Some(15_000));
     assert_eq!(
         f.bumps(),
-        Some(crate::motor::Sides {
+        Some(super::Sides {
             left: true,
             right: false
         })
     );
     assert_eq!(
         f.wheel_drops(),
-        Some(crate::motor::Sides {
+        Some(super::Sides {
             left: true,
             right: false
         })
@@ -317,7 +317,7 @@ fn unknown_opcodes_cost_one_byte_and_long_lists_are_consumed_whole() {
     assert_eq!(d.skipped, 2);
     // A 20-note song: 2 + 40 data bytes, all consumed, then Start decodes.
     let mut bytes = vec![140, 0, 20];
-    bytes.extend(std::iter::repeat_n(128u8, 40));
+    bytes.extend(core::iter::repeat_n(128u8, 40));
     bytes.push(128);
     let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
     assert_eq!(
@@ -332,7 +332,7 @@ fn unknown_opcodes_cost_one_byte_and_long_lists_are_consumed_whole() {
     );
     // A query list of 200 ids, then Safe.
     let mut bytes = vec![149, 200];
-    bytes.extend(std::iter::repeat_n(131u8, 200));
+    bytes.extend(core::iter::repeat_n(131u8, 200));
     bytes.push(131);
     let got: Vec<_> = bytes.iter().filter_map(|&b| d.push(b)).collect();
     assert_eq!(

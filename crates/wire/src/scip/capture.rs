@@ -3,6 +3,7 @@
 //! u32 microseconds, u32 length, then that many bytes. Used by the golden
 //! tests and by replay tools.
 
+use alloc::vec::Vec;
 /// One record of a capture.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CaptureRecord {

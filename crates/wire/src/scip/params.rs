@@ -3,7 +3,8 @@
 //! gives the geometry helpers the driver needs: the angle of a step, the scan
 //! period, the time per step, all from the sensor's own answer.
 
-use std::f64::consts::TAU;
+use core::f64::consts::TAU;
+use core::fmt::Write as _;
 
 use super::error_codes::ModelFamily;
 use super::reply::ReplyError;
@@ -21,7 +22,7 @@ pub struct KvLine<'a> {
 impl<'a> KvLine<'a> {
     /// Splits a `KEY:value` payload.
     pub fn parse(payload: &'a [u8]) -> Result<Self, ReplyError> {
-        let text = std::str::from_utf8(payload).map_err(|_| ReplyError::NotText)?;
+        let text = core::str::from_utf8(payload).map_err(|_| ReplyError::NotText)?;
         let (key, value) = text.split_once(':').ok_or(ReplyError::NotKeyValue)?;
         Ok(KvLine { key, value })
     }
@@ -50,22 +51,122 @@ impl<'a> KvLine<'a> {
     }
 }
 
-/// Unknown or extra `KEY:value` pairs, in the order received.
-pub type Extra = Vec<(String, String)>;
+/// Most unknown `KEY:value` pairs a reply keeps (URG and UTM firmware send
+/// none to three); more are dropped.
+pub const MAX_EXTRA: usize = 8;
+
+/// Longest key kept (SCIP keys are four letters); a longer one is not a
+/// `KEY:value` line.
+pub const MAX_KEY: usize = 8;
+
+/// Text of at most `N` bytes: a value a sensor sent, owned without
+/// allocating.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
+pub struct ShortText<const N: usize>(heapless::String<N>);
+
+/// Longest value kept (bytes); a longer one is cut. The URG-04LX's longest,
+/// II's `SCSP`, is 42; UTM firmware strings are shorter.
+pub const MAX_VALUE: usize = 64;
+
+/// A text value of a `KEY:value` line (see [`MAX_VALUE`]).
+pub type Text = ShortText<MAX_VALUE>;
+
+/// The start of an echo that is not a command, as kept in an error.
+pub type Echo = ShortText<24>;
+
+impl<const N: usize> ShortText<N> {
+    /// `s`, cut at the capacity (on a character boundary) if longer.
+    pub fn new(s: &str) -> Self {
+        let mut t = heapless::String::new();
+        for c in s.chars() {
+            if t.push(c).is_err() {
+                break;
+            }
+        }
+        ShortText(t)
+    }
+
+    /// `bytes` as text, each byte that is not printable ASCII as `?`, cut at
+    /// the capacity.
+    pub fn from_bytes_lossy(bytes: &[u8]) -> Self {
+        let mut t = heapless::String::new();
+        for &b in bytes {
+            let c = if (0x20..=0x7e).contains(&b) {
+                b as char
+            } else {
+                '?'
+            };
+            if t.push(c).is_err() {
+                break;
+            }
+        }
+        ShortText(t)
+    }
+
+    /// The text.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl<const N: usize> core::ops::Deref for ShortText<N> {
+    type Target = str;
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl<const N: usize> core::fmt::Display for ShortText<N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl<const N: usize> From<&str> for ShortText<N> {
+    fn from(s: &str) -> Self {
+        ShortText::new(s)
+    }
+}
+
+impl<const N: usize> PartialEq<str> for ShortText<N> {
+    fn eq(&self, other: &str) -> bool {
+        self.0.as_str() == other
+    }
+}
+
+impl<const N: usize> PartialEq<&str> for ShortText<N> {
+    fn eq(&self, other: &&str) -> bool {
+        self.0.as_str() == *other
+    }
+}
+
+/// A key of an unknown `KEY:value` pair.
+pub type Key = heapless::String<MAX_KEY>;
+
+/// Unknown or extra `KEY:value` pairs, in the order received (the first
+/// [`MAX_EXTRA`]).
+pub type Extra = heapless::Vec<(Key, Text), MAX_EXTRA>;
+
+/// Keeps an unknown pair if there is room (see [`MAX_EXTRA`]).
+fn keep_extra(extra: &mut Extra, kv: &KvLine<'_>) -> Result<(), ReplyError> {
+    let key = Key::try_from(kv.key).map_err(|_| ReplyError::NotKeyValue)?;
+    let _ = extra.push((key, Text::new(kv.value)));
+    Ok(())
+}
 
 /// The VV reply.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct VersionInfo {
     /// `VEND`: vendor.
-    pub vendor: String,
+    pub vendor: Text,
     /// `PROD`: product.
-    pub product: String,
+    pub product: Text,
     /// `FIRM`: firmware version.
-    pub firmware: String,
+    pub firmware: Text,
     /// `PROT`: protocol version.
-    pub protocol: String,
+    pub protocol: Text,
     /// `SERI`: serial number.
-    pub serial: String,
+    pub serial: Text,
     /// Other keys.
     pub extra: Extra,
 }
@@ -74,7 +175,7 @@ pub struct VersionInfo {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SensorParams {
     /// `MODL`: model string, e.g. `URG-04LX(Hokuyo Automatic Co.,Ltd.)`.
-    pub model: String,
+    pub model: Text,
     /// `DMIN`: smallest valid range (mm); smaller values are error codes.
     pub dmin: u32,
     /// `DMAX`: largest valid range (mm).
@@ -97,19 +198,19 @@ pub struct SensorParams {
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct SensorInfo {
     /// `MODL`: model string.
-    pub model: String,
+    pub model: Text,
     /// `LASR`: laser state as sent (`ON`/`OFF`).
-    pub laser: String,
+    pub laser: Text,
     /// `SCSP`: motor speed text.
-    pub scan_speed: String,
+    pub scan_speed: Text,
     /// `MESM`: measuring mode text.
-    pub measure_mode: String,
+    pub measure_mode: Text,
     /// `SBPS`: bit rate text.
-    pub bit_rate: String,
+    pub bit_rate: Text,
     /// `TIME`: raw text (6 hex digits on a URG-04LX, other forms elsewhere).
-    pub time_raw: String,
+    pub time_raw: Text,
     /// `STAT`: sensor state text.
-    pub state: String,
+    pub state: Text,
     /// Other keys.
     pub extra: Extra,
 }
@@ -164,11 +265,11 @@ impl VersionInfo {
                 "PROT" => &mut v.protocol,
                 "SERI" => &mut v.serial,
                 _ => {
-                    v.extra.push((kv.key.to_owned(), kv.value.to_owned()));
+                    keep_extra(&mut v.extra, &kv)?;
                     continue;
                 }
             };
-            *slot = kv.value.to_owned();
+            *slot = Text::new(kv.value);
         }
         Ok(v)
     }
@@ -191,7 +292,7 @@ impl SensorParams {
     /// The real URG-04LX answer (firmware 3.1.04): the emulator's default.
     pub fn urg_04lx() -> Self {
         SensorParams {
-            model: "URG-04LX(Hokuyo Automatic Co.,Ltd.)".to_owned(),
+            model: Text::new("URG-04LX(Hokuyo Automatic Co.,Ltd.)"),
             dmin: 20,
             dmax: 5600,
             ares: 1024,
@@ -199,7 +300,7 @@ impl SensorParams {
             amax: 725,
             afrt: 384,
             scan_rpm: 600,
-            extra: Vec::new(),
+            extra: Extra::new(),
         }
     }
 
@@ -209,15 +310,15 @@ impl SensorParams {
         let mut model = None;
         let mut nums: [Option<u32>; 7] = [None; 7];
         const KEYS: [&str; 7] = ["DMIN", "DMAX", "ARES", "AMIN", "AMAX", "AFRT", "SCAN"];
-        let mut extra = Vec::new();
+        let mut extra = Extra::new();
         for kv in pairs(lines) {
             let kv = kv?;
             if kv.key == "MODL" {
-                model = Some(kv.value.to_owned());
+                model = Some(Text::new(kv.value));
             } else if let Some(i) = KEYS.iter().position(|k| *k == kv.key) {
                 nums[i] = Some(parse_num(KEYS[i], kv.value)?);
             } else {
-                extra.push((kv.key.to_owned(), kv.value.to_owned()));
+                keep_extra(&mut extra, &kv)?;
             }
         }
         let get = |i: usize| nums[i].ok_or(ReplyError::MissingParameter(KEYS[i]));
@@ -269,7 +370,9 @@ impl SensorParams {
             ("AFRT", self.afrt),
             ("SCAN", self.scan_rpm),
         ] {
-            KvLine::encode(k, &v.to_string(), out)?;
+            let mut digits = heapless::String::<10>::new();
+            write!(digits, "{v}").map_err(|_| EncodeError::Overflow)?;
+            KvLine::encode(k, &digits, out)?;
         }
         for (k, v) in &self.extra {
             KvLine::encode(k, v, out)?;
@@ -294,7 +397,7 @@ impl SensorParams {
 
     /// The nearest step to `angle` (rad), clamped to AMIN..=AMAX.
     pub fn step_of_angle(&self, angle: f64) -> u32 {
-        let s = (angle / self.step_angle()).round() + f64::from(self.afrt);
+        let s = crate::float::round(angle / self.step_angle()) + f64::from(self.afrt);
         if s.is_nan() {
             return self.afrt;
         }
@@ -343,11 +446,11 @@ impl SensorInfo {
                 "TIME" => &mut v.time_raw,
                 "STAT" => &mut v.state,
                 _ => {
-                    v.extra.push((kv.key.to_owned(), kv.value.to_owned()));
+                    keep_extra(&mut v.extra, &kv)?;
                     continue;
                 }
             };
-            *slot = kv.value.to_owned();
+            *slot = Text::new(kv.value);
         }
         Ok(v)
     }

@@ -5,23 +5,23 @@
 //! Host side: encode a [`TaggedCommand`] with [`TaggedCommand::encode`], feed
 //! whatever bytes the port returns to a [`Decoder`], and turn each complete
 //! [`RawReply`] into a typed [`Reply`] with [`RawReply::decode`]. A scan reply
-//! borrows the decoder's buffer ([`ScanData`]) and is turned into a
-//! [`crate::scan::LaserScan`] with [`fill_laser_scan`] without allocating.
+//! borrows the decoder's buffer ([`ScanData`]), whose values decode lazily
+//! without allocating (sweepline's driver turns them into its `LaserScan`).
 //!
 //! Sensor side (the emulator): parse a received line with
 //! [`TaggedCommand::parse`], answer with the encoders in [`reply`]
 //! ([`write_status_reply`], [`encode_reply`], [`DataLineWriter`]).
 //!
-//! Millimetres and sensor steps appear only inside this module; everything it
-//! hands to the rest of the daemon is in metres, radians and seconds.
+//! Ranges stay in millimetres and angles in sensor steps here; [`SensorParams`]
+//! converts steps to radians and seconds from the sensor's own PP answer.
 //!
 //! ```
-//! use sweepline::scip::{Command, Decoder, Event, ReplyBody, SensorParams, TaggedCommand};
+//! use sweepline_wire::scip::{Command, Decoder, Event, ReplyBody, SensorParams, TaggedCommand};
 //!
 //! // Host → sensor: exact bytes.
-//! let mut out = Vec::new();
+//! let mut out = heapless::Vec::<u8, 64>::new();
 //! TaggedCommand::new(Command::Pp).encode(&mut out).unwrap();
-//! assert_eq!(out, b"PP\n");
+//! assert_eq!(&out[..], b"PP\n");
 //!
 //! // Sensor → host: bytes in whatever chunks read() returns.
 //! let reply = b"PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\n\
@@ -49,6 +49,8 @@
 //! the decoder skips to the next reply boundary by itself, or to the next
 //! valid echo (so the `QT` echo is found even in the middle of a stream).
 
+pub mod capacity;
+#[cfg(any(test, feature = "alloc"))]
 pub mod capture;
 pub mod checksum;
 pub mod clock;
@@ -63,6 +65,7 @@ pub mod scan;
 pub mod sink;
 pub mod status;
 
+#[cfg(any(test, feature = "alloc"))]
 pub use capture::{parse_capture, CaptureError, CaptureRecord};
 pub use checksum::{checksum, ChecksumError, KvQuirk};
 pub use clock::ClockUnwrapper;
@@ -76,6 +79,6 @@ pub use error_codes::{ErrorKind, ErrorReading, ModelFamily, Reading};
 pub use framer::{LineEvent, LineFramer};
 pub use params::{KvLine, SensorInfo, SensorParams, VersionInfo};
 pub use reply::{encode_reply, write_status_reply, DataLineWriter, Reply, ReplyBody, ReplyError};
-pub use scan::{fill_laser_scan, ScanData, ScanError, ScanValue};
+pub use scan::{ScanData, ScanError, ScanValue};
 pub use sink::{ByteSink, EncodeError};
 pub use status::{Status, StatusCode};

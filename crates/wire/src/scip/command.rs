@@ -472,9 +472,9 @@ impl TaggedCommand {
             }
         };
         let exact = |n: usize| match p.len().cmp(&n) {
-            std::cmp::Ordering::Less => Err(CommandError::MissingParameters),
-            std::cmp::Ordering::Greater => Err(CommandError::TooLong),
-            std::cmp::Ordering::Equal => Ok(()),
+            core::cmp::Ordering::Less => Err(CommandError::MissingParameters),
+            core::cmp::Ordering::Greater => Err(CommandError::TooLong),
+            core::cmp::Ordering::Equal => Ok(()),
         };
         match kind {
             CommandKind::Vv => bare(Command::Vv),

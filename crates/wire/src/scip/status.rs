@@ -40,7 +40,7 @@ impl StatusCode {
 
     /// The code as text, for messages.
     pub fn as_str(&self) -> &str {
-        std::str::from_utf8(&self.0).unwrap_or("??")
+        core::str::from_utf8(&self.0).unwrap_or("??")
     }
 
     /// True when the code means the command worked for `cmd` (`00`; `99` for
@@ -112,8 +112,8 @@ impl StatusCode {
     }
 }
 
-impl std::fmt::Display for StatusCode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl core::fmt::Display for StatusCode {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(self.as_str())
     }
 }
@@ -155,8 +155,8 @@ impl Status {
     }
 }
 
-impl std::fmt::Display for Status {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl core::fmt::Display for Status {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Status::Scip2(c) => write!(f, "{c}"),
             Status::Scip1(b) => write!(f, "{} (SCIP 1.1)", char::from(*b).escape_default()),

@@ -2,7 +2,7 @@
 //! read() boundaries (state carries over between calls), and bounds the line
 //! length: a longer line is reported once and its rest discarded.
 
-use crate::capacity::SCIP_MAX_LINE;
+use super::capacity::SCIP_MAX_LINE;
 
 /// What one byte completed.
 #[derive(Debug, PartialEq, Eq)]
@@ -93,8 +93,8 @@ impl LineFramer {
             at += 1;
             self.after_cr = byte == b'\r';
             self.clear_next = true;
-            let overflowed = std::mem::replace(&mut self.overflowed, false);
-            let garbage = std::mem::replace(&mut self.garbage, false);
+            let overflowed = core::mem::replace(&mut self.overflowed, false);
+            let garbage = core::mem::replace(&mut self.garbage, false);
             if overflowed {
                 continue;
             }
@@ -113,14 +113,14 @@ impl LineFramer {
             self.buf.clear();
             self.clear_next = false;
         }
-        let after_cr = std::mem::replace(&mut self.after_cr, false);
+        let after_cr = core::mem::replace(&mut self.after_cr, false);
         match byte {
             b'\n' if after_cr => None,
             b'\n' | b'\r' => {
                 self.after_cr = byte == b'\r';
                 self.clear_next = true;
-                let overflowed = std::mem::replace(&mut self.overflowed, false);
-                let garbage = std::mem::replace(&mut self.garbage, false);
+                let overflowed = core::mem::replace(&mut self.overflowed, false);
+                let garbage = core::mem::replace(&mut self.garbage, false);
                 if overflowed {
                     None
                 } else if garbage {
@@ -193,9 +193,9 @@ mod tests {
     #[test]
     fn push_slice_matches_push() {
         let mut input = b"VV\r\n00P\rA\x01B\n\n\r\n".to_vec();
-        input.extend(std::iter::repeat_n(b'x', SCIP_MAX_LINE + 3));
+        input.extend(core::iter::repeat_n(b'x', SCIP_MAX_LINE + 3));
         input.extend_from_slice(b"\r\nok\n");
-        input.extend(std::iter::repeat_n(b'y', SCIP_MAX_LINE));
+        input.extend(core::iter::repeat_n(b'y', SCIP_MAX_LINE));
         input.extend_from_slice(b"\n\r");
         let want = lines(&input);
         for cut in 0..input.len() {

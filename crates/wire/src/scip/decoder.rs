@@ -8,7 +8,7 @@
 //! Fixed capacity, no allocation: a completed [`RawReply`] borrows the
 //! decoder's buffers until the next call to [`Decoder::feed`].
 
-use crate::capacity::{SCIP_MAX_LINE, SCIP_MAX_REPLY_BODY, SCIP_MAX_REPLY_LINES};
+use super::capacity::{SCIP_MAX_LINE, SCIP_MAX_REPLY_BODY, SCIP_MAX_REPLY_LINES};
 
 use super::checksum::{self, ChecksumError};
 use super::command::{CommandKind, TaggedCommand};

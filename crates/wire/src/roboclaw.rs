@@ -17,7 +17,7 @@
 
 use heapless::Vec as HVec;
 
-use crate::motor::crc16::Crc16;
+use crate::crc16::Crc16;
 
 /// Lowest packet-serial address (the factory default).
 pub const ADDRESS_MIN: u8 = 0x80;

@@ -64,7 +64,7 @@ fn encoder_reply_crc_covers_sent_address_and_command() {
     // implementation bug) is rejected.
     let mut d = ReplyDecoder::new(0x80, &Command::Query(Query::Encoders));
     let mut wrong = bytes;
-    let c = crate::motor::crc16::crc16(&bytes[..8]).to_be_bytes();
+    let c = crate::crc16::crc16(&bytes[..8]).to_be_bytes();
     wrong[8] = c[0];
     wrong[9] = c[1];
     let r = decode_all(&mut d, &wrong);
@@ -309,7 +309,7 @@ fn every_query_has_one_code_and_decodes_its_layout() {
             None => b"v1\n\0".to_vec(),
         };
         let mut bytes = data.clone();
-        let mut c = crate::motor::crc16::Crc16::new();
+        let mut c = crate::crc16::Crc16::new();
         c.push(0x80);
         c.push(code);
         c.extend(&data);

@@ -23,7 +23,7 @@ mod stream;
 
 pub use decoder::{DecodeError, OiDecoder};
 pub use packets::{encode_stream_frame, packet_size, response_size, FrameBytes, SensorState};
-pub(crate) use packets::{packet_bytes, reads};
+pub use packets::{packet_bytes, reads, PacketBytes};
 pub use stream::{SensorFrame, StreamError, StreamParser, MAX_PAYLOAD};
 
 /// Opcodes of the Create 2 OI specification.
@@ -436,7 +436,7 @@ fn check_schedule(
 }
 
 fn mm_s(v: f64) -> i16 {
-    let mm = (v * 1000.0).round();
+    let mm = crate::float::round(v * 1000.0);
     if mm.is_nan() {
         0
     } else {
@@ -502,6 +502,22 @@ pub fn encode(c: &OiCommand) -> OiBytes {
         }
     }
     o
+}
+
+/// Which side of the robot a contact or drop is on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sides {
+    /// Left side.
+    pub left: bool,
+    /// Right side.
+    pub right: bool,
+}
+
+impl Sides {
+    /// Whether either side is active.
+    pub fn any(&self) -> bool {
+        self.left || self.right
+    }
 }
 
 #[cfg(test)]

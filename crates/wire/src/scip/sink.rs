@@ -27,7 +27,8 @@ pub trait ByteSink {
     fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError>;
 }
 
-impl ByteSink for Vec<u8> {
+#[cfg(any(test, feature = "alloc"))]
+impl ByteSink for alloc::vec::Vec<u8> {
     fn put(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
         self.extend_from_slice(bytes);
         Ok(())

@@ -46,7 +46,7 @@ pub fn response_size(id: u8) -> Option<usize> {
 }
 
 /// Whether reading packet `id` (single or group) reads single packet `single`.
-pub(crate) fn reads(id: u8, single: u8) -> bool {
+pub fn reads(id: u8, single: u8) -> bool {
     id == single || group_members(id).is_some_and(|m| m.contains(&single))
 }
 
@@ -124,7 +124,7 @@ pub struct SensorState {
 }
 
 /// Data of one packet; the largest is group 100 (80 bytes).
-pub(crate) type PacketBytes = HVec<u8, 80>;
+pub type PacketBytes = HVec<u8, 80>;
 
 /// Appends single packet `id`'s data from `s`; unused packets (16, 32, 33)
 /// are zeros. Ids that are no single packet add nothing.
@@ -177,7 +177,7 @@ fn push_single(id: u8, s: &SensorState, o: &mut PacketBytes) {
 
 /// The data bytes of packet `id` (single or group, as a Sensors or Query List
 /// reply carries them: no id, no checksum); empty for undefined ids.
-pub(crate) fn packet_bytes(id: u8, s: &SensorState) -> PacketBytes {
+pub fn packet_bytes(id: u8, s: &SensorState) -> PacketBytes {
     let mut o = PacketBytes::new();
     match group_members(id) {
         Some(members) => members.for_each(|m| push_single(m, s, &mut o)),
