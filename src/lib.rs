@@ -8,7 +8,9 @@
 //!    [`scip`] and the wheel bases' codecs, re-exported here;
 //! 2. drivers: [`urg`], [`motor`] drivers, over [`serial`] ports and ptys;
 //! 3. algorithms: [`icp`], [`map`], [`decomp`], [`plan`], [`control`], over
-//!    plain data ([`geom`], [`scan`], [`grid`]);
+//!    plain data ([`geom`], [`scan`], [`grid`], [`robot`]); each table of
+//!    parameters checks itself with [`param_check`] (a leaf), so none of
+//!    them depends on [`config`], which only aggregates the tables;
 //! 4. [`pipeline`]: the only layer that owns threads;
 //! 5. [`sim`]: worlds, kinematics, device emulators, log replay;
 //! 6. front: [`config`], [`report`], [`cli`] (the `sweepline` binary).
@@ -25,9 +27,11 @@ pub mod grid;
 pub mod icp;
 pub mod map;
 pub mod motor;
+pub mod param_check;
 pub mod pipeline;
 pub mod plan;
 pub mod report;
+pub mod robot;
 pub mod scan;
 /// The SCIP 2.0 codec, from the `sweepline-wire` crate.
 pub use sweepline_wire::scip;

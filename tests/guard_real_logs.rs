@@ -15,10 +15,10 @@
 //! watches lies inside where their bodies went) and the default side
 //! clearance.
 
-use sweepline::config::RobotParams;
 use sweepline::control::guard::{ObstaclePoints, WATCH_RANGE};
 use sweepline::control::ControlParams;
 use sweepline::geom::{heading, Pose};
+use sweepline::robot::RobotParams;
 use sweepline::sim::carmen::{self, NO_RETURN_RANGE};
 
 /// Distance driven straight on from scan `k`'s pose (m).

@@ -4,11 +4,11 @@
 //! left.
 
 use nalgebra::{Point2, Vector2};
-use sweepline::config::RobotParams;
 use sweepline::decomp::Decomposition;
 use sweepline::geom::{pose, Pose};
 use sweepline::grid::{CellState, Grid};
 use sweepline::plan::{CoveragePlanner, PlanParams, PlanStatus, Task};
+use sweepline::robot::RobotParams;
 use sweepline::sim::lockstep::{fill_from_truth, grid_for};
 use sweepline::sim::world::World;
 

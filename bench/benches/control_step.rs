@@ -6,10 +6,10 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::Point2;
-use sweepline::config::RobotParams;
 use sweepline::control::guard::ObstaclePoints;
 use sweepline::control::{ControlParams, PathFollower};
 use sweepline::geom::pose;
+use sweepline::robot::RobotParams;
 use sweepline::scan::{Beam, LaserScan};
 
 /// A scan of a room about 2 m around, 682 beams over 240°.

@@ -6,64 +6,9 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-/// Physical robot: footprint, tool and drive limits. Shared by planner,
-/// controller, motor link and simulator.
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct RobotParams {
-    /// Radius of the robot's circular footprint (m); walls are inflated by it.
-    pub radius: f64,
-    /// Width of the cleaning tool (m); lanes are this far apart at most.
-    pub tool_width: f64,
-    /// Distance between the wheels' contact points (m).
-    pub wheel_base: f64,
-    /// Wheel radius (m).
-    pub wheel_radius: f64,
-    /// Top linear speed (m/s); the paper's robot: 0.226.
-    pub max_speed: f64,
-    /// Top turn rate (rad/s); the paper's robot: 0.78.
-    pub max_turn_rate: f64,
-    /// Scanner mounting offset forward of the wheel axle centre (m).
-    pub scanner_offset_x: f64,
-    /// Scanner mounting offset to the left of the wheel axle centre (m).
-    pub scanner_offset_y: f64,
-    /// Direction (rad, counter-clockwise from the robot's front) of the
-    /// scanner's own front (its 0° beam).
-    pub scanner_yaw: f64,
-    /// The scanner is mounted upside down: it sweeps clockwise as seen from
-    /// above, so its beam angles are mirrored.
-    pub scanner_upside_down: bool,
-}
+use crate::param_check::{invalid, ParamError};
 
-impl RobotParams {
-    /// The scanner's pose in the robot frame (offsets and yaw); an
-    /// upside-down mount mirrors the beams besides (see
-    /// [`crate::scan::LaserScan::mirror`]).
-    pub fn scanner_mount(&self) -> crate::geom::Pose {
-        crate::geom::pose(
-            self.scanner_offset_x,
-            self.scanner_offset_y,
-            self.scanner_yaw,
-        )
-    }
-}
-
-impl Default for RobotParams {
-    fn default() -> Self {
-        Self {
-            radius: 0.17,
-            tool_width: 0.30,
-            wheel_base: 0.235,
-            wheel_radius: 0.036,
-            max_speed: 0.226,
-            max_turn_rate: 0.78,
-            scanner_offset_x: 0.0,
-            scanner_offset_y: 0.0,
-            scanner_yaw: 0.0,
-            scanner_upside_down: false,
-        }
-    }
-}
+pub use crate::robot::RobotParams;
 
 /// The whole configuration file.
 #[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize)]
@@ -209,35 +154,14 @@ impl Config {
 
     /// Checks value ranges that the types alone cannot express.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let r = &self.robot;
-        positive("robot.radius", r.radius)?;
-        positive("robot.tool_width", r.tool_width)?;
-        positive("robot.wheel_base", r.wheel_base)?;
-        positive("robot.wheel_radius", r.wheel_radius)?;
-        positive("robot.max_speed", r.max_speed)?;
-        positive("robot.max_turn_rate", r.max_turn_rate)?;
-        for (key, v) in [
-            ("robot.scanner_offset_x", r.scanner_offset_x),
-            ("robot.scanner_offset_y", r.scanner_offset_y),
-        ] {
-            if !v.is_finite() {
-                return Err(invalid(key, "must be a finite number"));
-            }
-        }
-        let y = r.scanner_yaw;
-        if !(y.is_finite() && (-std::f64::consts::PI..=std::f64::consts::PI).contains(&y)) {
-            return Err(invalid(
-                "robot.scanner_yaw",
-                &format!("must be an angle in radians within -pi..=pi, got {y:?}"),
-            ));
-        }
+        self.robot.validate()?;
         self.pipeline.validate()?;
         self.motor.validate()?;
         self.icp.validate()?;
         self.scanner.validate().map_err(|m| {
             // The driver's messages start with the dotted key they are about.
             let (key, rest) = m.split_once(' ').unwrap_or(("scanner", m.as_str()));
-            invalid(key, rest)
+            ConfigError::from(invalid(key, rest))
         })?;
         self.map.validate()?;
         self.daemon.validate()?;
@@ -257,28 +181,17 @@ impl Config {
 fn keyed(e: impl std::fmt::Display) -> ConfigError {
     let m = e.to_string();
     match m.split_once(": ") {
-        Some((key, rest)) if !key.contains(' ') => invalid(key, rest),
-        _ => invalid("config", &m),
+        Some((key, rest)) if !key.contains(' ') => invalid(key, rest).into(),
+        _ => invalid("config", &m).into(),
     }
 }
 
-/// An [`ConfigError::Invalid`] for `key`.
-pub fn invalid(key: &str, message: &str) -> ConfigError {
-    ConfigError::Invalid {
-        key: key.to_string(),
-        message: message.to_string(),
-    }
-}
-
-/// Checks that `v` is finite and > 0.
-pub fn positive(key: &str, v: f64) -> Result<(), ConfigError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(
-            key,
-            &format!("must be a finite number > 0, got {v:?}"),
-        ))
+impl From<ParamError> for ConfigError {
+    fn from(e: ParamError) -> Self {
+        ConfigError::Invalid {
+            key: e.key,
+            message: e.message,
+        }
     }
 }
 

@@ -17,8 +17,8 @@ pub mod guard;
 
 use nalgebra::Point2;
 
-use crate::config::RobotParams;
 use crate::geom::{heading, wrap_angle, Pose};
+use crate::robot::RobotParams;
 
 /// Path follower settings.
 /// Loaded from the `[control]` table of the config file; every field is documented

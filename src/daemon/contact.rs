@@ -20,10 +20,10 @@ use nalgebra::Point2;
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{invalid, ConfigError};
 use crate::geom::{heading, polar, Pose};
 use crate::grid::{CellIndex, CellState, Grid};
 use crate::motor::{Sides, WheelSpeeds};
+use crate::param_check::{invalid, ParamError};
 use crate::pipeline::checkpoint::ContactArc;
 
 /// Where contact marks go and how the daemon reacts to them: the
@@ -88,7 +88,7 @@ impl ContactParams {
     }
 
     /// Checks every value's range; the error names the dotted key.
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    pub fn validate(&self) -> Result<(), ParamError> {
         let within = |key: &str, v: f64, lo: f64, hi: f64, open_lo: bool| {
             let ok = v.is_finite() && v <= hi && if open_lo { v > lo } else { v >= lo };
             if ok {

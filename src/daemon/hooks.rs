@@ -37,7 +37,7 @@ pub struct DaemonHooks {
     /// Kind of the planner's task last logged.
     task_kind: String,
     /// The robot as configured, for the run folder's `mount.toml`.
-    robot: Option<crate::config::RobotParams>,
+    robot: Option<crate::robot::RobotParams>,
 }
 
 impl DaemonHooks {
@@ -77,7 +77,7 @@ impl DaemonHooks {
 
     /// Writes the run folder's `mount.toml` (what the mount and wheel
     /// checks measured) for a robot configured as `robot`.
-    pub fn with_robot(mut self, robot: crate::config::RobotParams) -> Self {
+    pub fn with_robot(mut self, robot: crate::robot::RobotParams) -> Self {
         self.robot = Some(robot);
         self
     }

@@ -179,7 +179,7 @@ pub struct Daemon {
     heartbeat_period: f64,
     resume_entry: Option<ResumeEntry>,
     /// The robot as configured (for the run folder's `mount.toml`).
-    robot: crate::config::RobotParams,
+    robot: crate::robot::RobotParams,
 }
 
 impl Daemon {

@@ -7,7 +7,7 @@
 use nalgebra::Rotation2;
 
 use super::shared::LiveStatus;
-use crate::config::RobotParams;
+use crate::robot::RobotParams;
 
 /// Name of the file in the run folder.
 pub const MOUNT_FILE: &str = "mount.toml";

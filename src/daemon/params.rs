@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::contact::ContactParams;
 use super::stuck::STUCK_AFTER;
-use crate::config::{invalid, ConfigError};
+use crate::param_check::{invalid, ParamError};
 
 /// Longest `daemon.stuck_after` accepted (clock s).
 pub const MAX_STUCK_AFTER: f64 = 3600.0;
@@ -75,7 +75,7 @@ impl Default for DaemonParams {
 
 impl DaemonParams {
     /// Checks every value's range; the error names the dotted key.
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    pub fn validate(&self) -> Result<(), ParamError> {
         let s = self.stuck_after;
         if !(s.is_finite() && (1.0..=MAX_STUCK_AFTER).contains(&s)) {
             return Err(invalid(

@@ -11,8 +11,8 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 
 use super::{IcpError, IcpParams, Metric, Reference};
 use crate::capacity::MAX_BEAMS;
-use crate::config::ConfigError;
 use crate::geom::{IPoint, Pose};
+use crate::param_check::ParamError;
 use crate::scan::LaserScan;
 
 /// How good a match is, so the caller can accept it or fall back to its prior.
@@ -137,7 +137,7 @@ pub struct Matcher {
 
 impl Matcher {
     /// A matcher with `params` (checked) and buffers for [`MAX_BEAMS`] points.
-    pub fn new(params: IcpParams) -> Result<Self, ConfigError> {
+    pub fn new(params: IcpParams) -> Result<Self, ParamError> {
         params.validate()?;
         Ok(Self {
             trimmed_share: trimmed_variance_share(params.trim_fraction),

@@ -1,6 +1,6 @@
 //! The matcher's settings (`[icp]` table of the config file) and their checks.
 
-use crate::config::{invalid, positive, ConfigError};
+use crate::param_check::{invalid, ParamError};
 
 /// Which error the solver minimises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -145,21 +145,35 @@ impl Default for IcpParams {
 
 impl IcpParams {
     /// Checks ranges the types cannot express; errors name the key (`icp.…`).
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        if !(self.intensity_weight.is_finite() && self.intensity_weight >= 0.0) {
-            return Err(invalid(
-                "icp.intensity_weight",
-                "must be a finite number >= 0",
-            ));
-        }
+    pub fn validate(&self) -> Result<(), ParamError> {
+        crate::check_keys!(
+            self,
+            "icp",
+            positive: [
+                epsilon_translation,
+                epsilon_rotation,
+                gate_initial,
+                gate_min,
+                gate_sigmas,
+                max_residual,
+                normal_radius,
+                intensity_edge,
+                max_range,
+                keyframe_distance,
+                keyframe_angle,
+                max_correction_translation,
+                max_correction_rotation,
+            ],
+            non_negative: [
+                intensity_weight,
+                degeneracy_threshold,
+                min_point_spacing,
+                prior_weight,
+            ],
+        );
         if self.max_iterations == 0 {
             return Err(invalid("icp.max_iterations", "must be at least 1"));
         }
-        positive("icp.epsilon_translation", self.epsilon_translation)?;
-        positive("icp.epsilon_rotation", self.epsilon_rotation)?;
-        positive("icp.gate_initial", self.gate_initial)?;
-        positive("icp.gate_min", self.gate_min)?;
-        positive("icp.gate_sigmas", self.gate_sigmas)?;
         if self.gate_min > self.gate_initial {
             return Err(invalid("icp.gate_min", "must not exceed icp.gate_initial"));
         }
@@ -172,19 +186,9 @@ impl IcpParams {
         if !(0.0..=1.0).contains(&self.min_inlier_ratio) {
             return Err(invalid("icp.min_inlier_ratio", "must be in [0, 1]"));
         }
-        positive("icp.max_residual", self.max_residual)?;
-        if !(self.degeneracy_threshold.is_finite() && self.degeneracy_threshold >= 0.0) {
-            return Err(invalid(
-                "icp.degeneracy_threshold",
-                "must be a finite number >= 0",
-            ));
-        }
         if !(2..=32).contains(&self.normal_neighbours) {
             return Err(invalid("icp.normal_neighbours", "must be in 2..=32"));
         }
-        positive("icp.normal_radius", self.normal_radius)?;
-        positive("icp.intensity_edge", self.intensity_edge)?;
-        positive("icp.max_range", self.max_range)?;
         if !(self.min_range.is_finite() && self.min_range >= 0.0 && self.min_range < self.max_range)
         {
             return Err(invalid(
@@ -192,31 +196,15 @@ impl IcpParams {
                 "must be >= 0 and below icp.max_range",
             ));
         }
-        if !(self.min_point_spacing.is_finite() && self.min_point_spacing >= 0.0) {
-            return Err(invalid(
-                "icp.min_point_spacing",
-                "must be a finite number >= 0",
-            ));
-        }
-        if !(self.prior_weight.is_finite() && self.prior_weight >= 0.0) {
-            return Err(invalid("icp.prior_weight", "must be a finite number >= 0"));
-        }
         if !(0.0..1.0).contains(&self.odometry_smoothing) {
             return Err(invalid("icp.odometry_smoothing", "must be in [0, 1)"));
         }
         if !(0.0..1.0).contains(&self.scan_fusion) {
             return Err(invalid("icp.scan_fusion", "must be in [0, 1)"));
         }
-        positive("icp.keyframe_distance", self.keyframe_distance)?;
-        positive("icp.keyframe_angle", self.keyframe_angle)?;
         if self.keyframe_window == 0 {
             return Err(invalid("icp.keyframe_window", "must be at least 1"));
         }
-        positive(
-            "icp.max_correction_translation",
-            self.max_correction_translation,
-        )?;
-        positive("icp.max_correction_rotation", self.max_correction_rotation)?;
         if !(self.live_correction.is_finite() && self.live_correction >= 0.0) {
             return Err(invalid(
                 "icp.live_correction",

@@ -28,8 +28,8 @@ fn better_failure(a: Outcome, b: Outcome) -> Outcome {
         _ => a,
     }
 }
-use crate::config::ConfigError;
 use crate::geom::{IPoint, Pose};
+use crate::param_check::ParamError;
 use nalgebra::Vector2;
 
 /// What happened to one scan.
@@ -103,7 +103,7 @@ pub struct Tracker {
 
 impl Tracker {
     /// A tracker starting at `start` with `params` (checked).
-    pub fn new(params: IcpParams, start: Pose) -> Result<Self, ConfigError> {
+    pub fn new(params: IcpParams, start: Pose) -> Result<Self, ParamError> {
         let map = KeyframeMap::new(&params);
         Ok(Self {
             matcher: Matcher::new(params)?,
@@ -139,7 +139,7 @@ impl Tracker {
         params: IcpParams,
         start: Pose,
         state: &TrackerState,
-    ) -> Result<(Self, Option<IcpError>), ConfigError> {
+    ) -> Result<(Self, Option<IcpError>), ParamError> {
         let mut t = Self::new(params, start)?;
         if state.keyframes.is_empty() {
             return Ok((t, None));

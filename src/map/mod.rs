@@ -50,9 +50,9 @@ pub use segments::{MapSegment, SegmentMap};
 pub use snapshot::{MapSnapshot, SnapshotCell};
 
 use crate::capacity::MAX_BEAMS;
-use crate::config::ConfigError;
 use crate::geom::{IPoint, Pose};
 use crate::grid::Grid;
+use crate::param_check::ParamError;
 use crate::scan::LaserScan;
 
 /// The trajectory keeps a pose once the robot has moved this far (m) ...
@@ -81,7 +81,7 @@ pub enum MapError {
     NonFinitePose(Pose),
     /// The settings are out of range.
     #[error("map settings: {0}")]
-    Params(#[from] ConfigError),
+    Params(#[from] ParamError),
 }
 
 /// What one update did.

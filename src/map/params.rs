@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{invalid, positive, ConfigError};
+use crate::param_check::{invalid, ParamError};
 
 /// Mapping settings. Loaded from the `[map]` table of the config file; every
 /// field is documented in `hw/robot.toml`. Lengths in metres, angles in radians.
@@ -118,36 +118,35 @@ const MAX_SANE_RANGE: f64 = 200.0;
 
 impl MapParams {
     /// Checks value ranges; errors name the key (`map.<field>`).
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        for (k, v) in [
-            ("map.merge_distance", self.merge_distance),
-            ("map.min_spacing", self.min_spacing),
-            ("map.max_range", self.max_range),
-            ("map.free_clear_range", self.free_clear_range),
-            ("map.grid_resolution", self.grid_resolution),
-            ("map.grid_extent", self.grid_extent),
-            ("map.range_sigma", self.range_sigma),
-            ("map.breakpoint_angle", self.breakpoint_angle),
-            ("map.split_distance", self.split_distance),
-            ("map.collinear_angle", self.collinear_angle),
-            ("map.min_line_length", self.min_line_length),
-            ("map.segment_merge_angle", self.segment_merge_angle),
-            ("map.segment_merge_distance", self.segment_merge_distance),
-            ("map.segment_merge_gap", self.segment_merge_gap),
-            ("map.max_segment_angle_sigma", self.max_segment_angle_sigma),
-            ("map.correction_max_angle", self.correction_max_angle),
-            ("map.correction_max_distance", self.correction_max_distance),
-            ("map.correction_min_length", self.correction_min_length),
-            (
-                "map.correction_max_translation",
-                self.correction_max_translation,
-            ),
-            ("map.correction_max_rotation", self.correction_max_rotation),
-            ("map.curve_min_turn", self.curve_min_turn),
-            ("map.curve_max_turn", self.curve_max_turn),
-        ] {
-            positive(k, v)?;
-        }
+    pub fn validate(&self) -> Result<(), ParamError> {
+        crate::check_keys!(
+            self,
+            "map",
+            positive: [
+                merge_distance,
+                min_spacing,
+                max_range,
+                free_clear_range,
+                grid_resolution,
+                grid_extent,
+                range_sigma,
+                breakpoint_angle,
+                split_distance,
+                collinear_angle,
+                min_line_length,
+                segment_merge_angle,
+                segment_merge_distance,
+                segment_merge_gap,
+                max_segment_angle_sigma,
+                correction_max_angle,
+                correction_max_distance,
+                correction_min_length,
+                correction_max_translation,
+                correction_max_rotation,
+                curve_min_turn,
+                curve_max_turn,
+            ],
+        );
         if !(self.min_range.is_finite() && self.min_range >= 0.0 && self.min_range < self.max_range)
         {
             return Err(invalid(

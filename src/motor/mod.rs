@@ -65,7 +65,7 @@ pub use types::{
 /// first poll.
 pub fn open_base(
     p: &MotorParams,
-    robot: &crate::config::RobotParams,
+    robot: &crate::robot::RobotParams,
     clock: crate::clock::SharedClock,
 ) -> Box<dyn DiffDriveBase> {
     let mut dev = crate::serial::DeviceConnector::new(p.device.clone());
@@ -80,7 +80,7 @@ pub fn open_base(
 pub fn base_driver(
     kind: BaseKind,
     p: &MotorParams,
-    robot: &crate::config::RobotParams,
+    robot: &crate::robot::RobotParams,
     opener: Box<dyn link::LinkOpener>,
     clock: crate::clock::SharedClock,
 ) -> Box<dyn DiffDriveBase> {

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{invalid, positive, ConfigError};
+use crate::param_check::{invalid, ParamError};
 
 /// Which wheel-base protocol the daemon speaks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
@@ -141,14 +141,15 @@ impl Default for Create2Params {
 
 impl MotorParams {
     /// Checks value ranges the types cannot express.
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    pub fn validate(&self) -> Result<(), ParamError> {
         if self.device.is_empty() {
             return Err(invalid("motor.device", "must name a device path"));
         }
-        positive("motor.deadman", self.deadman)?;
-        positive("motor.link_timeout", self.link_timeout)?;
-        positive("motor.reconnect_interval", self.reconnect_interval)?;
-        positive("motor.max_wheel_speed", self.max_wheel_speed)?;
+        crate::check_keys!(
+            self,
+            "motor",
+            positive: [deadman, link_timeout, reconnect_interval, max_wheel_speed],
+        );
         let r = &self.roboclaw;
         if !(0x80..=0x87).contains(&r.address) {
             return Err(invalid(
@@ -156,21 +157,15 @@ impl MotorParams {
                 &format!("must be 128..=135, got {}", r.address),
             ));
         }
-        positive("motor.roboclaw.counts_per_rev", r.counts_per_rev)?;
-        positive("motor.roboclaw.reply_timeout", r.reply_timeout)?;
+        crate::check_keys!(r, "motor.roboclaw", positive: [counts_per_rev, reply_timeout]);
         if !(r.serial_timeout.is_finite() && (0.1..=25.5).contains(&r.serial_timeout)) {
             return Err(invalid(
                 "motor.roboclaw.serial_timeout",
                 &format!("must be 0.1..=25.5 s, got {}", r.serial_timeout),
             ));
         }
-        if !(r.accel.is_finite() && r.accel >= 0.0) {
-            return Err(invalid(
-                "motor.roboclaw.accel",
-                &format!("must be a finite number >= 0, got {}", r.accel),
-            ));
-        }
-        positive("motor.create2.counts_per_rev", self.create2.counts_per_rev)?;
+        crate::check_keys!(r, "motor.roboclaw", non_negative: [accel]);
+        crate::check_keys!(self.create2, "motor.create2", positive: [counts_per_rev]);
         Ok(())
     }
 

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{invalid, positive, ConfigError};
+use crate::param_check::{invalid, positive, ParamError};
 
 /// Per-stage latency budgets in seconds (the DESIGN stage table at 10 Hz scans).
 /// A stage iteration that takes longer than its budget is an overrun.
@@ -52,7 +52,7 @@ impl StageBudgets {
         })
     }
 
-    fn validate(&self) -> Result<(), ConfigError> {
+    fn validate(&self) -> Result<(), ParamError> {
         for (k, v) in [
             ("pipeline.budget.scanner", self.scanner),
             ("pipeline.budget.localise", self.localise),
@@ -164,16 +164,22 @@ impl Default for PipelineParams {
 
 impl PipelineParams {
     /// Checks ranges the types cannot express; errors name the dotted key.
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        positive("pipeline.poll_timeout", self.poll_timeout)?;
-        positive("pipeline.stall_after", self.stall_after)?;
-        positive("pipeline.supervise_period", self.supervise_period)?;
-        positive("pipeline.stop_timeout", self.stop_timeout)?;
-        positive("pipeline.cpu_budget", self.cpu_budget)?;
-        positive("pipeline.late_after", self.late_after)?;
-        positive("pipeline.checkpoint_period", self.checkpoint_period)?;
-        positive("pipeline.metrics_period", self.metrics_period)?;
-        positive("pipeline.heartbeat_period", self.heartbeat_period)?;
+    pub fn validate(&self) -> Result<(), ParamError> {
+        crate::check_keys!(
+            self,
+            "pipeline",
+            positive: [
+                poll_timeout,
+                stall_after,
+                supervise_period,
+                stop_timeout,
+                cpu_budget,
+                late_after,
+                checkpoint_period,
+                metrics_period,
+                heartbeat_period,
+            ],
+        );
         if self.realtime_priority > 99 {
             return Err(invalid(
                 "pipeline.realtime_priority",

@@ -300,7 +300,7 @@ mod tests {
             ..PlanParams::default()
         };
         assert!(p.validate().is_ok());
-        let robot = crate::config::RobotParams {
+        let robot = crate::robot::RobotParams {
             tool_width: 0.01,
             ..Default::default()
         };

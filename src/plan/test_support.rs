@@ -3,9 +3,9 @@
 
 use nalgebra::Point2;
 
-use crate::config::RobotParams;
 use crate::grid::{CellState, Grid};
 use crate::plan::{CoveragePlanner, PlanParams};
+use crate::robot::RobotParams;
 
 /// A 3 m × 2 m room (0.05 m cells) with one-cell walls all round.
 pub(crate) fn walled_room() -> Grid {

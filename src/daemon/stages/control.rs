@@ -293,7 +293,7 @@ mod tests {
     /// A control stage at the map origin facing +x, a pose fix just in,
     /// following a 3 m lane along +x; its channels lead nowhere.
     fn control_stage(shared: Arc<Shared>) -> ControlStage {
-        let robot = crate::config::RobotParams::default();
+        let robot = crate::robot::RobotParams::default();
         let mut follower =
             PathFollower::new(&crate::control::ControlParams::default(), &robot).unwrap();
         follower.set_path(&[Point2::new(3.0, 0.0)], None);

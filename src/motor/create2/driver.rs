@@ -15,7 +15,6 @@
 use std::time::Duration;
 
 use crate::clock::SharedClock;
-use crate::config::RobotParams;
 use crate::motor::command::WheelCommand;
 use crate::motor::create2::codec::{encode, pkt, OiCommand, OiMode, SensorFrame, StreamParser};
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
@@ -24,6 +23,7 @@ use crate::motor::params::MotorParams;
 use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
 };
+use crate::robot::RobotParams;
 
 /// The Create 2 sends a stream frame every 15 ms.
 pub const STREAM_PERIOD: f64 = 0.015;

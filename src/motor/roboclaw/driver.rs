@@ -10,7 +10,6 @@
 use std::time::Duration;
 
 use crate::clock::SharedClock;
-use crate::config::RobotParams;
 use crate::motor::command::WheelCommand;
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
 use crate::motor::odometry::{counts_per_metre, Accepted, CounterWidth, Odometer, DEFAULT_LATENCY};
@@ -21,6 +20,7 @@ use crate::motor::roboclaw::codec::{
 use crate::motor::{
     BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
+use crate::robot::RobotParams;
 
 /// Polls between two main-battery readings.
 const BATTERY_EVERY: u64 = 20;

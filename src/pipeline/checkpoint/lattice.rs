@@ -39,12 +39,12 @@ impl Section for LatticePhase {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::RobotParams;
     use crate::decomp::Decomposition;
     use crate::geom::pose;
     use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::test_support::{planner, walled_room as room};
     use crate::plan::{CoveragePlanner, PlanParams, Task};
+    use crate::robot::RobotParams;
 
     /// Positions across the lanes (y: the room is wider than deep, so lanes
     /// run along x) of the planned lanes' waypoints.

@@ -337,11 +337,11 @@ pub(super) fn travel_motion(task: Task) -> Motion {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::RobotParams;
     use crate::geom::pose;
     use crate::grid::CellState;
     use crate::plan::test_support::{follow_to_done, planner, room_with, walled_room};
     use crate::plan::PlanParams;
+    use crate::robot::RobotParams;
 
     /// The end of the last way back planned, and how many were planned.
     fn ways_back(p: &CoveragePlanner) -> (Option<Point2<f64>>, usize) {

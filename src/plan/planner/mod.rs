@@ -44,10 +44,10 @@ use super::cspace::{disk, CSpace, Frame, FREE};
 use super::lanes::Variant;
 use super::swept::{PlanReach, PlanTries, SweptFloor};
 use super::PlanParams;
-use crate::config::RobotParams;
 use crate::decomp::{CellId, CellStatus, Decomposition};
 use crate::geom::{heading, wrap_angle, Pose, Segment};
 use crate::grid::{CellIndex, CellState, Grid};
+use crate::robot::RobotParams;
 
 mod cover;
 mod escape;

@@ -153,7 +153,7 @@ impl LoopbackTruth {
 /// described by `cfg`, both timed by `clock`; plus the base's ground truth.
 pub fn loopback_base(
     cfg: EmulatorConfig,
-    robot: &crate::config::RobotParams,
+    robot: &crate::robot::RobotParams,
     clock: Arc<ManualClock>,
 ) -> (Box<dyn DiffDriveBase>, LoopbackTruth) {
     let state = Arc::new(Mutex::new(State {
