@@ -200,6 +200,58 @@ mod tests {
     use super::*;
 
     #[test]
+    fn shipped_icp_table_is_the_default_and_valid() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        // The robot tracks against a room-scale keyframe window (a larger
+        // local map than the corridor-log default); everything else is the default.
+        assert_eq!(
+            cfg.icp,
+            crate::icp::IcpParams {
+                keyframe_distance: 0.5,
+                keyframe_window: 40,
+                ..crate::icp::IcpParams::default()
+            }
+        );
+        cfg.icp.validate().unwrap();
+    }
+
+    #[test]
+    fn metric_and_prior_parse_from_toml() {
+        let cfg = Config::from_toml(
+            "[icp]\nmetric = \"point_to_point\"\nprior = \"constant_velocity\"\n",
+            "t",
+        )
+        .unwrap();
+        assert_eq!(cfg.icp.metric, crate::icp::Metric::PointToPoint);
+        assert_eq!(cfg.icp.prior, crate::icp::Prior::ConstantVelocity);
+        assert!(Config::from_toml("[icp]\nmetric = \"plane\"\n", "t").is_err());
+    }
+
+    #[test]
+    fn shipped_map_table_equals_defaults() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(cfg.map, crate::map::MapParams::default());
+    }
+
+    #[test]
+    fn config_file_checks_the_map_table() {
+        let e = Config::from_toml("[map]\nmerge_distance = -0.1\n", "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("map.merge_distance"), "{e}");
+    }
+
+    #[test]
+    fn shipped_plan_and_control_tables_are_the_defaults() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(cfg.plan, crate::plan::PlanParams::default());
+        assert_eq!(cfg.control, crate::control::ControlParams::default());
+    }
+
+    #[test]
     fn unknown_key_is_named() {
         let e = Config::from_toml("[robot]\nradiuss = 0.2\n", "t.toml").unwrap_err();
         assert!(e.to_string().contains("radiuss"), "{e}");

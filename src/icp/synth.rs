@@ -129,6 +129,32 @@ fn ray_hit(ox: f64, oy: f64, dx: f64, dy: f64, seg: &Segment) -> Option<f64> {
     (t > 1e-9 && (0.0..=1.0).contains(&u)).then_some(t)
 }
 
+/// The distance (m) from `origin` along the ray at `angle` (rad, world
+/// frame) to the nearest of `walls` within `max_range`.
+pub fn ray(
+    walls: &[Wall],
+    origin: &nalgebra::Point2<f64>,
+    angle: f64,
+    max_range: f64,
+) -> Option<f64> {
+    let (s, c) = angle.sin_cos();
+    walls
+        .iter()
+        .filter_map(|w| ray_hit(origin.x, origin.y, c, s, &w.segment))
+        .filter(|&t| t <= max_range)
+        .min_by(f64::total_cmp)
+}
+
+/// The closed polygon through `corners` (m), every edge of `intensity`.
+pub fn polygon(corners: &[(f64, f64)], intensity: f64) -> Vec<Wall> {
+    (0..corners.len())
+        .map(|i| {
+            let (a, b) = (corners[i], corners[(i + 1) % corners.len()]);
+            Wall::new(a.0, a.1, b.0, b.1, intensity)
+        })
+        .collect()
+}
+
 /// A closed rectangular room `w` × `h` (m) with its lower-left corner at the
 /// origin, every wall of `intensity`.
 pub fn room(w: f64, h: f64, intensity: f64) -> Vec<Wall> {

@@ -146,13 +146,13 @@ mod tests {
     /// 0..1.5 of a 2 × 1.5 m room) scanned from (1, 0.8) at uniform beam
     /// steps, seen through `motion` (the scan's pose error).
     fn corner_lines(motion: &Isometry2<f64>) -> Vec<ScanLine> {
-        let world = crate::sim::world::World::parse("room 0 0 2 0 2 1.5 0 1.5\n").unwrap();
+        let world = crate::icp::synth::room(2.0, 1.5, 0.5);
         let origin = Point2::new(1.0, 0.8);
         let pts: Vec<IPoint> = (0..470)
             .filter_map(|k| {
                 let a = (-139.0 + k as f64 * 0.36f64).to_radians();
-                let h = world.cast_ray(&origin, a, 10.0)?;
-                let p = crate::geom::polar(origin, a, h.range);
+                let range = crate::icp::synth::ray(&world, &origin, a, 10.0)?;
+                let p = crate::geom::polar(origin, a, range);
                 Some(IPoint::new(p.x, p.y, 0.5))
             })
             .collect();

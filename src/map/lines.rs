@@ -527,21 +527,21 @@ impl LineExtractor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::world::World;
+    use crate::icp::synth::{self, Wall};
     use rand::{Rng, SeedableRng};
 
     /// A 682-beam URG-like scan of `world` from `origin` (heading 0), with
     /// Gaussian range noise `sigma`, as world-frame points.
-    fn scan(world: &World, origin: Point2<f64>, sigma: f64, seed: u64) -> Vec<IPoint> {
+    fn scan(world: &[Wall], origin: Point2<f64>, sigma: f64, seed: u64) -> Vec<IPoint> {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         (44..=725)
             .filter_map(|k| {
                 let a = (k - 384) as f64 * std::f64::consts::TAU / 1024.0;
-                let h = world.cast_ray(&origin, a, 5.6)?;
+                let range = synth::ray(world, &origin, a, 5.6)?;
                 let u1: f64 = rng.random::<f64>().max(1e-300);
                 let u2: f64 = rng.random();
                 let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-                let r = h.range + sigma * n;
+                let r = range + sigma * n;
                 Some(IPoint::new(
                     origin.x + r * a.cos(),
                     origin.y + r * a.sin(),
@@ -560,7 +560,7 @@ mod tests {
 
     #[test]
     fn noisy_room_gives_its_walls_and_no_curves() {
-        let w = World::parse("room 0 0 4 0 4 3 0 3\n").unwrap();
+        let w = synth::room(4.0, 3.0, 0.5);
         let o = Point2::new(1.5, 1.2);
         for seed in 0..5 {
             let (lines, curves) = run(&scan(&w, o, 0.01, seed), o);
@@ -580,16 +580,14 @@ mod tests {
 
     #[test]
     fn a_pillar_is_a_curve() {
-        let mut poly = String::from("polygon");
-        for k in 0..48 {
-            let t = k as f64 * std::f64::consts::TAU / 48.0;
-            poly.push_str(&format!(
-                " {:.4} {:.4}",
-                2.5 + 0.5 * t.cos(),
-                1.5 + 0.5 * t.sin()
-            ));
-        }
-        let w = World::parse(&format!("room 0 0 5 0 5 3 0 3\n{poly}\n")).unwrap();
+        let pillar: Vec<(f64, f64)> = (0..48)
+            .map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / 48.0;
+                (2.5 + 0.5 * t.cos(), 1.5 + 0.5 * t.sin())
+            })
+            .collect();
+        let mut w = synth::room(5.0, 3.0, 0.5);
+        w.extend(synth::polygon(&pillar, 0.5));
         let o = Point2::new(0.8, 1.5);
         let (lines, curves) = run(&scan(&w, o, 0.005, 3), o);
         assert_eq!(curves.len(), 1, "{curves:?}");

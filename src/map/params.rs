@@ -209,21 +209,6 @@ mod tests {
     }
 
     #[test]
-    fn shipped_table_equals_defaults() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = crate::config::Config::load(std::path::Path::new(path)).unwrap();
-        assert_eq!(cfg.map, MapParams::default());
-    }
-
-    #[test]
-    fn config_file_checks_the_map_table() {
-        let e = crate::config::Config::from_toml("[map]\nmerge_distance = -0.1\n", "t.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("map.merge_distance"), "{e}");
-    }
-
-    #[test]
     fn bad_values_name_their_key() {
         let cases: Vec<(MapParams, &str)> = vec![
             (

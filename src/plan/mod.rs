@@ -218,14 +218,6 @@ impl PlanParams {
 mod tests {
     use super::*;
 
-    #[test]
-    fn shipped_tables_are_the_defaults() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = crate::config::Config::load(std::path::Path::new(path)).unwrap();
-        assert_eq!(cfg.plan, PlanParams::default());
-        assert_eq!(cfg.control, crate::control::ControlParams::default());
-    }
-
     /// Asserts that `p` is refused with an error naming `key`.
     fn refused(p: PlanParams, key: &str) {
         let e = p.validate().unwrap_err().to_string();

@@ -89,8 +89,11 @@ fn room(ring: bool) -> Grid {
 /// The first decision in `grid` (cells settled over six updates) with
 /// the lane tour on or off: the planner's stats and motions after it.
 fn first_decision(grid: &Grid, lane_tour: bool) -> (PlanStats, Vec<Motion>) {
-    let cfg = crate::config::Config::default();
-    let mut d = crate::decomp::Decomposer::new(&cfg.decomp, cfg.robot.radius).unwrap();
+    let cfg = (
+        crate::decomp::DecompParams::default(),
+        crate::robot::RobotParams::default(),
+    );
+    let mut d = crate::decomp::Decomposer::new(&cfg.0, cfg.1.radius).unwrap();
     for _ in 0..6 {
         d.update(grid, &[]);
     }
@@ -99,7 +102,7 @@ fn first_decision(grid: &Grid, lane_tour: bool) -> (PlanStats, Vec<Motion>) {
         lane_tour,
         ..PlanParams::default()
     };
-    let mut p = CoveragePlanner::new(&params, &cfg.robot).unwrap();
+    let mut p = CoveragePlanner::new(&params, &cfg.1).unwrap();
     let start = crate::geom::pose(0.3, 0.3, 0.0);
     p.update(grid, d.decomposition(), &start, None).unwrap();
     (p.stats(), p.motions().to_vec())
@@ -364,8 +367,11 @@ fn pillar_part_seen_free(
     near: bool,
     left: std::ops::Range<usize>,
 ) -> (Option<(f64, bool, f64)>, PlanStats, PlanStats) {
-    let cfg = crate::config::Config::default();
-    let mut d = crate::decomp::Decomposer::new(&cfg.decomp, cfg.robot.radius).unwrap();
+    let cfg = (
+        crate::decomp::DecompParams::default(),
+        crate::robot::RobotParams::default(),
+    );
+    let mut d = crate::decomp::Decomposer::new(&cfg.0, cfg.1.radius).unwrap();
     let before = pillar_room(true);
     for _ in 0..6 {
         d.update(&before, &[]);
@@ -1041,8 +1047,11 @@ fn room_with_unexplored(corner: bool) -> Grid {
 fn unexplored_space_no_reachable_place_sees_does_not_hold_the_lane_tour_back() {
     let tours = |corner: bool| {
         let grid = room_with_unexplored(corner);
-        let cfg = crate::config::Config::default();
-        let mut d = crate::decomp::Decomposer::new(&cfg.decomp, cfg.robot.radius).unwrap();
+        let cfg = (
+            crate::decomp::DecompParams::default(),
+            crate::robot::RobotParams::default(),
+        );
+        let mut d = crate::decomp::Decomposer::new(&cfg.0, cfg.1.radius).unwrap();
         for _ in 0..6 {
             d.update(&grid, &[]);
         }
