@@ -7,10 +7,11 @@
 //! 1. codecs (sans-IO): the `sweepline-wire` crate (`crates/wire`):
 //!    [`scip`] and the wheel bases' codecs, re-exported here;
 //! 2. drivers: [`urg`], [`motor`] drivers, over [`serial`] ports and ptys;
-//! 3. algorithms: [`icp`], [`map`], [`decomp`], [`plan`], [`control`], over
-//!    plain data ([`geom`], [`scan`], [`grid`], [`robot`]); each table of
-//!    parameters checks itself with [`param_check`] (a leaf), so none of
-//!    them depends on [`config`], which only aggregates the tables;
+//! 3. algorithms: the `sweepline-core` crate (`crates/core`): [`icp`],
+//!    [`map`], [`decomp`], [`plan`], [`control`], over plain data ([`geom`],
+//!    [`scan`], [`grid`], [`robot`]), re-exported here; each table of
+//!    parameters checks itself with [`param_check`], so none of them
+//!    depends on [`config`], which only aggregates the tables;
 //! 4. [`pipeline`]: the only layer that owns threads;
 //! 5. [`sim`]: worlds, kinematics, device emulators, log replay;
 //! 6. front: [`config`], [`report`], [`cli`] (the `sweepline` binary).
@@ -19,24 +20,19 @@ pub mod capacity;
 pub mod cli;
 pub mod clock;
 pub mod config;
-pub mod control;
 pub mod daemon;
-pub mod decomp;
-pub mod geom;
-pub mod grid;
-pub mod icp;
-pub mod map;
 pub mod motor;
-pub mod param_check;
 pub mod pipeline;
-pub mod plan;
 pub mod report;
-pub mod robot;
-pub mod scan;
-/// The SCIP 2.0 codec, from the `sweepline-wire` crate.
-pub use sweepline_wire::scip;
 pub mod serial;
 pub mod sim;
-pub mod svg_canvas;
 pub mod testdata;
 pub mod urg;
+
+/// The SCIP 2.0 codec, from the `sweepline-wire` crate.
+pub use sweepline_wire::scip;
+
+/// The algorithms and their plain data, from the `sweepline-core` crate.
+pub use sweepline_core::{
+    check_keys, control, decomp, geom, grid, icp, map, param_check, plan, robot, scan, svg_canvas,
+};

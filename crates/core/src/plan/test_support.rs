@@ -8,13 +8,13 @@ use crate::plan::{CoveragePlanner, PlanParams};
 use crate::robot::RobotParams;
 
 /// A 3 m × 2 m room (0.05 m cells) with one-cell walls all round.
-pub(crate) fn walled_room() -> Grid {
+pub fn walled_room() -> Grid {
     room_with(60, 40, |_, _| false)
 }
 
 /// A room of `w` × `h` cells of 0.05 m, seen whole: one-cell walls all
 /// round, and occupied wherever `inside(x, y)` holds.
-pub(crate) fn room_with(w: usize, h: usize, inside: impl Fn(usize, usize) -> bool) -> Grid {
+pub fn room_with(w: usize, h: usize, inside: impl Fn(usize, usize) -> bool) -> Grid {
     let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, w, h);
     for y in 0..h {
         for x in 0..w {
@@ -31,7 +31,7 @@ pub(crate) fn room_with(w: usize, h: usize, inside: impl Fn(usize, usize) -> boo
 }
 
 /// A planner with the default robot that starts covering at once.
-pub(crate) fn planner() -> CoveragePlanner {
+pub fn planner() -> CoveragePlanner {
     let params = PlanParams {
         look_around: false,
         ..PlanParams::default()
@@ -44,7 +44,7 @@ pub(crate) fn planner() -> CoveragePlanner {
 /// every 2 cm, the robot turned to the final heading), then the planner is
 /// asked again. Returns the report and the tasks in the order planned; at
 /// most `updates` updates.
-pub(crate) fn follow_to_done(
+pub fn follow_to_done(
     p: &mut CoveragePlanner,
     grid: &Grid,
     start: crate::geom::Pose,

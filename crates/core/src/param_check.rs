@@ -1,6 +1,6 @@
 //! The checks every parameter table makes of its own values, and the error
 //! that names the offending key. A leaf: each layer's `*Params` validates
-//! itself with these, and the configuration file (`crate::config`) only
+//! itself with these, and the configuration file (`sweepline::config`) only
 //! aggregates the tables, so no algorithm depends on the daemon's config.
 
 /// A value out of its allowed range, named by its dotted key.
@@ -59,8 +59,8 @@ pub fn finite(key: &str, v: f64) -> Result<(), ParamError> {
 /// misspelled:
 ///
 /// ```
-/// # use sweepline::check_keys;
-/// # use sweepline::param_check::ParamError;
+/// # use sweepline_core::check_keys;
+/// # use sweepline_core::param_check::ParamError;
 /// struct P { gate: f64, bias: f64 }
 /// fn validate(p: &P) -> Result<(), ParamError> {
 ///     check_keys!(p, "icp", positive: [gate], finite: [bias]);

@@ -13,8 +13,11 @@ pub mod cspace;
 pub mod lanes;
 pub mod planner;
 pub mod swept;
-#[cfg(test)]
-pub(crate) mod test_support;
+/// Fixtures for tests here and in the crates above (the checkpoint tests):
+/// the `test-support` feature, for tests only.
+#[cfg(any(test, feature = "test-support"))]
+#[doc(hidden)]
+pub mod test_support;
 pub mod tour;
 pub mod unbox;
 
