@@ -6,10 +6,10 @@
 
 use sweepline::cli::replay::{interlace_lag, replay_log};
 use sweepline::geom::pose;
-use sweepline::icp::eval::Stamped;
 use sweepline::icp::synth::{cast, room, ScanSpec, Wall};
 use sweepline::icp::IcpParams;
 use sweepline::sim::carmen::{self, CarmenLog, LaserRecord, Record};
+use sweepline::sim::eval::Stamped;
 
 fn scene() -> Vec<Wall> {
     let mut w = room(7.0, 5.0, 0.5);

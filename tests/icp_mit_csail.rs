@@ -4,10 +4,10 @@
 //! a regression fails. The run is deterministic.
 
 use sweepline::cli::replay::replay_log;
-use sweepline::icp::eval::{evaluate, parse_relations, read_text};
-use sweepline::icp::truth_noise::truth_noise;
 use sweepline::icp::IcpParams;
 use sweepline::sim::carmen;
+use sweepline::sim::eval::truth_noise::truth_noise;
+use sweepline::sim::eval::{evaluate, parse_relations, read_text};
 
 #[test]
 fn mit_csail_accuracy_with_default_parameters() {

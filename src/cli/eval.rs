@@ -1,9 +1,9 @@
 //! `sweepline eval`: scores a trajectory against Kümmerle et al. relations.
 
 use super::CliResult;
-use crate::icp::breakdown::{breakdown, shared, short_errors};
-use crate::icp::eval::{evaluate, parse_relations, parse_trajectory, read_text};
-use crate::icp::truth_noise::truth_noise;
+use crate::sim::eval::breakdown::{breakdown, shared, short_errors};
+use crate::sim::eval::truth_noise::truth_noise;
+use crate::sim::eval::{evaluate, parse_relations, parse_trajectory, read_text};
 
 /// Arguments of `sweepline eval`.
 #[derive(Debug, clap::Args)]

@@ -16,11 +16,11 @@ use svg::Document;
 use super::CliResult;
 use crate::config::Config;
 use crate::geom::{IPoint, Pose};
-use crate::icp::eval::{format_trajectory, Stamped};
 use crate::icp::{IcpParams, Outcome, Tracker};
 use crate::pipeline::clock::thread_cpu_time;
 use crate::pipeline::metrics::quantile_sorted;
 use crate::sim::carmen::{self, NO_RETURN_RANGE};
+use crate::sim::eval::{format_trajectory, Stamped};
 
 /// Arguments of `sweepline replay`.
 #[derive(Debug, clap::Args)]

@@ -5,6 +5,7 @@ pub mod carmen;
 pub mod closed_loop;
 pub mod coverage_metrics;
 pub mod coverage_svg;
+pub mod eval;
 pub mod floorplan;
 pub mod kinematics;
 pub mod lockstep;

@@ -11,20 +11,18 @@
 //! - [`Matcher`]: one match, with gate, trimming, point-to-point or
 //!   point-to-line solve and a [`Quality`] report.
 //! - [`KeyframeMap`] and [`Tracker`]: scan-to-map tracking over a sequence.
-//! - [`eval`]: the Kümmerle et al. 2009 relative-pose metric; [`truth_noise`]:
-//!   how noisy its hand-made relations are, from relation triangles;
-//!   [`breakdown`]: where the short relations' error comes from.
+//! - [`synth`]: synthetic scans of wall segments, for tests and benchmarks.
+//!
+//! The evaluation against a log's relations (Kümmerle et al. 2009) is
+//! tooling with file input: `sweepline::sim::eval`.
 
-pub mod breakdown;
 mod error;
-pub mod eval;
 mod local_map;
 mod matcher;
 mod params;
 mod reference;
 pub mod synth;
 mod tracker;
-pub mod truth_noise;
 
 pub use error::IcpError;
 pub use local_map::{KeyframeMap, KeyframeState};

@@ -4,6 +4,14 @@
 //! is compared component-wise with the true one (angle wrapped).
 //!
 //! Relations are looked up by exact scan timestamp (within [`STAMP_TOLERANCE`]).
+//!
+//! [`truth_noise`]: how noisy a log's hand-made relations are, from relation
+//! triangles; [`breakdown`]: where the short relations' error comes from.
+//! Evaluation tooling with file input: the simulator layer, not the
+//! matcher's crate.
+
+pub mod breakdown;
+pub mod truth_noise;
 
 use std::io::BufRead;
 

@@ -15,7 +15,7 @@
 //! A percentile bootstrap over the triangles (deterministic seed) gives the
 //! uncertainty of those floors.
 
-use super::eval::{lookup, EvalError, Relation, Stamped, STAMP_TOLERANCE};
+use super::{lookup, EvalError, Relation, Stamped, STAMP_TOLERANCE};
 use crate::geom::{wrap_angle, Pose};
 
 /// Largest `t2 − t1` (s) of a "short" relation, as in the benchmark's local group.

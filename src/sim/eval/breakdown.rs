@@ -3,8 +3,8 @@
 //! trajectories share (an error both make comes from the data or from the
 //! ground truth, not from what differs between the two).
 
-use super::eval::{lookup, Relation, Stamped};
 use super::truth_noise::SHORT;
+use super::{lookup, Relation, Stamped};
 use crate::geom::{wrap_angle, Pose};
 
 /// Signed error of one short relation (estimate − truth).
