@@ -6,7 +6,9 @@
 //!
 //! 1. codecs (sans-IO): the `sweepline-wire` crate (`crates/wire`):
 //!    [`scip`] and the wheel bases' codecs, re-exported here;
-//! 2. drivers: [`urg`], [`motor`] drivers, over [`serial`] ports and ptys;
+//! 2. drivers: the `sweepline-io` crate (`crates/io`): [`urg`], [`motor`]
+//!    drivers, over [`serial`] ports and ptys, and the [`clock`], re-exported
+//!    here;
 //! 3. algorithms: the `sweepline-core` crate (`crates/core`): [`icp`],
 //!    [`map`], [`decomp`], [`plan`], [`control`], over plain data ([`geom`],
 //!    [`scan`], [`grid`], [`robot`]), re-exported here; each table of
@@ -18,19 +20,18 @@
 
 pub mod capacity;
 pub mod cli;
-pub mod clock;
 pub mod config;
 pub mod daemon;
-pub mod motor;
 pub mod pipeline;
 pub mod report;
-pub mod serial;
 pub mod sim;
 pub mod testdata;
-pub mod urg;
 
 /// The SCIP 2.0 codec, from the `sweepline-wire` crate.
 pub use sweepline_wire::scip;
+
+/// The drivers and the clock, from the `sweepline-io` crate.
+pub use sweepline_io::{clock, motor, serial, urg};
 
 /// The algorithms and their plain data, from the `sweepline-core` crate.
 pub use sweepline_core::{

@@ -200,6 +200,22 @@ mod tests {
     use super::*;
 
     #[test]
+    fn shipped_scanner_table_matches_the_defaults() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(cfg.scanner, crate::urg::UrgParams::default());
+        let e = Config::from_toml("[scanner]\nclusterr = 2\n", "t").unwrap_err();
+        assert!(e.to_string().contains("clusterr"), "{e}");
+    }
+
+    #[test]
+    fn shipped_motor_table_is_the_default() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
+        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(cfg.motor, crate::motor::MotorParams::default());
+    }
+
+    #[test]
     fn shipped_icp_table_is_the_default_and_valid() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
         let cfg = Config::load(std::path::Path::new(path)).unwrap();

@@ -219,13 +219,6 @@ mod tests {
     }
 
     #[test]
-    fn shipped_motor_table_is_the_default() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = crate::config::Config::load(std::path::Path::new(path)).unwrap();
-        assert_eq!(cfg.motor, MotorParams::default());
-    }
-
-    #[test]
     fn kind_parses_from_toml() {
         let p: MotorParams =
             toml::from_str("kind = \"create2\"\n[create2]\nfull_mode = true\n").unwrap();

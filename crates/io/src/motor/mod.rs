@@ -12,38 +12,9 @@
 //! * [`link`]: the port under a driver, re-opened after the device vanished;
 //! * [`params`]: the `[motor]` table.
 //!
-//! The daemon's motor thread, in short (here against an emulated RoboClaw on
-//! a pty, exactly as against `/dev/sweepline-base`):
-//!
-//! ```
-//! use std::sync::Arc;
-//! use sweepline::clock::{Clock, MonotonicClock, SharedClock};
-//! use sweepline::config::Config;
-//! use sweepline::motor::{self, odometry::OdometryTrack, BaseKind, WheelSpeeds};
-//! use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig};
-//!
-//! let clock: SharedClock = Arc::new(MonotonicClock::new());
-//! let mut cfg = Config::default();
-//! let emu = spawn_on_pty(EmulatorConfig::from_config(&cfg, BaseKind::Roboclaw), None, clock.clone())?;
-//! cfg.motor.device = emu.path().unwrap().display().to_string();
-//!
-//! let mut base = motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
-//! let mut track = OdometryTrack::new();
-//! for _ in 0..20 {
-//!     base.set_wheels(WheelSpeeds::from_body(0.1, 0.0, cfg.robot.wheel_base))?;
-//!     let fb = base.poll()?;
-//!     if let Some(o) = fb.odometry {
-//!         track.push(&o); // the localiser asks track.pose_at(scan_time)
-//!     }
-//!     for e in &fb.events {
-//!         eprintln!("wheel base: {e:?}"); // to the planner
-//!     }
-//!     clock.sleep(0.05);
-//! }
-//! base.stop()?;
-//! assert!(track.latest().is_some());
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
+//! The daemon's motor thread, in short, is the example in
+//! `sweepline::sim::base_emu` (run there against an emulated RoboClaw on a
+//! pty, exactly as against `/dev/sweepline-base`).
 
 pub mod command;
 pub use sweepline_wire::crc16;

@@ -188,13 +188,4 @@ mod tests {
             assert!(e.starts_with("scanner."), "{e}");
         }
     }
-
-    #[test]
-    fn shipped_scanner_table_matches_the_defaults() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = crate::config::Config::load(std::path::Path::new(path)).unwrap();
-        assert_eq!(cfg.scanner, UrgParams::default());
-        let e = crate::config::Config::from_toml("[scanner]\nclusterr = 2\n", "t").unwrap_err();
-        assert!(e.to_string().contains("clusterr"), "{e}");
-    }
 }
