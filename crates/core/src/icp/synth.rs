@@ -70,16 +70,8 @@ pub fn cast(walls: &[Wall], pose: &Pose, spec: &ScanSpec) -> Vec<IPoint> {
         } else {
             spec.start_angle
         };
-        let (s, c) = (th + a).sin_cos();
-        let mut best: Option<(f64, f64)> = None;
-        for w in walls {
-            if let Some(t) = ray_hit(o.x, o.y, c, s, &w.segment) {
-                if t <= spec.max_range && best.is_none_or(|(bt, _)| t < bt) {
-                    best = Some((t, w.intensity));
-                }
-            }
-        }
-        if let Some((t, inten)) = best {
+        let origin = nalgebra::Point2::new(o.x, o.y);
+        if let Some((t, inten)) = nearest(walls, &origin, th + a, spec.max_range) {
             let noise = if spec.range_noise > 0.0 {
                 // Sum of uniforms: a cheap, deterministic near-Gaussian.
                 let u: f64 = (0..4).map(|_| rng.random::<f64>() - 0.5).sum();
@@ -137,12 +129,24 @@ pub fn ray(
     angle: f64,
     max_range: f64,
 ) -> Option<f64> {
+    nearest(walls, origin, angle, max_range).map(|(t, _)| t)
+}
+
+/// The nearest hit of the ray from `origin` at `angle` (rad, world frame)
+/// within `max_range`: its distance (m) and the wall's intensity (the first
+/// wall listed wins a tie).
+fn nearest(
+    walls: &[Wall],
+    origin: &nalgebra::Point2<f64>,
+    angle: f64,
+    max_range: f64,
+) -> Option<(f64, f64)> {
     let (s, c) = angle.sin_cos();
     walls
         .iter()
-        .filter_map(|w| ray_hit(origin.x, origin.y, c, s, &w.segment))
-        .filter(|&t| t <= max_range)
-        .min_by(f64::total_cmp)
+        .filter_map(|w| Some((ray_hit(origin.x, origin.y, c, s, &w.segment)?, w.intensity)))
+        .filter(|&(t, _)| t <= max_range)
+        .min_by(|x, y| x.0.total_cmp(&y.0))
 }
 
 /// The closed polygon through `corners` (m), every edge of `intensity`.
@@ -158,12 +162,7 @@ pub fn polygon(corners: &[(f64, f64)], intensity: f64) -> Vec<Wall> {
 /// A closed rectangular room `w` × `h` (m) with its lower-left corner at the
 /// origin, every wall of `intensity`.
 pub fn room(w: f64, h: f64, intensity: f64) -> Vec<Wall> {
-    vec![
-        Wall::new(0.0, 0.0, w, 0.0, intensity),
-        Wall::new(w, 0.0, w, h, intensity),
-        Wall::new(w, h, 0.0, h, intensity),
-        Wall::new(0.0, h, 0.0, 0.0, intensity),
-    ]
+    polygon(&[(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)], intensity)
 }
 
 /// An L-shaped room (6 × 4 m, the upper right 2.5 × 1.5 m cut away) with a
