@@ -199,10 +199,14 @@ impl From<ParamError> for ConfigError {
 mod tests {
     use super::*;
 
+    /// The shipped configuration, `hw/robot.toml`.
+    fn shipped() -> Config {
+        Config::load(&crate::testdata::repo_file("hw/robot.toml")).expect("hw/robot.toml parses")
+    }
+
     #[test]
     fn shipped_scanner_table_matches_the_defaults() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        let cfg = shipped();
         assert_eq!(cfg.scanner, crate::urg::UrgParams::default());
         let e = Config::from_toml("[scanner]\nclusterr = 2\n", "t").unwrap_err();
         assert!(e.to_string().contains("clusterr"), "{e}");
@@ -210,15 +214,13 @@ mod tests {
 
     #[test]
     fn shipped_motor_table_is_the_default() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        let cfg = shipped();
         assert_eq!(cfg.motor, crate::motor::MotorParams::default());
     }
 
     #[test]
     fn shipped_icp_table_is_the_default_and_valid() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        let cfg = shipped();
         // The robot tracks against a room-scale keyframe window (a larger
         // local map than the corridor-log default); everything else is the default.
         assert_eq!(
@@ -246,8 +248,7 @@ mod tests {
 
     #[test]
     fn shipped_map_table_equals_defaults() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        let cfg = shipped();
         assert_eq!(cfg.map, crate::map::MapParams::default());
     }
 
@@ -261,8 +262,7 @@ mod tests {
 
     #[test]
     fn shipped_plan_and_control_tables_are_the_defaults() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = Config::load(std::path::Path::new(path)).unwrap();
+        let cfg = shipped();
         assert_eq!(cfg.plan, crate::plan::PlanParams::default());
         assert_eq!(cfg.control, crate::control::ControlParams::default());
     }
@@ -305,8 +305,7 @@ mod tests {
 
     #[test]
     fn shipped_default_config_parses() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/robot.toml");
-        let cfg = Config::load(Path::new(path)).expect("hw/robot.toml parses");
+        let cfg = shipped();
         assert_eq!(cfg.robot, RobotParams::default());
     }
 }
