@@ -470,3 +470,41 @@ impl SensorInfo {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn vv(lines: &[&str]) -> Result<VersionInfo, ReplyError> {
+        VersionInfo::parse(lines.iter().map(|l| l.as_bytes()))
+    }
+
+    /// The fixed capacities on hostile text: a value beyond [`MAX_VALUE`]
+    /// is cut, unknown keys beyond [`MAX_EXTRA`] are dropped, a key beyond
+    /// [`MAX_KEY`] is refused with a typed error; none panics.
+    #[test]
+    fn overlong_text_is_cut_or_refused_never_a_panic() {
+        let long = "x".repeat(3 * MAX_VALUE);
+        let v = vv(&[&format!("VEND:{long}")]).unwrap();
+        assert_eq!(v.vendor.len(), MAX_VALUE);
+        // A multi-byte character straddling the capacity is left out whole.
+        let v = vv(&[&format!("PROD:{}é", "y".repeat(MAX_VALUE - 1))]).unwrap();
+        assert_eq!(v.product.len(), MAX_VALUE - 1);
+
+        let keys: Vec<String> = (0..MAX_EXTRA + 4).map(|i| format!("K{i:03}:v")).collect();
+        let refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        let v = vv(&refs).unwrap();
+        assert_eq!(v.extra.len(), MAX_EXTRA);
+        assert_eq!(v.extra[0].0.as_str(), "K000");
+
+        let e = vv(&[&format!("{}:v", "K".repeat(MAX_KEY + 1))]).unwrap_err();
+        assert_eq!(e, ReplyError::NotKeyValue);
+    }
+
+    #[test]
+    fn an_unknown_echo_is_kept_short_and_printable() {
+        let e = Echo::from_bytes_lossy(b"ZZ\x01\xff and a great deal more than fits");
+        assert_eq!(e.len(), 24);
+        assert!(e.starts_with("ZZ??"), "{e}");
+    }
+}
