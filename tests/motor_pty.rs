@@ -223,8 +223,8 @@ fn commands_move_the_robot_and_odometry_follows() {
         // packet the manual allows.
         let d = r.emu.stats().device;
         assert_eq!(
-            (d.packets_rejected, d.bytes_skipped),
-            (0, 0),
+            (d.packets_rejected, d.packets_cut, d.bytes_skipped),
+            (0, 0, 0),
             "{kind:?}: the driver sent what the manual does not allow: {d:?}"
         );
     }
@@ -414,6 +414,7 @@ fn check_bumper_hit(kind: BaseKind) {
 fn assert_no_rejections(emu: &EmulatorHandle) {
     let d = emu.stats().device;
     assert_eq!(d.packets_rejected, 0, "{d:?}");
+    assert_eq!(d.packets_cut, 0, "{d:?}");
     assert_eq!(d.bytes_skipped, 0, "{d:?}");
     assert!(d.packets_ok > 10, "{d:?}");
 }

@@ -112,8 +112,12 @@ fn run_base(args: Args) -> CliResult {
     let s = emu.stats();
     let p = emu.truth();
     println!(
-        "stopped: {} packets ok, {} rejected; robot at ({:.3}, {:.3}) m",
-        s.device.packets_ok, s.device.packets_rejected, p.translation.x, p.translation.y
+        "stopped: {} packets ok, {} rejected, {} cut short by a pause; robot at ({:.3}, {:.3}) m",
+        s.device.packets_ok,
+        s.device.packets_rejected,
+        s.device.packets_cut,
+        p.translation.x,
+        p.translation.y
     );
     Ok(())
 }

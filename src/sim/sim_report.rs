@@ -398,6 +398,7 @@ fn write_base_health(s: &mut String, r: &SimReport) {
                 "packets refused (what the manual does not allow)",
                 d.packets_rejected,
             ),
+            ("packets cut short by an inter-byte pause", d.packets_cut),
             ("sensor frames sent", d.frames_out),
             ("motor stops by the device's own timeout", d.device_timeouts),
             ("bytes corrupted by fault injection", e.corrupted_bytes),

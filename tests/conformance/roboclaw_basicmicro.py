@@ -260,6 +260,14 @@ def rejected(summary):
         return -1
 
 
+def cut(summary):
+    """The closing line's count of partial packets dropped after a pause."""
+    try:
+        return int(summary.split("rejected, ")[-1].split(" cut short")[0])
+    except ValueError:
+        return -1
+
+
 def estop_within(dev, secs):
     """Whether ReadError shows the E-Stop bit (the bumper) within `secs`."""
     end = time.time() + secs
@@ -305,14 +313,25 @@ def main():
         dev.close()
         summary = emu.stop()
     # The emulator is strict: anything the manual does not allow is refused
-    # and counted; the library's packets must all have been taken.
+    # and counted; the library's packets must all have been taken. The
+    # library writes a packet byte by byte, so a busy host can pause it
+    # inside a packet for longer than the controller's 10 ms gap: a real
+    # controller drops that packet too and the library retries it. Such
+    # cuts are counted apart and shown, not failed.
     check("strict emulator refused none of the library's packets", rejected(summary) == 0, summary.strip())
+    check("the closing line counts packets cut short by a pause", cut(summary) >= 0, f"{cut(summary)} cut")
     with Emulator(binary) as emu:
         dev = open_dev(emu.port)
         library_bugs(dev)
         dev.close()
         summary = emu.stop()
-    check("the library's half-sent ForwardM1 packet is refused and counted", rejected(summary) >= 1, summary.strip())
+    # The half packet is either cut off by the 10 ms gap or, when the next
+    # packet follows sooner, fails its CRC with the next packet's bytes.
+    check(
+        "the library's half-sent ForwardM1 packet is refused and counted",
+        rejected(summary) + cut(summary) >= 1 and cut(summary) >= 0,
+        summary.strip(),
+    )
     bump_fault(binary)
     world_bump(binary)
     passed = sum(RESULTS)

@@ -96,6 +96,8 @@ impl io::Write for Port {
         let body = s.body();
         let mut out = std::mem::take(&mut s.out);
         out.clear();
+        // Lock-step: nothing came between the host's last write and this one.
+        s.device.line_silent(now);
         s.device.on_bytes(bytes, now, &body, &mut out);
         s.to_host.extend(out.iter().copied());
         s.out = out;

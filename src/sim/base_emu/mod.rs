@@ -91,6 +91,12 @@ pub struct DeviceStats {
     pub packets_ok: u64,
     /// Packets rejected (bad CRC, unknown command, not allowed in this mode).
     pub packets_rejected: u64,
+    /// Partial packets dropped because the next byte came later than the
+    /// controller's inter-byte gap (RoboClaw: 10 ms). A real controller
+    /// drops them too. A client that writes a packet byte by byte and is
+    /// paused by its host loses such packets and must retry; a driver
+    /// that sends stray bytes (a CRC after a read) shows here as well.
+    pub packets_cut: u64,
     /// Of those, commands valid in themselves that arrived in a mode not
     /// taking them (Create 2: a drive command in Passive). A driver can race
     /// the robot here: the robot leaves Safe mode on its own (wheel drop)
@@ -106,6 +112,17 @@ pub struct DeviceStats {
 pub trait BaseDevice: Send {
     /// Handles bytes from the host received at `now`; replies go to `out`.
     fn on_bytes(&mut self, bytes: &[u8], now: f64, body: &BodyState, out: &mut Vec<u8>);
+    /// The host sent nothing from its last bytes up to `until`: a device
+    /// whose packets die in an inter-byte gap drops a partial one here.
+    ///
+    /// Silence is told apart from bytes arriving late so that an emulator
+    /// kept off the CPU, which finds a whole packet's tail waiting when it
+    /// reads again, never blames the host for its own lateness: the wire
+    /// calls this only after a read that found nothing, with a time taken
+    /// before that read began.
+    fn line_silent(&mut self, until: f64) {
+        let _ = until;
+    }
     /// Lets time pass to `now`: returns the wheel set-points the motors follow;
     /// unsolicited bytes (a sensor stream) go to `out`.
     fn tick(&mut self, now: f64, body: &BodyState, out: &mut Vec<u8>) -> WheelSpeeds;

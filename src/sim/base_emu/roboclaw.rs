@@ -14,10 +14,12 @@
 //! packet arrived within it.
 //!
 //! In **strict** mode it also refuses packets the manual does not allow
-//! ([`within_manual`](crate::motor::roboclaw::codec::within_manual)) and
-//! counts partial packets dropped after an inter-byte gap, so a host that
-//! drifts from the manual shows in [`DeviceStats::packets_rejected`] and
-//! [`DeviceStats::bytes_skipped`].
+//! ([`within_manual`](crate::motor::roboclaw::codec::within_manual)), so a
+//! host that drifts from the manual shows in
+//! [`DeviceStats::packets_rejected`] and [`DeviceStats::bytes_skipped`].
+//! In either mode a partial packet dropped after an inter-byte gap counts
+//! in [`DeviceStats::packets_cut`]: a stray byte from the host, or a host
+//! that paused inside a packet.
 
 use heapless::Deque;
 
@@ -577,12 +579,6 @@ impl RoboClawDevice {
 
 impl BaseDevice for RoboClawDevice {
     fn on_bytes(&mut self, bytes: &[u8], now: f64, body: &BodyState, out: &mut Vec<u8>) {
-        if now - self.last_byte > PACKET_GAP {
-            let dropped = self.decoder.reset();
-            if dropped > 0 && self.strict {
-                self.stats.packets_rejected += 1;
-            }
-        }
         self.last_byte = now;
         self.stats.bytes_in += bytes.len() as u64;
         let (r1, r2) = self.raw_counts(body);
@@ -605,6 +601,12 @@ impl BaseDevice for RoboClawDevice {
             }
         }
         self.stats.bytes_skipped = self.decoder.skipped;
+    }
+
+    fn line_silent(&mut self, until: f64) {
+        if until - self.last_byte > PACKET_GAP && self.decoder.reset() > 0 {
+            self.stats.packets_cut += 1;
+        }
     }
 
     fn tick(&mut self, now: f64, body: &BodyState, _out: &mut Vec<u8>) -> WheelSpeeds {

@@ -281,7 +281,7 @@ impl EmulatorHandle {
             let t = s.truth;
             let d = s.stats.device;
             format!(
-                "t={:.1}s pose=({:.3} m, {:.3} m, {:.1} deg) wheels=({:+.3}, {:+.3}) m/s packets ok={} rejected={} frames={} device-timeouts={} bumps={} corrupted={} silenced={} unplugs={}",
+                "t={:.1}s pose=({:.3} m, {:.3} m, {:.1} deg) wheels=({:+.3}, {:+.3}) m/s packets ok={} rejected={} cut={} frames={} device-timeouts={} bumps={} corrupted={} silenced={} unplugs={}",
                 s.now,
                 t.translation.x,
                 t.translation.y,
@@ -290,6 +290,7 @@ impl EmulatorHandle {
                 s.wheels.right,
                 d.packets_ok,
                 d.packets_rejected,
+                d.packets_cut,
                 d.frames_out,
                 d.device_timeouts,
                 s.stats.bumps,
@@ -424,12 +425,16 @@ fn run(
                 std::thread::sleep(std::time::Duration::from_millis(2));
             }
         }
+        let before_read = clock.now();
         let n = if unplugged_until.is_none() {
             // Timeout, or the host has not opened the port yet: nothing read.
             wire.read(&mut inbuf).unwrap_or_default()
         } else {
             0
         };
+        if n == 0 {
+            device.line_silent(before_read);
+        }
         let now = clock.now();
         let (silent, mut corrupt_in, bump, lifted, unplug) = {
             let mut s = lock(&shared);

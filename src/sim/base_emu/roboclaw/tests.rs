@@ -61,8 +61,35 @@ fn a_crc_after_a_read_is_what_the_manual_does_not_send_and_strict_mode_shows_it(
     // first byte; the partial packet then dies in the 10 ms gap.
     out.clear();
     d.on_bytes(&[0x80, 0x5A, 0x81], 0.0, &body, &mut out);
+    d.line_silent(0.02);
     d.on_bytes(&[0x80], 0.05, &body, &mut out);
-    assert_eq!(d.stats().packets_rejected, 1);
+    assert_eq!(d.stats().packets_cut, 1);
+    assert_eq!(d.stats().packets_rejected, 0);
+}
+
+#[test]
+fn a_packet_is_cut_only_by_silence_seen_not_by_bytes_read_late() {
+    let body = BodyState::default();
+    let stop = encode_command(0x80, &Command::speeds(0, 0));
+    let (head, tail) = stop.split_at(2);
+    // The emulator read the head, then was kept off the CPU: the tail was
+    // waiting when it read again 50 ms later. The host did nothing wrong.
+    let mut d = RoboClawDevice::new(0x80, CPM, true).strict(true);
+    let mut out = Vec::new();
+    d.on_bytes(head, 0.0, &body, &mut out);
+    d.line_silent(0.009);
+    d.on_bytes(tail, 0.05, &body, &mut out);
+    assert_eq!(out, vec![0xFF]);
+    assert_eq!((d.stats().packets_cut, d.stats().packets_rejected), (0, 0));
+    // Silence seen for longer than the gap: the controller drops the head,
+    // and the tail is noise.
+    let mut d = RoboClawDevice::new(0x80, CPM, true).strict(true);
+    out.clear();
+    d.on_bytes(head, 0.0, &body, &mut out);
+    d.line_silent(0.011);
+    d.on_bytes(tail, 0.05, &body, &mut out);
+    assert!(out.is_empty(), "{out:02x?}");
+    assert_eq!(d.stats().packets_cut, 1);
 }
 
 #[test]
