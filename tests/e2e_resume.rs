@@ -55,10 +55,16 @@ const MIN_COVERAGE: f64 = 0.97;
 const RECENT: usize = (3.0 / SAMPLE_PERIOD) as usize;
 /// Scans the resumed daemon tracks before its pose is scored (1 s).
 const SETTLE_SCANS: u64 = 10;
-/// Largest checkpointed pose error allowed after the resume (m): the
-/// tracker's keyframes are restored, so the resumed daemon tracks in the
-/// crashed one's frame (without them it was ~0.12 m off for the rest of the run).
-const MAX_RESUMED_POSE_ERROR: f64 = 0.05;
+/// Largest median checkpointed pose error allowed after the resume (m):
+/// the tracker's keyframes are restored, so the resumed daemon tracks in
+/// the crashed one's frame (without them it was ~0.12 m off for the rest
+/// of the run, a lasting offset the median shows). A single checkpoint
+/// may be further off, as in any run (up to 56 mm seen, before a kill as
+/// well as after), which the median does not let decide.
+const MAX_RESUMED_MEDIAN_POSE_ERROR: f64 = 0.03;
+/// Largest checkpointed pose error allowed at any time after the resume
+/// (m): a jump to another frame shows here.
+const MAX_RESUMED_POSE_ERROR: f64 = 0.10;
 /// Simulated time after which the test gives up (s).
 const TIME_CAP: f64 = 900.0;
 /// How far ahead of its configured place (the axle centre) the emulated
@@ -199,6 +205,8 @@ fn crash_and_resume(name: &str, restart: Restart) {
     // Largest distance between a checkpointed pose and the nearest true pose
     // of the last 3 s, before and after the kill.
     let mut pose_err = [0.0f64; 2];
+    // Every error scored after the resume, for its median.
+    let mut resumed_errs: Vec<f64> = Vec::new();
     // The same per 20 s of simulated time, for the output.
     let mut err_by_time: Vec<f64> = Vec::new();
     let mut recent = std::collections::VecDeque::with_capacity(RECENT);
@@ -247,6 +255,9 @@ fn crash_and_resume(name: &str, restart: Restart) {
                 };
                 if tracking {
                     pose_err[k] = pose_err[k].max(e);
+                    if k == 1 {
+                        resumed_errs.push(e);
+                    }
                     let bucket = (t / 20.0) as usize;
                     if err_by_time.len() <= bucket {
                         err_by_time.resize(bucket + 1, 0.0);
@@ -337,9 +348,17 @@ fn crash_and_resume(name: &str, restart: Restart) {
         wall0.elapsed().as_secs_f64(),
         final_progress.resumes
     );
+    resumed_errs.sort_by(f64::total_cmp);
+    let resumed_median = resumed_errs
+        .get(resumed_errs.len() / 2)
+        .copied()
+        .unwrap_or(f64::INFINITY);
     eprintln!(
-        "checkpointed pose vs truth: max {:.3} m before the kill, {:.3} m after the resumed daemon's first {SETTLE_SCANS} scans",
-        pose_err[0], pose_err[1]
+        "checkpointed pose vs truth: max {:.3} m before the kill, {:.3} m (median {:.3} m of {}) after the resumed daemon's first {SETTLE_SCANS} scans",
+        pose_err[0],
+        pose_err[1],
+        resumed_median,
+        resumed_errs.len()
     );
     let errs: String = err_by_time
         .iter()
@@ -380,6 +399,10 @@ fn crash_and_resume(name: &str, restart: Restart) {
     let last = store.load().unwrap().unwrap().checkpoint;
     let fin = last.get::<RunFinished>().unwrap();
     assert!(fin.is_some_and(|f| f.elapsed > 0.0), "{fin:?}");
+    assert!(
+        resumed_median <= MAX_RESUMED_MEDIAN_POSE_ERROR,
+        "median pose error after the resume {resumed_median:.3} m"
+    );
     assert!(
         pose_err[1] <= MAX_RESUMED_POSE_ERROR,
         "pose error after the resume {:.3} m",
