@@ -14,18 +14,21 @@
 //!    [`scan`], [`grid`], [`robot`]), re-exported here; each table of
 //!    parameters checks itself with [`param_check`], so none of them
 //!    depends on [`config`], which only aggregates the tables;
-//! 4. [`pipeline`]: the only layer that owns threads;
+//! 4. the daemon: the `sweepline-daemon` crate (`crates/daemon`): the
+//!    [`pipeline`] (the only layer that owns threads), the [`daemon`]'s
+//!    stages, its [`config`] (which only aggregates the tables) and
+//!    [`report`], re-exported here;
 //! 5. [`sim`]: worlds, kinematics, device emulators, log replay;
-//! 6. front: [`config`], [`report`], [`cli`] (the `sweepline` binary).
+//! 6. front: [`cli`] (the `sweepline` binary).
 
 pub mod capacity;
 pub mod cli;
-pub mod config;
-pub mod daemon;
-pub mod pipeline;
-pub mod report;
 pub mod sim;
 pub mod testdata;
+
+/// The pipeline, the stages, the configuration and the report, from the
+/// `sweepline-daemon` crate.
+pub use sweepline_daemon::{config, daemon, pipeline, report};
 
 /// The SCIP 2.0 codec, from the `sweepline-wire` crate.
 pub use sweepline_wire::scip;

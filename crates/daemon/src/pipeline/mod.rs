@@ -11,8 +11,8 @@
 //!
 //! ```
 //! use std::time::Duration;
-//! use sweepline::pipeline::supervisor::{NoHooks, Supervisor};
-//! use sweepline::pipeline::{
+//! use sweepline_daemon::pipeline::supervisor::{NoHooks, Supervisor};
+//! use sweepline_daemon::pipeline::{
 //!     latest, Pipeline, PipelineParams, Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx,
 //! };
 //!
@@ -56,7 +56,7 @@
 //! let out = Supervisor::new(&params).run(p, &mut NoHooks);
 //! let e = &out.snapshot.edges[0];
 //! assert_eq!(e.received + e.dropped, 100); // newest-wins: taken or counted
-//! # Ok::<(), sweepline::pipeline::PipelineError>(())
+//! # Ok::<(), sweepline_daemon::pipeline::PipelineError>(())
 //! ```
 
 pub mod cgroup;
