@@ -18,13 +18,17 @@
 //!    [`pipeline`] (the only layer that owns threads), the [`daemon`]'s
 //!    stages, its [`config`] (which only aggregates the tables) and
 //!    [`report`], re-exported here;
-//! 5. [`sim`]: worlds, kinematics, device emulators, log replay;
+//! 5. simulation: the `sweepline-sim` crate (`crates/sim`), re-exported as
+//!    [`sim`]: worlds, kinematics, device emulators, log replay;
 //! 6. front: [`cli`] (the `sweepline` binary).
 
 pub mod capacity;
 pub mod cli;
-pub mod sim;
 pub mod testdata;
+
+/// Worlds, emulators, lock-step and closed-loop runs, replay and
+/// evaluation, from the `sweepline-sim` crate.
+pub use sweepline_sim as sim;
 
 /// The pipeline, the stages, the configuration and the report, from the
 /// `sweepline-daemon` crate.

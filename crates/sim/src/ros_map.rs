@@ -28,9 +28,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point2;
 use yaml_rust2::{Yaml, YamlLoader};
 
+use crate::floorplan::{self, GreyImage, WALL_REFLECTIVITY};
 use crate::geom::{pose, Pose};
-use crate::sim::floorplan::{self, GreyImage, WALL_REFLECTIVITY};
-use crate::sim::world::{FreeRaster, World};
+use crate::world::{FreeRaster, World};
 
 /// How pixel values map to occupancy (the `mode` key).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point2;
 
 use crate::geom::pose;
-use crate::sim::world::{FreeRaster, World};
+use crate::world::{FreeRaster, World};
 
 /// Metres per pixel of the benchmark floor plans.
 pub const PIXEL_SIZE: f64 = 0.05;

@@ -33,7 +33,7 @@ use crate::geom::{heading, wrap_angle, Pose};
 use crate::grid::neighbours8_of;
 use crate::plan::cspace::disk;
 use crate::plan::Motion;
-use crate::sim::world::{FreeRaster, World};
+use crate::world::{FreeRaster, World};
 
 /// Distance of travel between two samples of the travel direction (m).
 const TURN_SAMPLE: f64 = 0.05;
@@ -107,7 +107,7 @@ pub struct CoverageMetrics {
     /// Number of times the robot disk entered non-free ground truth.
     pub collisions: usize,
     /// Number of times the robot disk touched a person walking through the
-    /// room (see [`crate::sim::walker`]; 0 in a room nobody walks through).
+    /// room (see [`crate::walker`]; 0 in a room nobody walks through).
     pub person_contacts: usize,
     /// Simulated time (s), up to the end of coverage (the drive back to
     /// the start not included).

@@ -23,7 +23,7 @@
 //! `walker RADIUS SPEED X0 Y0 X1 Y1 [X Y ...] [refl R] [after T] [trips N]
 //! [near D]` is a person walking out and back along the way points from
 //! time `T` (s; with `near`, once the robot comes within `D` m of the first
-//! way point), `N` times one way or for the whole run (see [`crate::sim::walker`]):
+//! way point), `N` times one way or for the whole run (see [`crate::walker`]):
 //! seen by the scanner, run into by the body, not part of the ground
 //! truth's floor. Its path must stay on free floor.
 //!
@@ -36,7 +36,7 @@ use nalgebra::{Point2, Vector2};
 
 use crate::geom::{pose, Pose, Segment};
 use crate::grid::CellWalk;
-use crate::sim::walker::Walker;
+use crate::walker::Walker;
 
 /// One wall segment with the reflectivity of its surface (0..1).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -705,7 +705,7 @@ mod tests {
         let w = World::parse("room 0 0 4 0 4 3 0 3\nwalker 0.2 1.0 0.5 1.5 3.5 1.5\nwalker 0.15 0.5 1 0.5 1 2.5 refl 0.9\n")
             .unwrap();
         assert_eq!(w.walkers.len(), 2);
-        let default = crate::sim::walker::DEFAULT_WALKER_REFLECTIVITY;
+        let default = crate::walker::DEFAULT_WALKER_REFLECTIVITY;
         assert!((w.walkers[0].reflectivity - default).abs() < 1e-12);
         assert!((w.walkers[1].reflectivity - 0.9).abs() < 1e-12);
         // People are not walls: the rays of the world alone miss them.
@@ -775,7 +775,7 @@ mod shipped_worlds {
 
     #[test]
     fn paper_world_parses_with_expected_area() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/hw/worlds/paper.world");
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../hw/worlds/paper.world");
         let w = World::load(std::path::Path::new(path)).unwrap();
         // 6.5 × 4.1 = 26.65 m² less the obstacles 0.4 + 0.72 + 0.6 + 0.09 = 1.81 m².
         assert!(

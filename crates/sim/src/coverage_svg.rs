@@ -9,12 +9,12 @@ use std::path::Path;
 use svg::node::element::{Circle, Group, Line, Polygon, Polyline, Rectangle};
 use svg::Document;
 
+use crate::coverage_metrics::{CoverageMetrics, OVERLAP_CAUSES};
 use crate::decomp::{CellStatus, Decomposition};
 use crate::geom::Pose;
 use crate::plan::Motion;
-use crate::sim::coverage_metrics::{CoverageMetrics, OVERLAP_CAUSES};
-use crate::sim::world::{FreeRaster, World};
 use crate::svg_canvas::{canvas, caption, label};
+use crate::world::{FreeRaster, World};
 
 /// Pixels per metre.
 const SCALE: f64 = 100.0;
@@ -94,7 +94,7 @@ fn walls(world: &World, v: &View) -> Group {
 /// Colour of the people walking through (`walker` lines) in the pictures.
 const WALKER_COLOUR: &str = "#8e44ad";
 
-fn segment(w: &crate::sim::world::Wall, v: &View) -> Line {
+fn segment(w: &crate::world::Wall, v: &View) -> Line {
     Line::new()
         .set("x1", v.x(w.seg.a.x))
         .set("y1", v.y(w.seg.a.y))

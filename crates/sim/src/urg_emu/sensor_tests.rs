@@ -3,7 +3,7 @@
 use std::sync::{Arc, Mutex};
 
 use super::*;
-use crate::sim::urg_emu::scene::RectRoom;
+use crate::urg_emu::scene::RectRoom;
 
 fn urg(scene: RectRoom) -> Sensor {
     let log = Arc::new(Mutex::new(EmuLog::default()));
@@ -199,7 +199,7 @@ fn end_step_768_is_accepted_and_769_refused() {
 #[test]
 fn through_the_in_process_link_vv_takes_a_scan_period_of_manual_clock() {
     use crate::clock::{Clock, ManualClock};
-    use crate::sim::urg_emu::link::SensorLink;
+    use crate::urg_emu::link::SensorLink;
     use std::io::{Read, Write};
 
     let clock = Arc::new(ManualClock::new(0.0));

@@ -23,12 +23,12 @@
 
 use heapless::Deque;
 
+use crate::base_emu::{BaseDevice, BodyState, DeviceStats};
 use crate::motor::roboclaw::codec::{
     encode_reply, Accel, Command, CommandDecoder, Distance, FrameError, Query, Reply, VelocityPid,
     BUFFER_EMPTY, DUTY_MAX, PACKET_GAP, STATUS_ESTOP, STATUS_MAIN_LOW_WARNING, STATUS_RECORD_LEN,
 };
 use crate::motor::WheelSpeeds;
-use crate::sim::base_emu::{BaseDevice, BodyState, DeviceStats};
 
 /// The firmware version string the emulator reports.
 pub const VERSION: &[u8] = b"sweepline emulated RoboClaw 2x7A v4.1.34";

@@ -3,17 +3,17 @@
 //!
 //! Each device is a sans-IO core ([`BaseDevice`]: bytes in, bytes and wheel
 //! set-points out); [`spawn`] runs one on a wire (a pty the daemon opens as
-//! its device) in a thread, stepping [`crate::sim::kinematics::DiffDriveSim`] on the injected clock.
+//! its device) in a thread, stepping [`crate::kinematics::DiffDriveSim`] on the injected clock.
 //!
 //! The daemon's motor thread, in short (here against an emulated RoboClaw on
 //! a pty, exactly as against `/dev/sweepline-base`):
 //!
 //! ```
 //! use std::sync::Arc;
-//! use sweepline::clock::{Clock, MonotonicClock, SharedClock};
-//! use sweepline::config::Config;
-//! use sweepline::motor::{self, odometry::OdometryTrack, BaseKind, WheelSpeeds};
-//! use sweepline::sim::base_emu::{spawn_on_pty, EmulatorConfig};
+//! use sweepline_io::clock::{Clock, MonotonicClock, SharedClock};
+//! use sweepline_daemon::config::Config;
+//! use sweepline_io::motor::{self, odometry::OdometryTrack, BaseKind, WheelSpeeds};
+//! use sweepline_sim::base_emu::{spawn_on_pty, EmulatorConfig};
 //!
 //! let clock: SharedClock = Arc::new(MonotonicClock::new());
 //! let mut cfg = Config::default();

@@ -9,12 +9,12 @@ use std::io;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
+use crate::base_emu::{BaseDevice, BodyState, EmulatorConfig};
 use crate::clock::{Clock, ManualClock, SharedClock};
 use crate::geom::Pose;
+use crate::kinematics::DiffDriveSim;
 use crate::motor::link::{ByteLink, LinkOpener};
 use crate::motor::{base_driver, DiffDriveBase, WheelSpeeds};
-use crate::sim::base_emu::{BaseDevice, BodyState, EmulatorConfig};
-use crate::sim::kinematics::DiffDriveSim;
 
 struct State {
     device: Box<dyn BaseDevice>,
@@ -146,7 +146,7 @@ impl LoopbackTruth {
     }
 
     /// The device core's counters (what it accepted and rejected).
-    pub fn device_stats(&self) -> crate::sim::base_emu::DeviceStats {
+    pub fn device_stats(&self) -> crate::base_emu::DeviceStats {
         lock(&self.state).device.stats()
     }
 }
@@ -196,7 +196,7 @@ mod tests {
         Vec<Pose>,
         Pose,
         Vec<SafetyEvent>,
-        crate::sim::base_emu::DeviceStats,
+        crate::base_emu::DeviceStats,
     ) {
         let cfg = Config::default();
         let mut e = EmulatorConfig::from_config(&cfg, kind);

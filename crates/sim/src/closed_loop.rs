@@ -16,9 +16,11 @@ use nalgebra::Point2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::base_emu::{self, EmuStats, EmulatorHandle, Fault};
 use crate::clock::{PaceStats, PacedClock, ScaledClock, SharedClock};
 use crate::config::Config;
 use crate::control::{integrate, Twist, WheelCmd};
+use crate::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::daemon::{Daemon, DaemonSetup, MapFrame};
 use crate::geom::{heading, interpolate, pose_error, wrap_angle, Pose};
 use crate::motor::{BaseKind, LinkHealth};
@@ -26,12 +28,10 @@ use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::supervisor::StopReason;
 use crate::report::run_folder::RunFolderHooks;
 use crate::serial::DeviceConnector;
-use crate::sim::base_emu::{self, EmuStats, EmulatorHandle, Fault};
-use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
-use crate::sim::urg_emu::{self, Echo, Scene};
-use crate::sim::walker::{cast_ray_among, lock_crowd, touches, Body, Crowd};
-use crate::sim::world::World;
 use crate::urg::HealthSnapshot;
+use crate::urg_emu::{self, Echo, Scene};
+use crate::walker::{cast_ray_among, lock_crowd, touches, Body, Crowd};
+use crate::world::World;
 
 /// Sampling period of the truth and the estimate (clock s).
 pub const SAMPLE_PERIOD: f64 = 0.05;
@@ -504,7 +504,7 @@ impl Scene for WorldScene {
 
 /// The map frame the daemon gets for `world`: its bounding box plus a margin.
 pub fn map_frame(world: &World) -> MapFrame {
-    let g = crate::sim::lockstep::grid_for(world, 0.05, 0.5, 0.0);
+    let g = crate::lockstep::grid_for(world, 0.05, 0.5, 0.0);
     MapFrame {
         origin: g.origin(),
         resolution: g.resolution(),

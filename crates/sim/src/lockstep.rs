@@ -18,15 +18,15 @@ use rand_chacha::ChaCha8Rng;
 use crate::config::Config;
 use crate::control::guard::{ObstaclePoints, StopCounter};
 use crate::control::{integrate, ControlError, PathFollower, Twist};
+use crate::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::decomp::{DecompError, Decomposer, Decomposition};
 use crate::geom::{heading, Pose};
 use crate::grid::{CellState, Grid};
+use crate::noise::gauss;
 use crate::plan::planner::{DoneReport, PlanStats};
 use crate::plan::{CoveragePlanner, PlanError, PlanStatus};
-use crate::sim::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
-use crate::sim::noise::gauss;
-use crate::sim::walker::{cast_ray_among, touches, Body, Crowd};
-use crate::sim::world::World;
+use crate::walker::{cast_ray_among, touches, Body, Crowd};
+use crate::world::World;
 
 /// Simulated URG-04LX: number of beams (steps 44..=725).
 pub const URG_BEAMS: usize = 682;

@@ -18,7 +18,7 @@ use std::sync::{Mutex, MutexGuard};
 use nalgebra::{Point2, Vector2};
 
 use crate::geom::points_along;
-use crate::sim::world::{RayHit, World};
+use crate::world::{RayHit, World};
 
 /// Gap (m) between a walker and the robot's body within which the walker
 /// waits rather than step nearer.

@@ -7,7 +7,7 @@
 
 use std::str::FromStr;
 
-use crate::sim::base_emu::Fault;
+use crate::base_emu::Fault;
 
 /// A fault injected periodically.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -6,8 +6,8 @@ use std::io::{self, Read, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
+use crate::base_emu::runner::EmuWire;
 use crate::serial::{PtyError, PtyHost};
-use crate::sim::base_emu::runner::EmuWire;
 
 /// How long one emulator read waits for host bytes (wall time).
 const READ_WAIT: Duration = Duration::from_millis(1);

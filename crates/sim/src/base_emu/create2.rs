@@ -27,12 +27,12 @@ mod body;
 #[cfg(test)]
 mod tests;
 
+use crate::base_emu::{BaseDevice, BodyState, DeviceStats};
 use crate::motor::create2::codec::{
     encode_stream_frame, packet_bytes, pkt, reads, OiCommand, OiDecoder, OiMode, PacketIds,
     SensorState, MAX_RADIUS_MM, MAX_WHEEL_MM_S, MAX_WHEEL_PWM, SONGS,
 };
 use crate::motor::WheelSpeeds;
-use crate::sim::base_emu::{BaseDevice, BodyState, DeviceStats};
 use body::{Battery, WheelTrack, CAPACITY_MAH};
 
 /// Stream period (s).

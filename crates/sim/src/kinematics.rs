@@ -16,8 +16,8 @@ use rand_chacha::ChaCha8Rng;
 use crate::geom::{heading, polar, Pose};
 use crate::motor::odometry::arc_increment;
 use crate::motor::{Sides, WheelSpeeds};
-use crate::sim::walker::{covers, touches, Body};
-use crate::sim::world::World;
+use crate::walker::{covers, touches, Body};
+use crate::world::World;
 
 /// Physical and noise parameters of the simulated base (serde-ready for a
 /// simulator config table; unknown keys are errors).

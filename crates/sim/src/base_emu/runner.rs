@@ -13,17 +13,17 @@ use nalgebra::Point2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::base_emu::create2::Create2Device;
+use crate::base_emu::roboclaw::RoboClawDevice;
+use crate::base_emu::{BaseDevice, BodyState, DeviceStats};
 use crate::clock::SharedClock;
 use crate::config::Config;
 use crate::geom::Pose;
+use crate::kinematics::{DiffDriveSim, KinematicsParams};
 use crate::motor::odometry::counts_per_metre;
 use crate::motor::{BaseKind, MotorParams, Sides, WheelSpeeds};
-use crate::sim::base_emu::create2::Create2Device;
-use crate::sim::base_emu::roboclaw::RoboClawDevice;
-use crate::sim::base_emu::{BaseDevice, BodyState, DeviceStats};
-use crate::sim::kinematics::{DiffDriveSim, KinematicsParams};
-use crate::sim::walker::{lock_crowd, Body, Crowd};
-use crate::sim::world::World;
+use crate::walker::{lock_crowd, Body, Crowd};
+use crate::world::World;
 
 /// The emulator's end of the link.
 pub trait EmuWire: Send {

@@ -1,8 +1,8 @@
 //! What the emulated Create 2 measures of its body: encoder counts, distance
 //! and angle since they were last read, and its battery.
 
+use crate::base_emu::BodyState;
 use crate::motor::WheelSpeeds;
-use crate::sim::base_emu::BodyState;
 
 /// Wheel odometry as the robot keeps it.
 #[derive(Clone, Debug, Default)]
