@@ -42,5 +42,6 @@ pub use sweepline_io::{clock, motor, serial, urg};
 
 /// The algorithms and their plain data, from the `sweepline-core` crate.
 pub use sweepline_core::{
-    check_keys, control, decomp, geom, grid, icp, map, param_check, plan, robot, scan, svg_canvas,
+    base, check_keys, checks, control, decomp, geom, grid, icp, map, param_check, plan, robot,
+    scan, svg_canvas,
 };

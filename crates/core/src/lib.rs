@@ -3,7 +3,8 @@
 //!
 //! * plain data: [`geom`] (poses, points, segments), [`scan`] (a laser
 //!   scan's beams and timing), [`grid`] (the explored-area evidence grid),
-//!   [`robot`] (the robot's body, wheels and scanner mount);
+//!   [`robot`] (the robot's body, wheels and scanner mount), [`base`]
+//!   (wheel set-points, odometry increments, bumper sides);
 //! * [`icp`]: the intensity-ICP matcher and the keyframe tracker;
 //! * [`map`]: the paper's point map, merge rule, line features and
 //!   segment correction;
@@ -11,13 +12,19 @@
 //! * [`plan`]: lanes, the cell tour, transits, the configuration space,
 //!   the coverage planner;
 //! * [`control`]: the path follower and the protective field;
+//! * [`checks`]: what the daemon checks beside its stages (the scanner's
+//!   mount, the frame's alignment, contact marks, relocalisation, the
+//!   stuck watch);
 //! * [`param_check`]: the checks each `*Params` table makes of itself.
 //!
-//! It sits above `sweepline-wire` (the codecs) and below the drivers, the
-//! pipeline and the daemon (the `sweepline` crate), and depends on neither:
-//! the crate graph keeps DESIGN.md's rule that no layer calls upward.
+//! It uses no other sweepline crate: the drivers (`sweepline-io`), the
+//! daemon (`sweepline-daemon`) and the simulator sit above it, and the
+//! codecs (`sweepline-wire`) beside it, so the crate graph keeps DESIGN.md's
+//! rule that no layer calls upward.
 
+pub mod base;
 pub mod capacity;
+pub mod checks;
 pub mod control;
 pub mod decomp;
 pub mod geom;

@@ -99,6 +99,16 @@ impl LaserScan {
         self.beam_interval = 0.0;
     }
 
+    /// [`deskew`](Self::deskew) for a robot that moved by `motion` over
+    /// `window` seconds (its odometry over the window ending with the
+    /// sweep) at a steady velocity, with the scanner at `mount` on it: the
+    /// robot's pose at `τ` is `motion` interpolated at `τ / window`.
+    pub fn deskew_steady(&mut self, motion: &Pose, window: f64, mount: &Pose) {
+        let back = mount.inverse();
+        let still = Pose::identity();
+        self.deskew(|tau| back * crate::geom::interpolate(&still, motion, tau / window) * mount);
+    }
+
     /// Number of valid beams.
     pub fn valid_count(&self) -> usize {
         self.beams.iter().filter(|b| b.valid).count()

@@ -19,8 +19,8 @@
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::icp::Tracker` read the same in every crate.
 use sweepline_core::{
-    capacity, check_keys, control, decomp, geom, grid, icp, map, param_check, plan, robot, scan,
-    svg_canvas,
+    capacity, check_keys, checks, control, decomp, geom, grid, icp, map, param_check, plan, robot,
+    scan, svg_canvas,
 };
 use sweepline_io::{clock, motor, serial, urg};
 

@@ -18,7 +18,7 @@
 
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::scan::LaserScan` read the same in every crate.
-use sweepline_core::{capacity, check_keys, geom, param_check, robot, scan};
+use sweepline_core::{base, capacity, check_keys, geom, param_check, robot, scan};
 use sweepline_wire::scip;
 
 pub mod clock;

@@ -9,21 +9,20 @@
 //! run` hands it `/dev/...` paths and the monotonic clock, `sweepline sim`
 //! hands it pty paths and a scaled clock; nothing in here knows which.
 
-pub mod align;
-pub mod contact;
 pub mod events_report;
 pub mod hooks;
 pub mod messages;
 pub mod mount_report;
-pub mod offset_check;
 pub mod params;
-pub mod relocalise;
 pub mod resume;
 pub mod shared;
 pub mod stages;
-pub mod stuck;
-pub mod travel_check;
-pub mod turn_check;
+
+/// The checks beside the stages (mount, alignment, contact marks,
+/// relocalisation, stuck watch), from `sweepline-core`.
+pub use crate::checks::{
+    align, contact, offset_check, relocalise, stuck, travel_check, turn_check,
+};
 
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -2,64 +2,9 @@
 //! wheel set-points, odometry increments, safety events, link health, and
 //! the [`DiffDriveBase`] trait every base driver implements.
 
-use crate::geom::Pose;
-
-/// Left and right wheel surface velocities (m/s, forward positive).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct WheelSpeeds {
-    /// Left wheel (m/s).
-    pub left: f64,
-    /// Right wheel (m/s).
-    pub right: f64,
-}
-
-impl WheelSpeeds {
-    /// Both wheels at rest.
-    pub const STOP: WheelSpeeds = WheelSpeeds {
-        left: 0.0,
-        right: 0.0,
-    };
-
-    /// Wheel speeds from body velocities: forward `v` (m/s) and turn rate `w`
-    /// (rad/s, counter-clockwise) for wheels `wheel_base` metres apart.
-    pub fn from_body(v: f64, w: f64, wheel_base: f64) -> Self {
-        Self {
-            left: v - w * wheel_base / 2.0,
-            right: v + w * wheel_base / 2.0,
-        }
-    }
-
-    /// Whether both speeds are finite numbers.
-    pub fn is_finite(&self) -> bool {
-        self.left.is_finite() && self.right.is_finite()
-    }
-
-    /// Whether both wheels are commanded to stand still.
-    pub fn is_stop(&self) -> bool {
-        self.left == 0.0 && self.right == 0.0
-    }
-}
-
-/// One odometry increment from the wheel encoders: how the base moved between
-/// two encoder readings, in the base frame of the earlier reading. This is the
-/// ICP prior.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Odometry {
-    /// Time of the earlier reading (s, daemon monotonic clock).
-    pub t0: f64,
-    /// Time of the later reading (s).
-    pub t1: f64,
-    /// Motion from the earlier to the later reading, in the earlier base frame.
-    pub delta: Pose,
-    /// Left wheel travel (m).
-    pub left: f64,
-    /// Right wheel travel (m).
-    pub right: f64,
-}
-
-/// Which side of the robot a contact or drop is on (the Create 2 codec's
-/// bumper and wheel-drop pair, used for every base).
-pub use sweepline_wire::create2::Sides;
+/// The wheel set-points, odometry increments and sides a base exchanges,
+/// plain data of `sweepline-core` (the algorithms take them too).
+pub use crate::base::{Odometry, Sides, WheelSpeeds};
 
 /// Something the base or the link did that the planner must know about.
 #[derive(Clone, Copy, Debug, PartialEq)]

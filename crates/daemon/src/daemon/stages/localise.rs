@@ -15,7 +15,7 @@ use crate::daemon::travel_check::{
     TravelFit, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
 };
 use crate::daemon::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
-use crate::geom::{heading, interpolate, IPoint, Pose};
+use crate::geom::{heading, IPoint, Pose};
 use crate::grid::Grid;
 use crate::icp::{Outcome, Tracker};
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
@@ -385,9 +385,7 @@ impl LocaliseStage {
 /// over the window ending with the sweep, [`ScanMsg::motion`]) at a steady
 /// velocity, with the scanner at `mount` on it.
 pub fn deskew(scan: &mut LaserScan, motion: &Pose, mount: &Pose) {
-    let back = mount.inverse();
-    let still = Pose::identity();
-    scan.deskew(|tau| back * interpolate(&still, motion, tau / MOTION_WINDOW) * mount);
+    scan.deskew_steady(motion, MOTION_WINDOW, mount);
 }
 
 /// How many times the information the matcher calls degenerate

@@ -16,6 +16,7 @@
 use nalgebra::Point2;
 
 use super::{CheckpointError, Decoder, Encoder, Section};
+use crate::daemon::contact::ContactMark;
 
 /// Most marks a checkpoint may hold (a run bumps a few dozen times at most).
 pub const MAX_CONTACTS: u32 = 4096;
@@ -55,6 +56,26 @@ pub struct ContactArc {
     pub at: Point2<f64>,
     /// Half length of the marked arc (m).
     pub half_length: f64,
+}
+
+impl From<ContactArc> for ContactMark {
+    fn from(a: ContactArc) -> Self {
+        Self {
+            centre: a.centre,
+            at: a.at,
+            half_length: a.half_length,
+        }
+    }
+}
+
+impl From<&ContactMark> for ContactArc {
+    fn from(m: &ContactMark) -> Self {
+        Self {
+            centre: m.centre,
+            at: m.at,
+            half_length: m.half_length,
+        }
+    }
 }
 
 /// The contact marks of a run.

@@ -16,12 +16,14 @@ use std::time::Duration;
 
 use crate::clock::SharedClock;
 use crate::motor::command::WheelCommand;
-use crate::motor::create2::codec::{encode, pkt, OiCommand, OiMode, SensorFrame, StreamParser};
+use crate::motor::create2::codec::{
+    self, encode, pkt, OiCommand, OiMode, SensorFrame, StreamParser,
+};
 use crate::motor::link::{Link, LinkOpener, ReadOutcome};
 use crate::motor::odometry::{counts_per_metre, CounterWidth, Odometer};
 use crate::motor::params::MotorParams;
 use crate::motor::{
-    BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, WheelSpeeds,
+    BaseFeedback, DiffDriveBase, LinkHealth, MotorError, Odometry, SafetyEvent, Sides, WheelSpeeds,
 };
 use crate::robot::RobotParams;
 
@@ -214,10 +216,10 @@ impl Create2Driver {
         }
         let mut stop_now = false;
         if let Some(s) = f.wheel_drops() {
-            stop_now |= self.cmd.set_wheel_drop(s, &mut self.health);
+            stop_now |= self.cmd.set_wheel_drop(sides(s), &mut self.health);
         }
         if let Some(s) = f.bumps() {
-            stop_now |= self.cmd.set_bumper(s, &mut self.health);
+            stop_now |= self.cmd.set_bumper(sides(s), &mut self.health);
         }
         if stop_now {
             self.send_wheels();
@@ -394,5 +396,13 @@ impl Drop for Create2Driver {
                 .link
                 .write_all(&encode(&OiCommand::drive_direct(0.0, 0.0)));
         }
+    }
+}
+
+/// The codec's bumper or wheel-drop pair as the daemon's.
+fn sides(s: codec::Sides) -> Sides {
+    Sides {
+        left: s.left,
+        right: s.right,
     }
 }

@@ -20,11 +20,10 @@ use nalgebra::Point2;
 
 use serde::{Deserialize, Serialize};
 
+use crate::base::{Sides, WheelSpeeds};
 use crate::geom::{heading, polar, Pose};
 use crate::grid::{CellIndex, CellState, Grid};
-use crate::motor::{Sides, WheelSpeeds};
 use crate::param_check::{invalid, ParamError};
-use crate::pipeline::checkpoint::ContactArc;
 
 /// Where contact marks go and how the daemon reacts to them: the
 /// `[daemon.contact]` table.
@@ -353,26 +352,6 @@ impl ContactMark {
     }
 }
 
-impl From<ContactArc> for ContactMark {
-    fn from(a: ContactArc) -> Self {
-        Self {
-            centre: a.centre,
-            at: a.at,
-            half_length: a.half_length,
-        }
-    }
-}
-
-impl From<&ContactMark> for ContactArc {
-    fn from(m: &ContactMark) -> Self {
-        Self {
-            centre: m.centre,
-            at: m.at,
-            half_length: m.half_length,
-        }
-    }
-}
-
 /// Slowest wheel travel taken as motion (m/s, both wheels together).
 const MOVING: f64 = 0.005;
 /// Longest a measured motion stands for the motion a contact interrupted
@@ -401,7 +380,7 @@ impl Default for MotionMemory {
 
 impl MotionMemory {
     /// Takes the wheel speeds of one odometry reading, if the wheels moved.
-    pub fn note(&mut self, o: &crate::motor::Odometry) {
+    pub fn note(&mut self, o: &crate::base::Odometry) {
         let dt = o.t1 - o.t0;
         if dt > 0.0 && (o.left.abs() + o.right.abs()) > MOVING * dt {
             self.speeds = WheelSpeeds {
@@ -1029,7 +1008,7 @@ mod tests {
         // Nothing measured yet: the command.
         assert_eq!(m.interrupted(1.0, turn), turn);
         // Rolling forward at 0.2 m/s while the turn is already commanded.
-        m.note(&crate::motor::Odometry {
+        m.note(&crate::base::Odometry {
             t0: 1.00,
             t1: 1.02,
             delta: pose(0.004, 0.0, 0.0),
@@ -1041,7 +1020,7 @@ mod tests {
         let params = ContactParams::default();
         assert!(!turn_in_place(&params, fwd, R, B).0 && turn_in_place(&params, turn, R, B).0);
         // Standing still is not a motion; an old reading gives way.
-        m.note(&crate::motor::Odometry {
+        m.note(&crate::base::Odometry {
             t0: 1.02,
             t1: 1.04,
             delta: pose(0.0, 0.0, 0.0),
