@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Build times of a checkout on this machine: a clean `cargo build --release`,
-# then the incremental rebuild after one line changes in the planner and,
-# separately, in the SCIP decoder (a comment appended to the file, so the
-# code is the same; the file is restored afterwards).
+# then the incremental rebuild after one line changes in the planner, in the
+# SCIP decoder and in the daemon's localise stage, each separately (a comment
+# appended to the file, so the code is the same; the file is restored
+# afterwards).
 #
 #   scripts/build_times.sh [CHECKOUT] [TARGET_DIR]
 #
@@ -33,7 +34,7 @@ touch_line() {
 restore() { cp "$target/touched.bak" "$1"; }
 echo "checkout: $(git -C "$repo" rev-parse --short HEAD) ($repo), $(nproc) cores"
 echo "clean cargo build --release: $(timed) s"
-for probe in "plan/planner/mod.rs" "scip/decoder.rs"; do
+for probe in "plan/planner/mod.rs" "scip/decoder.rs" "daemon/stages/localise.rs"; do
     f=$(touch_line "$probe")
     s=$(timed)
     restore "$f"
