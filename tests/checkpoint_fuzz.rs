@@ -13,7 +13,7 @@ use sweepline::geom::{pose, IPoint, Pose};
 use sweepline::grid::Grid;
 use sweepline::icp::{KeyframeState, TrackerState};
 use sweepline::pipeline::checkpoint::{
-    crc32, Checkpoint, CheckpointError, ContactArc, ContactArcs, Encoder, MountRecord, RunProgress,
+    crc32, Checkpoint, CheckpointError, ContactArc, ContactArcs, MountRecord, RunProgress,
     TriedPlaces, WrittenAt, FORMAT_VERSION, MAGIC,
 };
 use sweepline::plan::cspace::Frame;
@@ -207,8 +207,23 @@ fn random_payloads_with_valid_checksums_never_panic() {
     }
 }
 
+/// A `grid` payload: origin (0, 0), cell size `res`, `w` × `h` cells and
+/// the evidence bytes given.
+fn grid(res: f64, w: u32, h: u32, cells: &[u8]) -> Vec<u8> {
+    postcard::to_allocvec(&((0.0f64, 0.0f64), res, u64::from(w), u64::from(h), cells)).unwrap()
+}
+
+/// A `grid` payload whose evidence claims `n` bytes and holds none.
+fn grid_claiming(res: f64, w: u32, h: u32, n: u64) -> Vec<u8> {
+    let mut b =
+        postcard::to_allocvec(&((0.0f64, 0.0f64), res, u64::from(w), u64::from(h))).unwrap();
+    b.extend_from_slice(&postcard::to_allocvec(&n).unwrap());
+    b
+}
+
 #[test]
 fn hostile_files_give_clear_errors() {
+    let pose_payload = postcard::to_allocvec(&pose(1.0, 2.0, 0.5)).unwrap();
     let cases: Vec<(Vec<u8>, &str)> = vec![
         (b"PK\x03\x04 a zip file".to_vec(), "bad magic"),
         (MAGIC[..5].to_vec(), "truncated"),
@@ -223,35 +238,41 @@ fn hostile_files_give_clear_errors() {
         (craft(&[], Some(u32::MAX)), "more than the 256 allowed"),
         (craft(&[], Some(3)), "truncated"),
         (
-            craft(&[(b"pose", 1, &[0; 24], Some(u64::MAX))], None),
+            craft(&[(b"pose", 1, &pose_payload, Some(u64::MAX))], None),
             "claims",
         ),
         (
-            craft(&[(b"pose", 1, &[0; 24], Some(1 << 40))], None),
+            craft(&[(b"pose", 1, &pose_payload, Some(1 << 40))], None),
             "claims",
         ),
         (craft(&[(b"", 1, &[], None)], None), "name length of 0"),
         (
-            craft(&[(b"Pose!", 1, &[0; 24], None)], None),
+            craft(&[(b"Pose!", 1, &pose_payload, None)], None),
             "invalid name",
         ),
         (
-            craft(&[(&[0xff, 0xfe], 1, &[0; 24], None)], None),
+            craft(&[(&[0xff, 0xfe], 1, &pose_payload, None)], None),
             "invalid name",
         ),
         (
             craft(
-                &[(b"pose", 1, &[0; 24], None), (b"pose", 1, &[0; 24], None)],
+                &[
+                    (b"pose", 1, &pose_payload, None),
+                    (b"pose", 1, &pose_payload, None),
+                ],
                 None,
             ),
             "appears twice",
         ),
         (
-            craft(&[(b"pose", 1, &[0; 23], None)], None),
+            craft(&[(b"pose", 1, &pose_payload[..31], None)], None),
             "section `pose` is malformed",
         ),
         (
-            craft(&[(b"pose", 1, &[0; 25], None)], None),
+            craft(
+                &[(b"pose", 1, &[&pose_payload[..], &[0]].concat(), None)],
+                None,
+            ),
             "trailing bytes",
         ),
         (
@@ -259,52 +280,63 @@ fn hostile_files_give_clear_errors() {
                 &[(
                     b"pose",
                     1,
-                    &[f64::NAN.to_le_bytes(), [0; 8], [0; 8]].concat(),
+                    &postcard::to_allocvec(&((1.0f64, 0.0f64), (f64::NAN, 0.0f64))).unwrap(),
                     None,
                 )],
                 None,
             ),
-            "x is not a finite number",
+            "pose x is not a finite number",
         ),
         (
-            craft(&[(b"pose", 7, &[0; 24], None)], None),
+            craft(
+                &[(
+                    b"pose",
+                    1,
+                    &postcard::to_allocvec(&((2.0f64, 0.0f64), (0.0f64, 0.0f64))).unwrap(),
+                    None,
+                )],
+                None,
+            ),
+            "not a unit complex number",
+        ),
+        (
+            craft(&[(b"pose", 7, &pose_payload, None)], None),
             "has version 7",
         ),
         (
-            {
-                let mut p = Vec::new();
-                for v in [0.0f64, 0.0, 0.1] {
-                    p.extend_from_slice(&v.to_le_bytes());
-                }
-                p.extend_from_slice(&u32::MAX.to_le_bytes());
-                p.extend_from_slice(&u32::MAX.to_le_bytes());
-                p.extend_from_slice(&0u64.to_le_bytes());
-                craft(&[(b"grid", 1, &p, None)], None)
-            },
+            craft(
+                &[(b"grid", 1, &grid(0.1, u32::MAX, u32::MAX, &[]), None)],
+                None,
+            ),
             "more than the",
         ),
         (
-            {
-                let mut p = Vec::new();
-                for v in [0.0f64, 0.0, 0.1] {
-                    p.extend_from_slice(&v.to_le_bytes());
-                }
-                p.extend_from_slice(&4u32.to_le_bytes());
-                p.extend_from_slice(&4u32.to_le_bytes());
-                p.extend_from_slice(&u64::MAX.to_le_bytes());
-                craft(&[(b"grid", 1, &p, None)], None)
-            },
-            "only 0 left",
+            // A cell count far beyond the bytes present allocates nothing.
+            craft(
+                &[(b"grid", 1, &grid_claiming(0.1, 4, 4, u64::MAX), None)],
+                None,
+            ),
+            "section `grid` is malformed",
+        ),
+        (
+            craft(&[(b"grid", 1, &grid(-0.1, 4, 4, &[0; 16]), None)], None),
+            "cell size -0.1 is not > 0",
+        ),
+        (
+            craft(&[(b"grid", 1, &grid(0.1, 4, 4, &[0; 15]), None)], None),
+            "15 cell value flags for a 4 x 4 grid",
         ),
         (
             {
-                let mut p = Vec::new();
-                for v in [0.0f64, 0.0, -0.1] {
-                    p.extend_from_slice(&v.to_le_bytes());
-                }
-                craft(&[(b"grid", 1, &p, None)], None)
+                let mut b = sample().to_bytes();
+                b[8] = 1;
+                b[9] = 0;
+                let n = b.len() - 4;
+                let c = crc32(&b[..n]);
+                b[n..].copy_from_slice(&c.to_le_bytes());
+                b
             },
-            "resolution -0.1 is not > 0",
+            "written by a sweepline from before 2026-12-02",
         ),
         (
             {
@@ -328,47 +360,24 @@ fn hostile_files_give_clear_errors() {
         ),
     ];
     // Keyframes: too many, a point count larger than the bytes present,
-    // more points than a scan has, a NaN point, an edge flag that is no bool.
-    let kf = |count: u32, points: u64, point: &[f64], flag: u8| {
-        let mut e = Encoder::new();
-        e.u32(count);
-        for v in [0.5, 0.5, 0.0] {
-            e.f64(v);
-        }
-        e.u64(points);
-        for v in point {
-            e.f32(*v);
-        }
-        e.u8(flag);
-        e.into_bytes()
+    // more points than a scan has, a NaN point.
+    let kf = |count: usize, points: Vec<[f32; 3]>| {
+        let one = (
+            ((1.0f64, 0.0f64), (0.5f64, 0.5f64)),
+            points.clone(),
+            vec![None::<f32>; points.len()],
+            (points.len() as u64, vec![0u8; points.len().div_ceil(8)]),
+        );
+        postcard::to_allocvec(&vec![one; count]).unwrap()
     };
-    let ok_point = [1.0, 1.0, 0.5, 0.3];
-    let big = {
-        let mut e = Encoder::new();
-        e.u32(1);
-        for v in [0.5, 0.5, 0.0] {
-            e.f64(v);
-        }
-        e.u64(2000);
-        for _ in 0..2000 {
-            for v in ok_point {
-                e.f32(v);
-            }
-            e.u8(0);
-        }
-        e.into_bytes()
-    };
+    let ok_point = [1.0f32, 1.0, 0.5];
+    let mut claims = kf(1, vec![ok_point]);
+    claims.truncate(claims.len() - 4);
     let hostile_kf: Vec<(Vec<u8>, &str)> = vec![
-        (kf(1_000_000, 1, &ok_point, 0), "more than the 64 allowed"),
-        (kf(1, u64::MAX / 2, &ok_point, 0), "cannot fit"),
-        (big, "more than the 1440 allowed"),
-        (kf(1, 1, &[1.0, f64::NAN, 0.5, 0.0], 0), "point y"),
-        (
-            kf(1, 1, &[1.0, 1.0, 0.5, f64::INFINITY], 2),
-            "normal direction",
-        ),
-        (kf(1, 1, &ok_point, 7), "unknown bits"),
-        (kf(2, 1, &ok_point, 0), "ends early"),
+        (kf(65, vec![]), "more than the 64 allowed"),
+        (claims, "icp.keyframes` is malformed"),
+        (kf(1, vec![ok_point; 1441]), "more than the 1440 allowed"),
+        (kf(1, vec![[1.0, f32::NAN, 0.5]]), "point y"),
     ];
     for (payload, want) in hostile_kf {
         let b = craft(&[(b"icp.keyframes", 1, &payload, None)], None);

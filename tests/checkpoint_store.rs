@@ -8,7 +8,7 @@ use nalgebra::Point2;
 use sweepline::geom::{heading, pose, IPoint, Pose};
 use sweepline::grid::{CellState, Grid};
 use sweepline::pipeline::checkpoint::{
-    Checkpoint, CheckpointError, CheckpointStore, Decoder, Encoder, RunProgress, Section,
+    Checkpoint, CheckpointError, CheckpointStore, RunProgress, Section,
 };
 
 fn temp_dir(tag: &str) -> PathBuf {
@@ -19,18 +19,12 @@ fn temp_dir(tag: &str) -> PathBuf {
 }
 
 /// A section another module would add: map points.
-#[derive(Debug, PartialEq)]
+#[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct MapPoints(Vec<IPoint>);
 
 impl Section for MapPoints {
     const NAME: &'static str = "map.points";
     const VERSION: u16 = 3;
-    fn encode(&self, e: &mut Encoder) {
-        e.points(&self.0);
-    }
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        Ok(Self(d.points()?))
-    }
 }
 
 fn sample(seq: u64) -> Checkpoint {
@@ -106,22 +100,14 @@ fn put_replaces_and_refuses_invalid_values() {
 
 #[test]
 fn a_newer_section_version_is_refused_by_name() {
-    struct PoseV2;
+    #[derive(serde::Serialize, serde::Deserialize)]
+    struct PoseV2(f64, f64, f64);
     impl Section for PoseV2 {
         const NAME: &'static str = "pose";
         const VERSION: u16 = 2;
-        fn encode(&self, e: &mut Encoder) {
-            e.f64(0.0);
-            e.f64(0.0);
-            e.f64(0.0);
-        }
-        fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-            d.raw(24)?;
-            Ok(PoseV2)
-        }
     }
     let mut cp = Checkpoint::new();
-    cp.put(&PoseV2).unwrap();
+    cp.put(&PoseV2(0.0, 0.0, 0.0)).unwrap();
     let e = cp.get::<Pose>().unwrap_err();
     assert!(e.to_string().contains("`pose` has version 2"), "{e}");
 }

@@ -78,7 +78,7 @@ pub fn wrap_angle(a: f64) -> f64 {
 
 /// A 2-D point with the laser reflection intensity it was seen with
 /// (0 when the sensor gives none; normalised units, typically 0..1).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IPoint {
     /// x in metres.
     pub x: f64,

@@ -141,7 +141,11 @@ impl CellWalk {
 }
 
 /// An evidence grid over a fixed rectangle of the world.
-#[derive(Clone, Debug)]
+///
+/// Serialised (for a checkpoint) as its geometry and evidence only; the
+/// surface memory (`hit`, `held`, `mean`) starts afresh and the explored
+/// box is recomputed: see [`Grid::rebuilt`].
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     origin: Point2<f64>,
     resolution: f64,
@@ -150,21 +154,25 @@ pub struct Grid {
     cells: Vec<u8>,
     /// Per cell: a beam has ended in it (a surface passes through it), even
     /// if beams passing beside that surface made it free on balance.
+    #[serde(skip)]
     hit: Vec<bool>,
     /// Per cell: pass-throughs left before a surface last hit in it is
     /// taken for gone ([`HIT_CREDIT`] at every hit, one less at every beam
     /// passing within [`DRAIN_REACH`] of the cell's mean hit position; 0: no
     /// surface held).
+    #[serde(skip)]
     held: Vec<u8>,
     /// Per cell hit: the running mean of where in the cell beams ended
     /// ([`MEAN_SCALE`] units from its centre, x then y). Where a surface lies
     /// on a cell boundary, range noise puts about half its hits in the cell
     /// in front; their mean lies at the face, so those hits are the surface
     /// behind's (see [`Grid::integrate_ray`]).
+    #[serde(skip)]
     mean: Vec<[i8; 2]>,
     /// Bounding box of every observed cell, kept as cells are observed (the
     /// decomposer asks for it on every update; a scan of a 40 m grid cost
     /// a tenth of the update).
+    #[serde(skip)]
     explored: Option<(CellIndex, CellIndex)>,
 }
 
@@ -660,6 +668,20 @@ impl Grid {
             g.explored = g.scan_explored();
             g
         })
+    }
+
+    /// A grid read back from its serialised form (geometry and evidence):
+    /// checked as [`Grid::from_raw_evidence`] checks it, with the surface
+    /// memory empty and the explored box recomputed. `None` when the
+    /// geometry is invalid or disagrees with the evidence.
+    pub fn rebuilt(self) -> Option<Self> {
+        Self::from_raw_evidence(
+            self.origin,
+            self.resolution,
+            self.width,
+            self.height,
+            self.cells,
+        )
     }
 
     /// Number of cells in each state: (unknown, free, occupied).

@@ -15,7 +15,8 @@
 //! * [`checks`]: what the daemon checks beside its stages (the scanner's
 //!   mount, the frame's alignment, contact marks, relocalisation, the
 //!   stuck watch);
-//! * [`param_check`]: the checks each `*Params` table makes of itself.
+//! * [`param_check`]: the checks each `*Params` table makes of itself;
+//! * [`stored`]: compact serde forms for the state a daemon checkpoints.
 //!
 //! It uses no other sweepline crate: the drivers (`sweepline-io`), the
 //! daemon (`sweepline-daemon`) and the simulator sit above it, and the
@@ -35,4 +36,5 @@ pub mod param_check;
 pub mod plan;
 pub mod robot;
 pub mod scan;
+pub mod stored;
 pub mod svg_canvas;

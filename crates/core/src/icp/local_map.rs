@@ -27,15 +27,19 @@ struct Keyframe {
 /// One keyframe as plain data, for a checkpoint: the scanner pose it was
 /// taken from and its points in the world frame, with their surface normals
 /// (world frame; zero = unknown) and intensity-edge flags, index for index.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct KeyframeState {
     /// Scanner pose of the keyframe (world frame).
     pub pose: Pose,
-    /// Points, world frame.
+    /// Points, world frame (stored in single precision).
+    #[serde(with = "crate::stored::f32_points")]
     pub points: Vec<IPoint>,
-    /// Unit surface normal of each point (world frame), zero when unknown.
+    /// Unit surface normal of each point (world frame), zero when unknown
+    /// (stored as a single-precision direction).
+    #[serde(with = "crate::stored::normal_directions")]
     pub normals: Vec<Vector2<f64>>,
     /// Whether each point sits on an intensity edge.
+    #[serde(with = "crate::stored::bits")]
     pub edges: Vec<bool>,
 }
 

@@ -60,7 +60,7 @@ pub struct Step {
 
 /// What a tracker needs to carry on where another left off (e.g. after a
 /// restart): its local map's keyframes, oldest first.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TrackerState {
     /// The keyframes of the local map, oldest first.
     pub keyframes: Vec<KeyframeState>,

@@ -14,7 +14,7 @@
 //! 5. merges the lines into map segments and the curves into the curve list
 //!    ([`segments`]);
 //! 6. integrates every beam into the explored-area grid ([`crate::grid`]);
-//! 7. every `publish_every` merged scans, publishes a [`MapSnapshot`]
+//! 7. every `publish_every` merged scans, publishes a [`PointMapSnapshot`]
 //!    ([`snapshot`]).
 //!
 //! A scan the matcher flags as badly registered ([`ScanQuality::Bad`]) moves
@@ -47,7 +47,7 @@ pub use params::MapParams;
 pub use points::{MergeCounts, PointMap};
 pub use pose::compose_increment;
 pub use segments::{MapSegment, SegmentMap};
-pub use snapshot::{MapSnapshot, SnapshotCell};
+pub use snapshot::{PointMapSnapshot, SnapshotCell};
 
 use crate::capacity::MAX_BEAMS;
 use crate::geom::{IPoint, Pose};
@@ -128,7 +128,7 @@ pub struct Map {
     lines: Vec<ScanLine>,
     curves: Vec<Curve>,
     cell: Arc<SnapshotCell>,
-    spare: Option<Arc<MapSnapshot>>,
+    spare: Option<Arc<PointMapSnapshot>>,
     snap_index: segments::SnapIndex,
     version: u64,
 }
@@ -143,7 +143,7 @@ impl Map {
         }
         let centre = Point2::from(start.translation.vector);
         let grid = Grid::centred(centre, params.grid_extent, params.grid_resolution);
-        let first = Arc::new(MapSnapshot::empty(grid.clone(), start));
+        let first = Arc::new(PointMapSnapshot::empty(grid.clone(), start));
         Ok(Map {
             points: PointMap::new(params.merge_distance, params.reserve_points),
             segments: SegmentMap::with_capacity(RESERVE_SEGMENTS),
@@ -222,7 +222,7 @@ impl Map {
     }
 
     /// The newest published snapshot.
-    pub fn snapshot(&self) -> Arc<MapSnapshot> {
+    pub fn snapshot(&self) -> Arc<PointMapSnapshot> {
         self.cell.load()
     }
 
@@ -369,7 +369,7 @@ impl Map {
             .take()
             .filter(|a| Arc::strong_count(a) == 1 && Arc::weak_count(a) == 0);
         let mut arc = reusable.unwrap_or_else(|| {
-            Arc::new(MapSnapshot::empty(
+            Arc::new(PointMapSnapshot::empty(
                 Grid::new(self.grid.origin(), self.grid.resolution(), 0, 0),
                 self.pose,
             ))
@@ -377,7 +377,7 @@ impl Map {
         let snap = match Arc::get_mut(&mut arc) {
             Some(s) => s,
             None => {
-                arc = Arc::new(MapSnapshot::empty(self.grid.clone(), self.pose));
+                arc = Arc::new(PointMapSnapshot::empty(self.grid.clone(), self.pose));
                 // A fresh Arc has no other owner.
                 match Arc::get_mut(&mut arc) {
                     Some(s) => s,

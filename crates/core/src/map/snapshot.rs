@@ -1,4 +1,4 @@
-//! The map as other threads see it: an immutable [`MapSnapshot`] behind an
+//! The map as other threads see it: an immutable [`PointMapSnapshot`] behind an
 //! `Arc`, handed over through a [`SnapshotCell`].
 //!
 //! Publication: the writer (the map stage) fills a snapshot and swaps the
@@ -17,7 +17,7 @@ use crate::grid::Grid;
 
 /// An immutable picture of the map at one moment.
 #[derive(Clone, Debug)]
-pub struct MapSnapshot {
+pub struct PointMapSnapshot {
     /// Increases by one with every publication.
     pub version: u64,
     /// Scans merged into the map so far.
@@ -40,7 +40,7 @@ pub struct MapSnapshot {
     pub trajectory: Vec<Pose>,
 }
 
-impl MapSnapshot {
+impl PointMapSnapshot {
     /// An empty snapshot over `grid` at `pose`.
     pub fn empty(grid: Grid, pose: Pose) -> Self {
         Self {
@@ -60,19 +60,19 @@ impl MapSnapshot {
 /// The newest snapshot, shared between the writer and any number of readers.
 #[derive(Debug)]
 pub struct SnapshotCell {
-    current: Mutex<Arc<MapSnapshot>>,
+    current: Mutex<Arc<PointMapSnapshot>>,
 }
 
 impl SnapshotCell {
     /// A cell holding `first`.
-    pub fn new(first: Arc<MapSnapshot>) -> Self {
+    pub fn new(first: Arc<PointMapSnapshot>) -> Self {
         Self {
             current: Mutex::new(first),
         }
     }
 
     /// The newest snapshot (an `Arc` clone: no map data is copied).
-    pub fn load(&self) -> Arc<MapSnapshot> {
+    pub fn load(&self) -> Arc<PointMapSnapshot> {
         // A poisoned lock only means a thread panicked while swapping a pointer:
         // the Arc inside is still whole.
         let g = self.current.lock().unwrap_or_else(|e| e.into_inner());
@@ -80,7 +80,7 @@ impl SnapshotCell {
     }
 
     /// Replaces the snapshot; returns the previous one.
-    pub fn store(&self, next: Arc<MapSnapshot>) -> Arc<MapSnapshot> {
+    pub fn store(&self, next: Arc<PointMapSnapshot>) -> Arc<PointMapSnapshot> {
         let mut g = self.current.lock().unwrap_or_else(|e| e.into_inner());
         std::mem::replace(&mut *g, next)
     }

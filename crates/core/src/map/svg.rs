@@ -8,7 +8,7 @@ use nalgebra::Point2;
 use svg::node::element::{Circle, Group, Line, Polyline, Rectangle};
 use svg::Document;
 
-use super::snapshot::MapSnapshot;
+use super::snapshot::PointMapSnapshot;
 use crate::geom::Segment;
 use crate::grid::CellState;
 use crate::svg_canvas::{canvas, label};
@@ -63,7 +63,7 @@ pub fn intensity_colour(v: f64) -> String {
 
 /// Renders `snap` as an SVG document; `reference` walls (e.g. the simulated
 /// world's) are drawn thin and green underneath, for comparison.
-pub fn render(snap: &MapSnapshot, reference: &[Segment]) -> Document {
+pub fn render(snap: &PointMapSnapshot, reference: &[Segment]) -> Document {
     let mut min = Point2::new(f64::INFINITY, f64::INFINITY);
     let mut max = Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
     let mut grow = |p: Point2<f64>| {
@@ -210,7 +210,7 @@ mod tests {
         use crate::geom::{pose, IPoint};
         use crate::map::fit::Moments;
         let grid = crate::grid::Grid::new(Point2::new(0.0, 0.0), 0.1, 10, 10);
-        let mut snap = MapSnapshot::empty(grid, pose(0.0, 0.0, 0.0));
+        let mut snap = PointMapSnapshot::empty(grid, pose(0.0, 0.0, 0.0));
         snap.points = vec![
             IPoint::new(0.1, 0.2, 0.0),
             IPoint::new(0.5, 0.2, 1.0),
@@ -242,7 +242,7 @@ mod tests {
         );
         assert!(text.contains("3 points"));
         let empty = render(
-            &MapSnapshot::empty(
+            &PointMapSnapshot::empty(
                 crate::grid::Grid::new(Point2::new(0.0, 0.0), 0.1, 0, 0),
                 pose(0.0, 0.0, 0.0),
             ),

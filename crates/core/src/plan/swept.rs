@@ -6,21 +6,24 @@
 //! configuration space, frontier and reachability are recomputed from the
 //! restored map on the first update.
 
+use serde::{Deserialize, Serialize};
+
 use super::cspace::Frame;
 
 /// What the tool has swept, on the planner's grid (the map's geometry).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SweptFloor {
     /// The grid geometry the record belongs to.
     pub frame: Frame,
     /// One flag per cell, row-major: swept or not.
+    #[serde(with = "crate::stored::bits")]
     pub covered: Vec<bool>,
 }
 
 /// Where the robot started, in the map frame, as plain data a daemon
 /// checkpoints (section `plan.home`): after a restart the robot still drives
 /// back to where it was put down, not to where it was resumed.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct HomePlace {
     /// x (m).
     pub x: f64,
@@ -34,7 +37,7 @@ pub struct HomePlace {
 /// lanes; `None`: not fixed yet), as plain data a daemon checkpoints (the
 /// section's encoding lives in `pipeline::checkpoint::lattice`): lanes
 /// planned after a restart then line up with the lanes driven before it.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LatticePhase {
     /// Phase of lanes along x (their y positions).
     pub x: Option<f64>,
@@ -43,7 +46,7 @@ pub struct LatticePhase {
 }
 
 /// One cell the planner has tried to reach or given up on.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TriedCell {
     /// Row-major cell index on the record's grid.
     pub index: u32,
@@ -58,7 +61,7 @@ pub struct TriedCell {
 /// The planner's tries and give-ups, as plain data a daemon checkpoints
 /// (encoding in `pipeline::checkpoint::tries`): sparse, since only cells
 /// the planner failed on are listed.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PlanTries {
     /// The grid geometry the record belongs to.
     pub frame: Frame,
@@ -74,11 +77,12 @@ pub struct PlanTries {
 /// `pipeline::checkpoint::reach`): after a restart the planner still waits
 /// for floor a person walls off, and does not get its waits and rounds
 /// afresh.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PlanReach {
     /// The grid geometry the record belongs to.
     pub frame: Frame,
     /// One flag per cell, row-major: once within reach.
+    #[serde(with = "crate::stored::bits")]
     pub ever_reachable: Vec<bool>,
     /// Waits for walled-off floor so far.
     pub clear_waits: u32,

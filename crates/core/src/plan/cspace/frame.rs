@@ -3,7 +3,7 @@
 use nalgebra::Point2;
 
 /// Grid geometry shared by every planner raster.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Frame {
     /// World position of the lower-left corner of cell (0, 0).
     pub origin: Point2<f64>,

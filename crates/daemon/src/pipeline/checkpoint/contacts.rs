@@ -3,19 +3,22 @@
 //! could clear them there, so a resumed run needs the list itself to keep
 //! them occupied.
 //!
-//! Payload, version 1 (little-endian): the number of marks (u32, at most
-//! [`MAX_CONTACTS`]), then per mark the robot centre (x, y), the contact
-//! point (x, y) and the half length of the marked arc, all f64 in metres,
-//! map frame.
+//! Payload, version 1: [`ContactArcs`] in postcard: the number of marks (at
+//! most [`MAX_CONTACTS`]; the oldest are written when there are more), then
+//! per mark the robot centre (x, y), the contact point (x, y) and the half
+//! length of the marked arc, all f64 in metres, map frame.
 //!
 //! Section `daemon.contacts_tried` ([`TriedPlaces`]), version 1: where marks
 //! were taken out to try the floor they walled off, so that a resumed run
-//! does not try one place again. Payload: the number of places (u32, at
-//! most [`MAX_CONTACTS`]), then per place (x, y), f64 in metres, map frame.
+//! does not try one place again. Payload: the number of places (at most
+//! [`MAX_CONTACTS`]), then per place (x, y), f64 in metres, map frame.
 
 use nalgebra::Point2;
 
-use super::{CheckpointError, Decoder, Encoder, Section};
+use serde::{Deserialize, Serialize, Serializer};
+
+use super::checks::finite;
+use super::Section;
 use crate::daemon::contact::ContactMark;
 
 /// Most marks a checkpoint may hold (a run bumps a few dozen times at most).
@@ -24,31 +27,24 @@ pub const MAX_CONTACTS: u32 = 4096;
 pub const MAX_HALF_LENGTH: f64 = 0.5;
 /// Farthest a contact point may lie from the robot centre (m).
 pub const MAX_REACH: f64 = 2.0;
-/// Bytes one mark takes.
-const MARK_BYTES: usize = 5 * 8;
-/// Bytes one tried place takes.
-const PLACE_BYTES: usize = 2 * 8;
 
-/// Reads a record count: at most [`MAX_CONTACTS`] records of `each` bytes,
-/// all present (a count beyond the bytes allocates nothing).
-fn count(d: &mut Decoder<'_>, what: &str, each: usize) -> Result<u32, CheckpointError> {
-    let n = d.u32()?;
-    if n > MAX_CONTACTS {
-        return Err(d.error(format!("{n} {what}, more than {MAX_CONTACTS}")));
+/// Writes at most the first [`MAX_CONTACTS`] records of `v`, so that a run
+/// with more still writes its checkpoints.
+fn capped<T: Serialize, S: Serializer>(v: &[T], s: S) -> Result<S::Ok, S::Error> {
+    v[..v.len().min(MAX_CONTACTS as usize)].serialize(s)
+}
+
+/// A record count checked against [`MAX_CONTACTS`].
+fn check_count(n: usize, what: &str) -> Result<(), String> {
+    if n > MAX_CONTACTS as usize {
+        return Err(format!("{n} {what}, more than {MAX_CONTACTS}"));
     }
-    if d.remaining() < n as usize * each {
-        return Err(d.error(format!(
-            "{n} {what} need {} bytes, {} remain",
-            n as usize * each,
-            d.remaining()
-        )));
-    }
-    Ok(n)
+    Ok(())
 }
 
 /// One contact mark: an arc of the body shell around `at`, centred on the
 /// robot centre `centre`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ContactArc {
     /// Robot centre when the bumper closed (map frame, m).
     pub centre: Point2<f64>,
@@ -79,9 +75,10 @@ impl From<&ContactMark> for ContactArc {
 }
 
 /// The contact marks of a run.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ContactArcs {
     /// The marks, oldest first.
+    #[serde(serialize_with = "capped")]
     pub arcs: Vec<ContactArc>,
 }
 
@@ -89,43 +86,27 @@ impl Section for ContactArcs {
     const NAME: &'static str = "daemon.contacts";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        let n = self.arcs.len().min(MAX_CONTACTS as usize);
-        e.u32(n as u32);
-        for a in &self.arcs[..n] {
-            e.f64(a.centre.x);
-            e.f64(a.centre.y);
-            e.f64(a.at.x);
-            e.f64(a.at.y);
-            e.f64(a.half_length);
-        }
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let n = count(d, "contact marks", MARK_BYTES)?;
-        let mut arcs = Vec::with_capacity(n as usize);
-        for i in 0..n {
-            let centre = Point2::new(d.finite("centre x")?, d.finite("centre y")?);
-            let at = Point2::new(d.finite("contact x")?, d.finite("contact y")?);
-            let half_length = d.finite("arc half length")?;
+    fn restored(self) -> Result<Self, String> {
+        check_count(self.arcs.len(), "contact marks")?;
+        for (i, a) in self.arcs.iter().enumerate() {
+            finite("centre x", a.centre.x)?;
+            finite("centre y", a.centre.y)?;
+            finite("contact x", a.at.x)?;
+            finite("contact y", a.at.y)?;
+            let half_length = finite("arc half length", a.half_length)?;
             if !(half_length > 0.0 && half_length <= MAX_HALF_LENGTH) {
-                return Err(d.error(format!(
+                return Err(format!(
                     "mark #{i}: arc half length {half_length} m is outside (0, {MAX_HALF_LENGTH}]"
-                )));
+                ));
             }
-            let reach = (at - centre).norm();
+            let reach = (a.at - a.centre).norm();
             if !(reach > 0.0 && reach <= MAX_REACH) {
-                return Err(d.error(format!(
+                return Err(format!(
                     "mark #{i}: contact {reach} m from the robot centre, outside (0, {MAX_REACH}]"
-                )));
+                ));
             }
-            arcs.push(ContactArc {
-                centre,
-                at,
-                half_length,
-            });
         }
-        Ok(Self { arcs })
+        Ok(self)
     }
 }
 
@@ -133,9 +114,10 @@ impl Section for ContactArcs {
 /// plan stage's [`crate::daemon::stages::MarkProbe`]): a mark near one of
 /// these places stays, so an obstacle costs at most one more bump, across a
 /// restart too.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TriedPlaces {
     /// The places (map frame, m), oldest first.
+    #[serde(serialize_with = "capped")]
     pub places: Vec<Point2<f64>>,
 }
 
@@ -143,28 +125,22 @@ impl Section for TriedPlaces {
     const NAME: &'static str = "daemon.contacts_tried";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        let n = self.places.len().min(MAX_CONTACTS as usize);
-        e.u32(n as u32);
-        for p in &self.places[..n] {
-            e.f64(p.x);
-            e.f64(p.y);
+    fn restored(self) -> Result<Self, String> {
+        check_count(self.places.len(), "tried places")?;
+        for p in &self.places {
+            finite("place x", p.x)?;
+            finite("place y", p.y)?;
         }
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let n = count(d, "tried places", PLACE_BYTES)?;
-        let mut places = Vec::with_capacity(n as usize);
-        for _ in 0..n {
-            places.push(Point2::new(d.finite("place x")?, d.finite("place y")?));
-        }
-        Ok(Self { places })
+        Ok(self)
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Point2;
+
     use super::*;
+    use crate::pipeline::checkpoint::testing::{payload, read, refusal, round_trips};
     use crate::pipeline::checkpoint::Checkpoint;
 
     fn marks() -> ContactArcs {
@@ -207,65 +183,49 @@ mod tests {
         let back = Checkpoint::from_bytes(&cp.to_bytes()).unwrap();
         assert_eq!(back.require::<TriedPlaces>().unwrap(), tried);
         assert_eq!(back.require::<ContactArcs>().unwrap(), marks());
-        let mut e = Encoder::new();
-        tried.encode(&mut e);
-        let bytes = e.into_bytes();
-        for cut in [0, 3, 4, 12, bytes.len() - 1] {
-            let mut d = Decoder::new(TriedPlaces::NAME, &bytes[..cut]);
-            assert!(TriedPlaces::decode(&mut d).is_err(), "cut at {cut}");
-        }
-        let mut e = Encoder::new();
-        e.u32(MAX_CONTACTS + 1);
-        let b = e.into_bytes();
-        let err = TriedPlaces::decode(&mut Decoder::new(TriedPlaces::NAME, &b)).unwrap_err();
-        assert!(err.to_string().contains("more than"), "{err}");
-        let mut e = Encoder::new();
-        e.u32(1);
-        e.f64(f64::INFINITY);
-        e.f64(0.0);
-        let b = e.into_bytes();
-        let err = TriedPlaces::decode(&mut Decoder::new(TriedPlaces::NAME, &b)).unwrap_err();
-        assert!(err.to_string().contains("place x"), "{err}");
-        assert!(err.to_string().contains("daemon.contacts_tried"), "{err}");
+        round_trips(&tried);
+        let many = TriedPlaces {
+            places: vec![Point2::new(0.0, 0.0); MAX_CONTACTS as usize + 1],
+        };
+        assert_eq!(
+            read::<TriedPlaces>(&payload(&many)).unwrap().places.len(),
+            MAX_CONTACTS as usize,
+            "the oldest are written"
+        );
+        let inf = TriedPlaces {
+            places: vec![Point2::new(f64::INFINITY, 0.0)],
+        };
+        let err = refusal(&inf);
+        assert!(err.contains("place x"), "{err}");
+        assert!(err.contains("daemon.contacts_tried"), "{err}");
     }
 
     #[test]
     fn bad_records_are_clear_errors() {
-        let mut e = Encoder::new();
-        marks().encode(&mut e);
-        let bytes = e.into_bytes();
-        for cut in [0, 3, 4, 20, bytes.len() - 1] {
-            let mut d = Decoder::new(ContactArcs::NAME, &bytes[..cut]);
-            assert!(ContactArcs::decode(&mut d).is_err(), "cut at {cut}");
-        }
+        round_trips(&marks());
         // A count far beyond the bytes present allocates nothing.
-        let mut e = Encoder::new();
-        e.u32(MAX_CONTACTS);
-        let b = e.into_bytes();
-        let err = ContactArcs::decode(&mut Decoder::new(ContactArcs::NAME, &b)).unwrap_err();
-        assert!(err.to_string().contains("remain"), "{err}");
-        let mut e = Encoder::new();
-        e.u32(u32::MAX);
-        let b = e.into_bytes();
-        let err = ContactArcs::decode(&mut Decoder::new(ContactArcs::NAME, &b)).unwrap_err();
-        assert!(err.to_string().contains("more than"), "{err}");
+        assert!(read::<ContactArcs>(&[0x80, 0x20]).is_err());
+        let too_many = [&[0x81, 0x20][..], &[0; 40 * 4097]].concat();
+        let err = read::<ContactArcs>(&too_many).unwrap_err().to_string();
+        assert!(err.contains("more than"), "{err}");
         for (field, value, want) in [
             (4, 9.0, "half length"),
             (4, 0.0, "half length"),
             (2, 50.0, "from the robot centre"),
             (0, f64::NAN, "centre x"),
         ] {
-            let mut e = Encoder::new();
-            e.u32(1);
             let mut v = [1.0, 2.0, 1.18, 2.0, 0.02];
             v[field] = value;
-            for x in v {
-                e.f64(x);
-            }
-            let b = e.into_bytes();
-            let err = ContactArcs::decode(&mut Decoder::new(ContactArcs::NAME, &b)).unwrap_err();
-            assert!(err.to_string().contains(want), "{want}: {err}");
-            assert!(err.to_string().contains("daemon.contacts"), "{err}");
+            let bad = ContactArcs {
+                arcs: vec![ContactArc {
+                    centre: Point2::new(v[0], v[1]),
+                    at: Point2::new(v[2], v[3]),
+                    half_length: v[4],
+                }],
+            };
+            let err = refusal(&bad);
+            assert!(err.contains(want), "{want}: {err}");
+            assert!(err.contains("daemon.contacts"), "{err}");
         }
     }
 }

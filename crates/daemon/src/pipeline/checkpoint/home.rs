@@ -2,27 +2,22 @@
 //! `plan.home`, so that after a restart the robot drives back to where it
 //! was put down (`plan.return_home`), not to where it was resumed.
 //!
-//! Payload, version 1 (little-endian): x (f64, m), y (f64, m), heading
-//! (f64, rad), all finite.
+//! Payload, version 1: [`HomePlace`] in postcard: x (m), y (m), heading
+//! (rad), f64, all finite.
 
-use super::{CheckpointError, Decoder, Encoder, Section};
+use super::checks::finite;
+use super::Section;
 use crate::plan::HomePlace;
 
 impl Section for HomePlace {
     const NAME: &'static str = "plan.home";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        e.f64(self.x);
-        e.f64(self.y);
-        e.f64(self.heading);
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let x = d.finite("start x")?;
-        let y = d.finite("start y")?;
-        let heading = d.finite("start heading")?;
-        Ok(Self { x, y, heading })
+    fn restored(self) -> Result<Self, String> {
+        finite("start x", self.x)?;
+        finite("start y", self.y)?;
+        finite("start heading", self.heading)?;
+        Ok(self)
     }
 }
 
@@ -31,6 +26,7 @@ mod tests {
     use super::*;
     use crate::decomp::Decomposition;
     use crate::geom::pose;
+    use crate::pipeline::checkpoint::testing::{refusal, round_trips};
     use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::test_support::{follow_to_done, planner, walled_room as room};
     use crate::plan::{HomeOutcome, Task};
@@ -84,28 +80,16 @@ mod tests {
 
     #[test]
     fn bad_records_are_clear_errors() {
-        let good = HomePlace {
+        round_trips(&HomePlace {
+            x: 1.5,
+            y: -0.25,
+            heading: 0.3,
+        });
+        let bad = HomePlace {
             x: 1.0,
-            y: 2.0,
-            heading: 0.5,
+            y: f64::INFINITY,
+            heading: 0.0,
         };
-        let mut e = Encoder::new();
-        good.encode(&mut e);
-        let bytes = e.into_bytes();
-        let mut d = Decoder::new(HomePlace::NAME, &bytes);
-        assert_eq!(HomePlace::decode(&mut d).unwrap(), good);
-        for cut in 0..bytes.len() {
-            let mut d = Decoder::new(HomePlace::NAME, &bytes[..cut]);
-            assert!(HomePlace::decode(&mut d).is_err(), "cut at {cut}");
-        }
-        for (k, what) in ["start x", "start y", "start heading"].iter().enumerate() {
-            let mut e = Encoder::new();
-            for j in 0..3 {
-                e.f64(if j == k { f64::INFINITY } else { 0.5 });
-            }
-            let bytes = e.into_bytes();
-            let err = HomePlace::decode(&mut Decoder::new(HomePlace::NAME, &bytes)).unwrap_err();
-            assert!(err.to_string().contains(what), "{err}");
-        }
+        assert!(refusal(&bad).contains("start y is not a finite number"));
     }
 }

@@ -3,107 +3,71 @@
 //! crashed one had, in the same frame as the restored map, instead of
 //! starting a new local map whose frame carries the resume pose's error.
 //!
-//! Payload, version 1 (little-endian): keyframe count u32 (at most
-//! [`MAX_KEYFRAMES`]); per keyframe the scanner pose (x, y, heading: f64),
-//! the point count u64 (at most [`MAX_KEYFRAME_POINTS`]) and per point x, y
-//! (world frame, m), intensity and the surface normal's direction (rad), all
-//! f32 and finite, then a flag byte: bit 0 intensity edge, bit 1 normal
-//! known (a zero normal otherwise); other bits must be clear. Singles keep
-//! a 40-keyframe window of URG-04LX scans near 400 kB (micrometres at 100 m
-//! are far below the scanner's centimetre noise).
+//! Payload, version 1: [`TrackerState`] in postcard: per keyframe the
+//! scanner pose (nalgebra's form: translation, unit complex rotation; f64),
+//! then its points ([`sweepline_core::stored::f32_points`]: x, y in the world
+//! frame and intensity as f32), their normals' directions
+//! ([`sweepline_core::stored::normal_directions`]: f32, `None` where
+//! unknown) and their intensity-edge flags (one bit each). At most
+//! [`MAX_KEYFRAMES`] keyframes of at most [`MAX_KEYFRAME_POINTS`] points.
+//! Singles keep a 40-keyframe window of URG-04LX scans near 400 kB
+//! (micrometres at 100 m are far below the scanner's centimetre noise).
 
-use nalgebra::Vector2;
-
-use super::{CheckpointError, Decoder, Encoder, Section};
+use super::checks::{checked_pose, finite};
+use super::Section;
 use crate::capacity::MAX_BEAMS;
-use crate::geom::{heading, pose, IPoint};
-use crate::icp::{KeyframeState, TrackerState};
+use crate::icp::TrackerState;
 
 /// Most keyframes a checkpoint may restore.
 pub const MAX_KEYFRAMES: usize = 64;
 /// Most points one keyframe may hold (one scan's beams).
 pub const MAX_KEYFRAME_POINTS: usize = MAX_BEAMS;
-/// Bytes of one encoded point.
-const POINT_BYTES: usize = 4 * 4 + 1;
-/// Flag bit: the point is on an intensity edge.
-const EDGE: u8 = 1;
-/// Flag bit: the point's normal is known.
-const NORMAL: u8 = 2;
 
 impl Section for TrackerState {
     const NAME: &'static str = "icp.keyframes";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        e.u32(self.keyframes.len() as u32);
-        for k in &self.keyframes {
-            e.f64(k.pose.translation.x);
-            e.f64(k.pose.translation.y);
-            e.f64(heading(&k.pose));
-            let n = k.points.len().min(k.normals.len()).min(k.edges.len());
-            e.len(n);
-            for i in 0..n {
-                let (p, nv) = (&k.points[i], &k.normals[i]);
-                let known = nv.norm_squared() > 0.0;
-                e.f32(p.x);
-                e.f32(p.y);
-                e.f32(p.intensity);
-                e.f32(if known { nv.y.atan2(nv.x) } else { 0.0 });
-                e.u8((u8::from(k.edges[i]) * EDGE) | (u8::from(known) * NORMAL));
-            }
-        }
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let count = d.u32()? as usize;
+    fn restored(mut self) -> Result<Self, String> {
+        let count = self.keyframes.len();
         if count > MAX_KEYFRAMES {
-            return Err(d.error(format!(
+            return Err(format!(
                 "{count} keyframes, more than the {MAX_KEYFRAMES} allowed"
-            )));
+            ));
         }
-        let mut keyframes = Vec::with_capacity(count.min(d.remaining() / 32));
-        for _ in 0..count {
-            let x = d.finite("keyframe x")?;
-            let y = d.finite("keyframe y")?;
-            let theta = d.finite("keyframe heading")?;
-            let n = d.len(POINT_BYTES)?;
+        for (i, k) in self.keyframes.iter_mut().enumerate() {
+            k.pose = checked_pose(&format!("keyframe {i}"), &k.pose)?;
+            let n = k.points.len();
             if n > MAX_KEYFRAME_POINTS {
-                return Err(d.error(format!(
-                    "a keyframe of {n} points, more than the {MAX_KEYFRAME_POINTS} allowed"
-                )));
+                return Err(format!(
+                    "keyframe {i} has {n} points, more than the {MAX_KEYFRAME_POINTS} allowed"
+                ));
             }
-            let mut k = KeyframeState {
-                pose: pose(x, y, theta),
-                points: Vec::with_capacity(n),
-                normals: Vec::with_capacity(n),
-                edges: Vec::with_capacity(n),
-            };
-            for _ in 0..n {
-                let px = d.finite_f32("point x")?;
-                let py = d.finite_f32("point y")?;
-                let pi = d.finite_f32("point intensity")?;
-                let a = d.finite_f32("normal direction")?;
-                let flags = d.u8()?;
-                if flags & !(EDGE | NORMAL) != 0 {
-                    return Err(d.error(format!("point flags {flags:#04x} have unknown bits")));
-                }
-                k.points.push(IPoint::new(px, py, pi));
-                k.normals.push(if flags & NORMAL != 0 {
-                    Vector2::new(a.cos(), a.sin())
-                } else {
-                    Vector2::zeros()
-                });
-                k.edges.push(flags & EDGE != 0);
+            if k.normals.len() != n || k.edges.len() != n {
+                return Err(format!(
+                    "keyframe {i} has {n} points but {} normals and {} edge flags",
+                    k.normals.len(),
+                    k.edges.len()
+                ));
             }
-            keyframes.push(k);
+            for (p, nv) in k.points.iter().zip(&k.normals) {
+                finite(&format!("keyframe {i} point x"), p.x)?;
+                finite(&format!("keyframe {i} point y"), p.y)?;
+                finite(&format!("keyframe {i} point intensity"), p.intensity)?;
+                finite(&format!("keyframe {i} normal direction"), nv.x + nv.y)?;
+            }
         }
-        Ok(Self { keyframes })
+        Ok(self)
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Vector2;
+
     use super::*;
+    use crate::geom::{heading, pose, IPoint};
+    use crate::icp::KeyframeState;
+    use crate::pipeline::checkpoint::testing::{read, refusal};
     use crate::pipeline::checkpoint::Checkpoint;
 
     fn state() -> TrackerState {
@@ -156,43 +120,33 @@ mod tests {
 
     #[test]
     fn hostile_payloads_are_clear_errors() {
-        let mut e = Encoder::new();
-        state().encode(&mut e);
-        let bytes = e.into_bytes();
+        let bytes = crate::pipeline::checkpoint::testing::payload(&state());
         for cut in [0, 3, 4, 20, 40, 100, bytes.len() - 1] {
-            let r = TrackerState::decode(&mut Decoder::new(TrackerState::NAME, &bytes[..cut]));
-            assert!(r.is_err(), "cut at {cut}");
+            assert!(read::<TrackerState>(&bytes[..cut]).is_err(), "cut at {cut}");
         }
-        let err = |b: &[u8]| {
-            TrackerState::decode(&mut Decoder::new(TrackerState::NAME, b))
-                .unwrap_err()
-                .to_string()
+        let many = TrackerState {
+            keyframes: vec![KeyframeState::default(); MAX_KEYFRAMES + 1],
         };
-        let mut e = Encoder::new();
-        e.u32(65);
-        assert!(err(&e.into_bytes()).contains("keyframes, more than"));
-        let mut e = Encoder::new();
-        e.u32(1);
-        e.f64(0.0);
-        e.f64(0.0);
-        e.f64(0.0);
-        e.u64(u64::MAX);
-        assert!(err(&e.into_bytes()).contains("cannot fit"));
-        let mut e = Encoder::new();
-        e.u32(1);
-        e.f64(0.0);
-        e.f64(f64::NAN);
-        assert!(err(&e.into_bytes()).contains("keyframe y"));
-        let mut e = Encoder::new();
-        e.u32(1);
-        for _ in 0..3 {
-            e.f64(0.0);
-        }
-        e.u64(1);
-        for _ in 0..4 {
-            e.f32(0.0);
-        }
-        e.u8(4);
-        assert!(err(&e.into_bytes()).contains("unknown bits"));
+        assert!(refusal(&many).contains("keyframes, more than"));
+        let mut big = state();
+        let k = &mut big.keyframes[0];
+        k.points = vec![IPoint::new(1.0, 1.0, 0.5); MAX_KEYFRAME_POINTS + 1];
+        k.normals = vec![Vector2::zeros(); MAX_KEYFRAME_POINTS + 1];
+        k.edges = vec![false; MAX_KEYFRAME_POINTS + 1];
+        assert!(refusal(&big).contains("more than the 1440 allowed"));
+        let mut nan = state();
+        nan.keyframes[2].points[3].y = f64::NAN;
+        assert!(refusal(&nan).contains("keyframe 2 point y"));
+        let mut far = state();
+        far.keyframes[0].points[0].x = 1e300; // beyond f32: infinite when read
+        assert!(refusal(&far).contains("keyframe 0 point x"));
+        let mut uneven = state();
+        uneven.keyframes[0].edges.pop();
+        assert!(refusal(&uneven).contains("50 points but 50 normals and 49 edge flags"));
+        let mut turned = state();
+        turned.keyframes[1].pose.translation.x = f64::INFINITY;
+        assert!(refusal(&turned).contains("keyframe 1 x"));
+        // A keyframe count the bytes cannot back allocates nothing.
+        assert!(read::<TrackerState>(&[0xff, 0xff, 0xff, 0xff, 0x0f]).is_err());
     }
 }

@@ -2,37 +2,25 @@
 //! section `plan.lattice`, so that lanes planned after a restart line up
 //! with the lanes driven before it.
 //!
-//! Payload, version 1 (little-endian): for lanes along x, then along y: a
-//! flag (u8: 0 not fixed yet, 1 fixed), then the phase (f64, m; 0 when not
-//! fixed).
+//! Payload, version 1: [`LatticePhase`] in postcard: for lanes along x, then
+//! along y, an optional phase (f64, m; finite).
 
-use super::{CheckpointError, Decoder, Encoder, Section};
+use super::checks::finite;
+use super::Section;
 use crate::plan::LatticePhase;
 
 impl Section for LatticePhase {
     const NAME: &'static str = "plan.lattice";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        for v in [self.x, self.y] {
-            e.u8(u8::from(v.is_some()));
-            e.f64(v.unwrap_or(0.0));
+    fn restored(self) -> Result<Self, String> {
+        if let Some(v) = self.x {
+            finite("phase of lanes along x", v)?;
         }
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let mut axis = |what: &str| -> Result<Option<f64>, CheckpointError> {
-            let flag = d.u8()?;
-            let v = d.finite(what)?;
-            match flag {
-                0 => Ok(None),
-                1 => Ok(Some(v)),
-                f => Err(d.error(format!("{what}: flag {f}, expected 0 or 1"))),
-            }
-        };
-        let x = axis("phase of lanes along x")?;
-        let y = axis("phase of lanes along y")?;
-        Ok(Self { x, y })
+        if let Some(v) = self.y {
+            finite("phase of lanes along y", v)?;
+        }
+        Ok(self)
     }
 }
 
@@ -41,6 +29,7 @@ mod tests {
     use super::*;
     use crate::decomp::Decomposition;
     use crate::geom::pose;
+    use crate::pipeline::checkpoint::testing::{read, refusal, round_trips};
     use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::test_support::{planner, walled_room as room};
     use crate::plan::{CoveragePlanner, PlanParams, Task};
@@ -116,30 +105,16 @@ mod tests {
 
     #[test]
     fn bad_records_are_clear_errors() {
-        let good = LatticePhase {
-            x: Some(0.325),
+        round_trips(&LatticePhase {
+            x: Some(0.335),
             y: None,
+        });
+        let nan = LatticePhase {
+            x: None,
+            y: Some(f64::NAN),
         };
-        let mut e = Encoder::new();
-        good.encode(&mut e);
-        let bytes = e.into_bytes();
-        let mut d = Decoder::new(LatticePhase::NAME, &bytes);
-        assert_eq!(LatticePhase::decode(&mut d).unwrap(), good);
-        for cut in 0..bytes.len() {
-            let mut d = Decoder::new(LatticePhase::NAME, &bytes[..cut]);
-            assert!(LatticePhase::decode(&mut d).is_err(), "cut at {cut}");
-        }
-        let mut e = Encoder::new();
-        e.u8(2);
-        e.f64(0.1);
-        let bytes = e.into_bytes();
-        let err = LatticePhase::decode(&mut Decoder::new(LatticePhase::NAME, &bytes)).unwrap_err();
-        assert!(err.to_string().contains("flag 2"), "{err}");
-        let mut e = Encoder::new();
-        e.u8(1);
-        e.f64(f64::NAN);
-        let bytes = e.into_bytes();
-        let err = LatticePhase::decode(&mut Decoder::new(LatticePhase::NAME, &bytes)).unwrap_err();
-        assert!(err.to_string().contains("along x"), "{err}");
+        assert!(refusal(&nan).contains("phase of lanes along y is not a finite number"));
+        // An option tag that is neither 0 nor 1.
+        assert!(read::<LatticePhase>(&[2, 0]).is_err());
     }
 }

@@ -1,34 +1,43 @@
 //! Crash-safe checkpoints: a versioned, checksummed container of named,
 //! typed sections (pose, explored grid, run progress, the tracker's
-//! keyframes, the planner's swept floor: each implements [`Section`] here in
-//! the pipeline layer, over the algorithm modules' plain data), written atomically
-//! (tmp file + fsync + rename + fsync of the folder) so that after a crash or
-//! `kill -9` the daemon resumes from the last good checkpoint.
+//! keyframes, the planner's records: each a serde state type of its
+//! algorithm crate, made a [`Section`] here in the pipeline layer), written
+//! atomically (tmp file + fsync + rename + fsync of the folder) so that after
+//! a crash or `kill -9` the daemon resumes from the last good checkpoint.
 //!
 //! File layout (little-endian):
 //!
 //! ```text
 //! "SWPLCKPT"            8 bytes magic
-//! format version        u16   (this build: 1)
+//! format version        u16   (this build: 2)
 //! flags                 u16   (0)
 //! section count         u32   (<= 256)
 //! per section:
 //!   name length         u8    (1..=48), name: ASCII [a-z0-9_.-]
 //!   section version     u16
 //!   payload length      u64
-//!   payload             (the section's own encoding, see `codec`)
+//!   payload             the section's value in postcard 1.x (serde)
 //!   payload CRC-32      u32
 //! file CRC-32           u32   of every byte before it
 //! ```
 //!
+//! Payloads are [postcard](https://postcard.jamesmunns.com/wire-format):
+//! a documented, stable, compact serde format (varint integers, IEEE floats,
+//! length-prefixed sequences), readable from any language with its spec.
+//! Format version 1 (until 2026-12-02) had hand-written payloads; this build
+//! refuses it with a clear message rather than misread it.
+//!
 //! The reader checks the whole-file CRC first, then every length against the
 //! bytes actually present, so a truncated, corrupted or hostile file is a clear
-//! [`CheckpointError`], never a panic or a huge allocation. A corrupted
-//! checkpoint never replaces a good one: [`CheckpointStore::save`] verifies
-//! what it wrote before the rename and keeps the previous good file as
-//! `<name>.prev`, which [`CheckpointStore::load`] falls back to.
+//! [`CheckpointError`], never a panic or a huge allocation (serde allocates a
+//! sequence by what the payload holds, never by what its length prefix
+//! claims). Each section then checks what serde cannot (finite numbers,
+//! lengths that agree with a grid, limits) in [`Section::restored`]. A
+//! corrupted checkpoint never replaces a good one: [`CheckpointStore::save`]
+//! verifies what it wrote before the rename and keeps the previous good file
+//! as `<name>.prev`, which [`CheckpointStore::load`] falls back to.
 
-pub mod codec;
+mod checks;
 pub mod contacts;
 mod home;
 pub mod keyframes;
@@ -44,7 +53,10 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
-pub use codec::{crc32, Decoder, Encoder, GridHeader};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+use checks::Bytes;
 pub use contacts::{ContactArc, ContactArcs, TriedPlaces};
 pub use mount::MountRecord;
 pub use resume_log::{ProgressMark, ResumeEntry, ResumeLog, ResumeLogError, RESUME_FILE};
@@ -53,7 +65,10 @@ pub use sections::{RunFinished, RunProgress, WrittenAt};
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"SWPLCKPT";
 /// Container format version written and read by this build.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
+/// Largest section payload the reader decodes (bytes): a 8192 × 8192 grid
+/// and a full keyframe window fit many times over.
+pub const MAX_PAYLOAD: usize = 256 << 20;
 /// Most sections a checkpoint may hold.
 pub const MAX_SECTIONS: u32 = 256;
 /// Longest section name.
@@ -78,7 +93,7 @@ pub enum CheckpointError {
     #[error("not a sweepline checkpoint (bad magic bytes)")]
     BadMagic,
     /// Written by another format version.
-    #[error("checkpoint format version {0} is not supported (this build reads version {FORMAT_VERSION})")]
+    #[error("checkpoint format version {0} is not supported (this build reads version {FORMAT_VERSION}){hint}", hint = old_format_hint(*.0))]
     UnsupportedVersion(u16),
     /// The file ends before its structure does.
     #[error("checkpoint is truncated: {0}")]
@@ -125,18 +140,104 @@ pub enum CheckpointError {
     },
 }
 
-/// A typed section of a checkpoint. Implement it for each piece of state that
-/// must survive a restart; the encoding is the implementor's, through
-/// [`Encoder`] / [`Decoder`].
-pub trait Section: Sized {
+/// A typed section of a checkpoint: a serde state type with a name and a
+/// version. Its payload is the value in postcard.
+pub trait Section: Serialize + DeserializeOwned {
     /// Section name (ASCII lower-case, digits, `_ . -`; at most 48 bytes).
     const NAME: &'static str;
-    /// Version of this section's encoding; bump it when the layout changes.
+    /// Version of this section's layout; bump it when the type's fields
+    /// change.
     const VERSION: u16;
-    /// Writes the payload.
-    fn encode(&self, e: &mut Encoder);
-    /// Reads a payload written by `encode` (of `VERSION`), validating every value.
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError>;
+    /// The value as read back: checks what serde cannot (finite numbers,
+    /// lengths that agree with a grid, limits) and rebuilds what is not
+    /// stored. The error says which value is bad.
+    fn restored(self) -> Result<Self, String> {
+        Ok(self)
+    }
+}
+
+/// CRC-32 (IEEE 802.3, the zlib/PNG/gzip checksum) of `bytes`, as the
+/// container stores it. `crc32(b"123456789") == 0xCBF43926`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    crc32fast::hash(bytes)
+}
+
+/// What to say beside an unsupported format version.
+fn old_format_hint(version: u16) -> &'static str {
+    if version < FORMAT_VERSION {
+        "; it was written by a sweepline from before 2026-12-02: finish that \
+         run with the build that wrote it, or start a new run with `--fresh`"
+    } else {
+        "; it was written by a newer sweepline"
+    }
+}
+
+/// Encodes `value` as its section payload.
+fn encode<S: Section>(value: &S) -> Result<Vec<u8>, CheckpointError> {
+    postcard::to_allocvec(value).map_err(|e| CheckpointError::BadSection {
+        name: S::NAME.to_string(),
+        message: format!("cannot be encoded: {e}"),
+    })
+}
+
+/// Decodes and checks a payload of section `S`: all of it, no more.
+fn decode<S: Section>(payload: &[u8]) -> Result<S, CheckpointError> {
+    let bad = |message: String| CheckpointError::BadSection {
+        name: S::NAME.to_string(),
+        message,
+    };
+    if payload.len() > MAX_PAYLOAD {
+        return Err(bad(format!(
+            "{} bytes, more than the {MAX_PAYLOAD} accepted",
+            payload.len()
+        )));
+    }
+    let (value, rest) = postcard::take_from_bytes::<S>(payload).map_err(|e| bad(e.to_string()))?;
+    if !rest.is_empty() {
+        return Err(bad(format!(
+            "{} trailing bytes after the value",
+            rest.len()
+        )));
+    }
+    value.restored().map_err(bad)
+}
+
+/// Payload-level helpers for the sections' own tests.
+#[cfg(test)]
+pub(crate) mod testing {
+    use super::{decode, CheckpointError, Section};
+
+    /// The payload of `value` as written, without the checks `put` makes
+    /// (so a test can write a value the reader must refuse).
+    pub(crate) fn payload<S: Section>(value: &S) -> Vec<u8> {
+        postcard::to_allocvec(value).expect("encodes")
+    }
+
+    /// Reads a payload as [`super::Checkpoint::get`] does.
+    pub(crate) fn read<S: Section>(bytes: &[u8]) -> Result<S, CheckpointError> {
+        decode(bytes)
+    }
+
+    /// The reader's message for `value`, which it must refuse.
+    pub(crate) fn refusal<S: Section + std::fmt::Debug>(value: &S) -> String {
+        read::<S>(&payload(value))
+            .expect_err("the reader must refuse it")
+            .to_string()
+    }
+
+    /// `value` reads back equal, and every shorter prefix of its payload
+    /// and its payload with a byte more are refused.
+    pub(crate) fn round_trips<S: Section + PartialEq + std::fmt::Debug>(value: &S) {
+        let bytes = payload(value);
+        assert_eq!(&read::<S>(&bytes).expect("reads back"), value);
+        for cut in 0..bytes.len() {
+            assert!(read::<S>(&bytes[..cut]).is_err(), "cut at {cut} accepted");
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        let e = read::<S>(&longer).expect_err("a trailing byte").to_string();
+        assert!(e.contains("trailing"), "{e}");
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -176,12 +277,8 @@ impl Checkpoint {
                 S::NAME
             )));
         }
-        let mut e = Encoder::new();
-        value.encode(&mut e);
-        let payload = e.into_bytes();
-        let mut d = Decoder::new(S::NAME, &payload);
-        S::decode(&mut d)?;
-        d.finish()?;
+        let payload = encode(value)?;
+        decode::<S>(&payload)?;
         let raw = RawSection {
             name: S::NAME.to_string(),
             version: S::VERSION,
@@ -213,10 +310,7 @@ impl Checkpoint {
                 supported: S::VERSION,
             });
         }
-        let mut d = Decoder::new(S::NAME, &raw.payload);
-        let v = S::decode(&mut d)?;
-        d.finish()?;
-        Ok(Some(v))
+        decode::<S>(&raw.payload).map(Some)
     }
 
     /// Section `S`, which must be present.
@@ -301,19 +395,19 @@ impl Checkpoint {
                 "{count} sections, more than the {MAX_SECTIONS} allowed"
             )));
         }
-        let mut r = Decoder::new("(container)", &body[HEADER..]);
+        let mut r = Bytes::new(&body[HEADER..]);
         let trunc = |what: &str, i: u32| {
             CheckpointError::Truncated(format!("ends inside the {what} of section #{i}"))
         };
         let mut sections: Vec<RawSection> = Vec::with_capacity(count as usize);
         for i in 0..count {
-            let n = r.u8().map_err(|_| trunc("name length", i))? as usize;
+            let n = r.u8().ok_or_else(|| trunc("name length", i))? as usize;
             if n == 0 || n > MAX_NAME || n > r.remaining() {
                 return Err(CheckpointError::Malformed(format!(
                     "section #{i} has a name length of {n}"
                 )));
             }
-            let raw_name = r.raw(n)?;
+            let raw_name = r.raw(n).ok_or_else(|| trunc("name", i))?;
             let name = match std::str::from_utf8(raw_name) {
                 Ok(s) if valid_name(s) => s.to_string(),
                 _ => {
@@ -328,8 +422,8 @@ impl Checkpoint {
                     "section `{name}` appears twice"
                 )));
             }
-            let sv = r.u16().map_err(|_| trunc("version", i))?;
-            let len = r.u64().map_err(|_| trunc("length", i))?;
+            let sv = r.u16().ok_or_else(|| trunc("version", i))?;
+            let len = r.u64().ok_or_else(|| trunc("length", i))?;
             let len = usize::try_from(len)
                 .ok()
                 .filter(|&l| l.checked_add(4).is_some_and(|t| t <= r.remaining()))
@@ -339,8 +433,8 @@ impl Checkpoint {
                         r.remaining()
                     ))
                 })?;
-            let payload = r.raw(len)?.to_vec();
-            let crc = r.u32()?;
+            let payload = r.raw(len).ok_or_else(|| trunc("payload", i))?.to_vec();
+            let crc = r.u32().ok_or_else(|| trunc("checksum", i))?;
             if crc32(&payload) != crc {
                 return Err(CheckpointError::Corrupted(format!(
                     "section `{name}` checksum mismatch"

@@ -3,15 +3,18 @@
 //! resumed after a crash drives with it at once instead of with the
 //! configured one until its own checks refit it again.
 //!
-//! Payload, version 1 (little-endian): the mount configured when it was
-//! refitted, then the refitted mount; each as x, y (m, robot frame) and
-//! yaw (rad), f64.
+//! Payload, version 1: [`MountRecord`] in postcard: the mount configured
+//! when it was refitted, then the refitted mount; each a pose in
+//! nalgebra's form (x, y in m, robot frame; unit complex rotation), f64.
 
-use super::{CheckpointError, Decoder, Encoder, Section};
-use crate::geom::{heading, pose, Pose};
+use serde::{Deserialize, Serialize};
+
+use super::checks::checked_pose;
+use super::Section;
+use crate::geom::Pose;
 
 /// A refitted scanner mount and the configured one it replaced.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MountRecord {
     /// The mount `[robot]` configured when the checks refitted it.
     pub configured: Pose,
@@ -26,31 +29,20 @@ impl Section for MountRecord {
     const NAME: &'static str = "robot.mount";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        for m in [self.configured, self.refitted] {
-            e.f64(m.translation.x);
-            e.f64(m.translation.y);
-            e.f64(heading(&m));
-        }
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let mut mount = |what: &str| -> Result<Pose, CheckpointError> {
-            let x = d.finite(what)?;
-            let y = d.finite(what)?;
-            let yaw = d.finite(what)?;
+    fn restored(self) -> Result<Self, String> {
+        let mount = |what: &str, m: &Pose| -> Result<Pose, String> {
+            let m = checked_pose(what, m)?;
+            let (x, y) = (m.translation.x, m.translation.y);
             if x.abs() > MAX_OFFSET || y.abs() > MAX_OFFSET {
-                return Err(d.error(format!(
+                return Err(format!(
                     "{what}: offset ({x}, {y}) m is beyond {MAX_OFFSET} m"
-                )));
+                ));
             }
-            Ok(pose(x, y, yaw))
+            Ok(m)
         };
-        let configured = mount("configured mount")?;
-        let refitted = mount("refitted mount")?;
         Ok(Self {
-            configured,
-            refitted,
+            configured: mount("configured mount", &self.configured)?,
+            refitted: mount("refitted mount", &self.refitted)?,
         })
     }
 }
@@ -58,6 +50,7 @@ impl Section for MountRecord {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::{heading, pose};
     use crate::pipeline::checkpoint::Checkpoint;
 
     #[test]

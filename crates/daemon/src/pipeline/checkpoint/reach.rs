@@ -4,13 +4,12 @@
 //! only for floor once within reach), and does not get its waits and rounds
 //! of given-up floor afresh.
 //!
-//! Payload, version 1 (little-endian): the grid geometry (as
-//! [`super::GridHeader`]), a byte string (u64 length) of one bit per cell,
-//! row-major, least significant bit first (once within reach), then the
-//! waits (u32) and the further rounds (u32) so far.
+//! Payload, version 1: [`PlanReach`] in postcard: the grid geometry, one bit
+//! per cell (once within reach), then the waits and the further rounds so
+//! far.
 
-use super::swept::{put_flags, take_flags, MAX_CELLS};
-use super::{CheckpointError, Decoder, Encoder, Section};
+use super::checks::check_frame;
+use super::Section;
 use crate::plan::PlanReach;
 
 /// Most waits or further rounds a record may hold: far above the planner's
@@ -21,29 +20,20 @@ impl Section for PlanReach {
     const NAME: &'static str = "plan.reach";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        e.grid_header(&self.frame.into());
-        put_flags(e, &self.ever_reachable);
-        e.u32(self.clear_waits);
-        e.u32(self.extra_retries);
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let g = d.grid_header(MAX_CELLS)?;
-        let ever_reachable = take_flags(d, &g, "once-within-reach")?;
-        let clear_waits = d.u32()?;
-        let extra_retries = d.u32()?;
-        for (what, v) in [("waits", clear_waits), ("further rounds", extra_retries)] {
+    fn restored(self) -> Result<Self, String> {
+        check_frame(
+            &self.frame,
+            Some(("once-within-reach", self.ever_reachable.len())),
+        )?;
+        for (what, v) in [
+            ("waits", self.clear_waits),
+            ("further rounds", self.extra_retries),
+        ] {
             if v > MAX_COUNT {
-                return Err(d.error(format!("{v} {what}: more than {MAX_COUNT}")));
+                return Err(format!("{v} {what}: more than {MAX_COUNT}"));
             }
         }
-        Ok(Self {
-            frame: (&g).into(),
-            ever_reachable,
-            clear_waits,
-            extra_retries,
-        })
+        Ok(self)
     }
 }
 
@@ -55,6 +45,7 @@ mod tests {
     use crate::decomp::Decomposition;
     use crate::geom::pose;
     use crate::grid::CellState;
+    use crate::pipeline::checkpoint::testing::{refusal, round_trips};
     use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::cspace::Frame;
     use crate::plan::test_support::{planner, walled_room as room};
@@ -151,35 +142,16 @@ mod tests {
             clear_waits: 2,
             extra_retries: 1,
         };
-        let mut e = Encoder::new();
-        good.encode(&mut e);
-        let bytes = e.into_bytes();
-        let mut d = Decoder::new(PlanReach::NAME, &bytes);
-        assert_eq!(PlanReach::decode(&mut d).unwrap(), good);
-        for cut in [0, 10, 30, bytes.len() - 1] {
-            let mut d = Decoder::new(PlanReach::NAME, &bytes[..cut]);
-            assert!(PlanReach::decode(&mut d).is_err(), "cut at {cut}");
-        }
-        let wrong = |flags: usize, waits: u32| {
-            let mut e = Encoder::new();
-            e.grid_header(&frame.into());
-            e.bytes(&vec![0xff; flags]);
-            e.u32(waits);
-            e.u32(0);
-            let bytes = e.into_bytes();
-            PlanReach::decode(&mut Decoder::new(PlanReach::NAME, &bytes))
-                .unwrap_err()
-                .to_string()
+        round_trips(&good);
+        let short = PlanReach {
+            ever_reachable: vec![true; 26],
+            ..good.clone()
         };
-        assert!(
-            wrong(3, 0).contains("once-within-reach flags"),
-            "{}",
-            wrong(3, 0)
-        );
-        assert!(
-            wrong(4, u32::MAX).contains("waits"),
-            "{}",
-            wrong(4, u32::MAX)
-        );
+        assert!(refusal(&short).contains("26 once-within-reach flags"));
+        let waits = PlanReach {
+            clear_waits: u32::MAX,
+            ..good
+        };
+        assert!(refusal(&waits).contains("waits"));
     }
 }

@@ -2,76 +2,33 @@
 //! `plan.tries`: a resumed run does not give floor it already failed to
 //! reach all its tries again, nor a second round it already had.
 //!
-//! Payload, version 1 (little-endian): the grid geometry (as
-//! [`super::GridHeader`]), a u64 count of listed cells, then per cell its
-//! row-major index (u32, strictly increasing, inside the grid), its tries
-//! (u8) and its flags (u8: bit 0 abandoned as a cover target, bit 1 given up
-//! as an exploration goal, no other bit), then whether given-up floor has
-//! had its second round (bool).
+//! Payload, version 1: [`PlanTries`] in postcard: the grid geometry, the
+//! listed cells (row-major index, strictly increasing and inside the grid;
+//! tries; abandoned as a cover target; given up as an exploration goal),
+//! then whether given-up floor has had its second round.
 
-use super::swept::MAX_CELLS;
-use super::{CheckpointError, Decoder, Encoder, Section};
-use crate::plan::{PlanTries, TriedCell};
-
-/// Flag bits of a listed cell.
-const ABANDONED: u8 = 1;
-const GIVEN_UP: u8 = 2;
+use super::checks::check_frame;
+use super::Section;
+use crate::plan::PlanTries;
 
 impl Section for PlanTries {
     const NAME: &'static str = "plan.tries";
     const VERSION: u16 = 1;
 
-    fn encode(&self, e: &mut Encoder) {
-        e.grid_header(&self.frame.into());
-        e.len(self.cells.len());
+    fn restored(self) -> Result<Self, String> {
+        let n = check_frame(&self.frame, None)?;
+        let (w, h) = (self.frame.w, self.frame.h);
+        let mut last = None;
         for c in &self.cells {
-            e.u32(c.index);
-            e.u8(c.tries);
-            let mut flags = 0;
-            if c.abandoned {
-                flags |= ABANDONED;
+            if c.index as usize >= n {
+                return Err(format!("cell {} outside the {w} x {h} grid", c.index));
             }
-            if c.given_up {
-                flags |= GIVEN_UP;
+            if last.is_some_and(|l| l >= c.index) {
+                return Err(format!("cell {} listed out of order", c.index));
             }
-            e.u8(flags);
+            last = Some(c.index);
         }
-        e.bool(self.retried);
-    }
-
-    fn decode(d: &mut Decoder<'_>) -> Result<Self, CheckpointError> {
-        let g = d.grid_header(MAX_CELLS)?;
-        let n = d.len(6)?;
-        let mut cells = Vec::with_capacity(n);
-        for _ in 0..n {
-            let index = d.u32()?;
-            let tries = d.u8()?;
-            let flags = d.u8()?;
-            if index as usize >= g.cells() {
-                return Err(d.error(format!(
-                    "cell {index} outside the {} x {} grid",
-                    g.width, g.height
-                )));
-            }
-            if cells.last().is_some_and(|c: &TriedCell| c.index >= index) {
-                return Err(d.error(format!("cell {index} listed out of order")));
-            }
-            if flags & !(ABANDONED | GIVEN_UP) != 0 {
-                return Err(d.error(format!("cell {index} has unknown flags {flags:#04x}")));
-            }
-            cells.push(TriedCell {
-                index,
-                tries,
-                abandoned: flags & ABANDONED != 0,
-                given_up: flags & GIVEN_UP != 0,
-            });
-        }
-        let retried = d.bool()?;
-        Ok(Self {
-            frame: (&g).into(),
-            cells,
-            retried,
-        })
+        Ok(self)
     }
 }
 
@@ -82,10 +39,11 @@ mod tests {
     use super::*;
     use crate::decomp::Decomposition;
     use crate::geom::pose;
+    use crate::pipeline::checkpoint::testing::{payload, read, refusal, round_trips};
     use crate::pipeline::checkpoint::Checkpoint;
     use crate::plan::cspace::Frame;
     use crate::plan::test_support::{planner, walled_room as room};
-    use crate::plan::{PlanParams, PlanStatus, Task};
+    use crate::plan::{PlanParams, PlanStatus, Task, TriedCell};
 
     /// Every cell of `frame` abandoned after `tries` tries.
     fn all_given_up(frame: Frame, retried: bool) -> PlanTries {
@@ -189,49 +147,36 @@ mod tests {
             w: 4,
             h: 3,
         };
+        let cell = |index, tries| TriedCell {
+            index,
+            tries,
+            abandoned: tries > 1,
+            given_up: tries == 1,
+        };
         let good = PlanTries {
             frame,
-            cells: vec![
-                TriedCell {
-                    index: 2,
-                    tries: 1,
-                    abandoned: false,
-                    given_up: true,
-                },
-                TriedCell {
-                    index: 11,
-                    tries: 2,
-                    abandoned: true,
-                    given_up: false,
-                },
-            ],
+            cells: vec![cell(3, 1), cell(11, 2)],
             retried: false,
         };
-        let mut e = Encoder::new();
-        good.encode(&mut e);
-        let bytes = e.into_bytes();
-        assert_eq!(
-            PlanTries::decode(&mut Decoder::new(PlanTries::NAME, &bytes)).unwrap(),
-            good
-        );
-        for cut in [0, 20, 36, 44, bytes.len() - 1] {
-            let mut d = Decoder::new(PlanTries::NAME, &bytes[..cut]);
-            assert!(PlanTries::decode(&mut d).is_err(), "cut at {cut}");
-        }
-        // Header (32 bytes) and count (8): the cells (6 bytes each) start at byte 40.
-        let bad = |at: usize, v: u8, what: &str| {
-            let mut b = bytes.clone();
-            b[at] = v;
-            let err = PlanTries::decode(&mut Decoder::new(PlanTries::NAME, &b)).unwrap_err();
-            assert!(err.to_string().contains(what), "{err}");
+        round_trips(&good);
+        let outside = PlanTries {
+            cells: vec![cell(3, 1), cell(12, 2)],
+            ..good.clone()
         };
-        bad(40 + 6, 12, "outside");
-        bad(40 + 6, 2, "out of order");
-        bad(40 + 5, 0x84, "flags");
+        assert!(refusal(&outside).contains("cell 12 outside the 4 x 3 grid"));
+        let unordered = PlanTries {
+            cells: vec![cell(3, 1), cell(2, 2)],
+            ..good
+        };
+        assert!(refusal(&unordered).contains("out of order"));
         // A count the bytes left cannot hold allocates nothing.
-        let mut huge = bytes.clone();
-        huge[32..40].copy_from_slice(&u64::MAX.to_le_bytes());
-        let err = PlanTries::decode(&mut Decoder::new(PlanTries::NAME, &huge)).unwrap_err();
-        assert!(err.to_string().contains("cannot fit"), "{err}");
+        let mut huge = payload(&PlanTries {
+            cells: vec![],
+            ..unordered
+        });
+        let at = huge.len() - 2;
+        huge.truncate(at);
+        huge.extend_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x0f, 0]);
+        assert!(read::<PlanTries>(&huge).is_err());
     }
 }
