@@ -66,7 +66,7 @@ pub struct OdomRecord {
     /// Translational velocity (m/s).
     pub tv: f64,
     /// Rotational velocity (rad/s).
-    pub rv: f64,
+    pub(crate) rv: f64,
 }
 
 /// A message of interest in a CARMEN log.
@@ -183,7 +183,7 @@ pub fn read<R: BufRead>(reader: R) -> Result<CarmenLog, CarmenError> {
 
 /// Parses one line. `Ok(None)` for lines that are skipped on purpose (blank,
 /// `#` comments, `PARAM`, `NEFF` and other well-formed message names).
-pub fn parse_line(line: &str, line_no: usize) -> Result<Option<Record>, CarmenError> {
+pub(crate) fn parse_line(line: &str, line_no: usize) -> Result<Option<Record>, CarmenError> {
     let line = line.trim_end_matches(['\r', '\n']);
     let trimmed = line.trim_start();
     if trimmed.is_empty() || trimmed.starts_with('#') {

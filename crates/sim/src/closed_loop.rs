@@ -38,7 +38,7 @@ pub const SAMPLE_PERIOD: f64 = 0.05;
 /// Shortest dead-man time in wall seconds under time scaling.
 pub const DEADMAN_WALL: f64 = 0.05;
 /// Longest range the emulated URG-04LX reports (m).
-pub const URG_RANGE: f64 = 5.6;
+pub(crate) const URG_RANGE: f64 = 5.6;
 
 /// Why a simulation could not run.
 #[derive(Debug, thiserror::Error)]
@@ -152,7 +152,7 @@ pub struct SimOptions {
 impl SimOptions {
     /// The emulated scanner's true mount and whether it is upside down:
     /// [`SimOptions::scanner_truth`], or as configured.
-    pub fn true_mount(&self) -> (Pose, bool) {
+    pub(crate) fn true_mount(&self) -> (Pose, bool) {
         let r = &self.config.robot;
         self.scanner_truth
             .unwrap_or((r.scanner_mount(), r.scanner_upside_down))
@@ -160,7 +160,7 @@ impl SimOptions {
 
     /// The emulated base's true wheel base (m):
     /// [`SimOptions::wheel_base_truth`], or as configured.
-    pub fn true_wheel_base(&self) -> f64 {
+    pub(crate) fn true_wheel_base(&self) -> f64 {
         self.wheel_base_truth
             .unwrap_or(self.config.robot.wheel_base)
     }
@@ -230,11 +230,11 @@ pub struct SimReport {
     /// RMS position error of the control stage's live estimate (last fix
     /// composed with odometry) sampled every 50 ms against the truth at the
     /// same instant (m); includes up to one control period of lag.
-    pub live_position_rmse: f64,
+    pub(crate) live_position_rmse: f64,
     /// RMS heading error of the live estimate (rad).
-    pub live_heading_rmse: f64,
+    pub(crate) live_heading_rmse: f64,
     /// Largest position error of the live estimate (m).
-    pub live_position_max: f64,
+    pub(crate) live_position_max: f64,
     /// True when the daemon finished coverage by itself.
     pub finished: bool,
     /// True when the simulation time cap stopped the run.
@@ -293,7 +293,7 @@ type TruthLog = Arc<std::sync::Mutex<Vec<(f64, Pose)>>>;
 /// Localised poses `fixes` paired with the truth log `truth` (both sorted
 /// by time): each fix with the truth sample nearest to its time shifted by
 /// `offset`, within `tolerance`, as (fix time, fix, truth).
-pub fn fix_pairs(
+pub(crate) fn fix_pairs(
     fixes: &[(f64, Pose)],
     truth: &[(f64, Pose)],
     offset: f64,
@@ -333,7 +333,7 @@ pub struct FixPair {
 
 impl FixPair {
     /// Position error (m).
-    pub fn position_error(&self) -> f64 {
+    pub(crate) fn position_error(&self) -> f64 {
         pose_error(&self.fix, &self.truth).0
     }
 
@@ -345,7 +345,7 @@ impl FixPair {
 
 /// Pose error of the `pairs` of [`fix_pairs`]: (position RMSE, heading
 /// RMSE, max position error, pairs).
-pub fn fix_errors(pairs: &[FixPair]) -> (f64, f64, f64, usize) {
+pub(crate) fn fix_errors(pairs: &[FixPair]) -> (f64, f64, f64, usize) {
     let (mut sp, mut sh, mut mx) = (0.0, 0.0, 0.0f64);
     for pr in pairs {
         let (e, eh) = (pr.position_error(), pr.heading_error());
@@ -358,13 +358,13 @@ pub fn fix_errors(pairs: &[FixPair]) -> (f64, f64, f64, usize) {
 }
 
 /// Largest shift [`best_stamp_shift`] tries (s).
-pub const MAX_STAMP_SHIFT: f64 = 0.1;
+pub(crate) const MAX_STAMP_SHIFT: f64 = 0.1;
 /// Step of the shifts [`best_stamp_shift`] tries (s).
-pub const STAMP_SHIFT_STEP: f64 = 0.002;
+pub(crate) const STAMP_SHIFT_STEP: f64 = 0.002;
 
 /// The true pose at time `t` from the sorted log `truth`, interpolated
 /// between the two samples around it when they are at most `gap` apart.
-pub fn truth_at(truth: &[(f64, Pose)], t: f64, gap: f64) -> Option<Pose> {
+pub(crate) fn truth_at(truth: &[(f64, Pose)], t: f64, gap: f64) -> Option<Pose> {
     let i = truth.partition_point(|(tt, _)| *tt < t);
     let (t1, b) = truth.get(i)?;
     if (t1 - t).abs() < 1e-9 {
@@ -383,7 +383,7 @@ pub fn truth_at(truth: &[(f64, Pose)], t: f64, gap: f64) -> Option<Pose> {
 /// shifts within half a scan period apart), and the score is the mean of
 /// the squared position error plus the squared heading error times 0.1 m.
 /// Zero when the stamps are the times the scans were taken.
-pub fn best_stamp_shift(fixes: &[(f64, Pose)], truth: &[(f64, Pose)]) -> f64 {
+pub(crate) fn best_stamp_shift(fixes: &[(f64, Pose)], truth: &[(f64, Pose)]) -> f64 {
     let n = (MAX_STAMP_SHIFT / STAMP_SHIFT_STEP).round() as i32;
     let score = |o: f64| {
         let (mut s, mut k) = (0.0, 0usize);
@@ -503,7 +503,7 @@ impl Scene for WorldScene {
 }
 
 /// The map frame the daemon gets for `world`: its bounding box plus a margin.
-pub fn map_frame(world: &World) -> MapFrame {
+pub(crate) fn map_frame(world: &World) -> MapFrame {
     let g = crate::lockstep::grid_for(world, 0.05, 0.5, 0.0);
     MapFrame {
         origin: g.origin(),
@@ -531,7 +531,7 @@ fn to_world(opts: &SimOptions, turn: Option<f64>) -> Pose {
 
 /// A map frame for a daemon whose frame may lie at any angle to the world:
 /// a square around the start reaching the world's farthest corner.
-pub fn map_frame_around_start(world: &World) -> MapFrame {
+pub(crate) fn map_frame_around_start(world: &World) -> MapFrame {
     let g = map_frame(world);
     let s = world.start.translation;
     let (w, h) = (
@@ -914,11 +914,6 @@ fn drive(
         })?;
     }
     Ok(report)
-}
-
-/// Where `sweepline sim` writes by default.
-pub fn default_out() -> &'static Path {
-    Path::new("out/sim")
 }
 
 #[cfg(test)]

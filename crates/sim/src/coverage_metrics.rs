@@ -81,7 +81,7 @@ pub struct CoverageMetrics {
     /// Reachable area (m²).
     pub reachable_area: f64,
     /// Footprint-reachable area (m²).
-    pub footprint_reachable_area: f64,
+    pub(crate) footprint_reachable_area: f64,
     /// Swept share of the cells reachable with the clearance (0..1; equal
     /// to `coverage` without a clearance).
     pub clear_coverage: f64,
@@ -157,7 +157,7 @@ pub struct CoverageTracker {
 
 /// Cells whose centre lies at least `radius` from every non-free cell (the
 /// obstacle taken as its full square) and inside the raster.
-pub fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
+pub(crate) fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
     let (w, h, r) = (raster.width, raster.height, raster.resolution);
     let mut ok = raster.free.clone();
     let n = (radius / r).ceil() as i64 + 1;
@@ -198,7 +198,7 @@ pub fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
 }
 
 /// Cells of `mask` 8-connected to `start` (empty when `start` is not in `mask`).
-pub fn connected_from(mask: &[bool], w: usize, h: usize, start: (usize, usize)) -> Vec<bool> {
+pub(crate) fn connected_from(mask: &[bool], w: usize, h: usize, start: (usize, usize)) -> Vec<bool> {
     let mut out = vec![false; w * h];
     let s = start.1 * w + start.0;
     if start.0 >= w || start.1 >= h || !mask[s] {
@@ -303,18 +303,11 @@ impl CoverageTracker {
     /// Also reports coverage of the floor the robot centre reaches keeping
     /// `clearance` (m) more than its radius from every obstacle (the
     /// planner's `plan.safety_margin`), beside the strict figure.
-    pub fn with_clearance(mut self, clearance: f64) -> Self {
+    pub(crate) fn with_clearance(mut self, clearance: f64) -> Self {
         let (w, h) = (self.raster.width, self.raster.height);
         let ok = centre_free(&self.raster, self.robot_radius + clearance.max(0.0));
         self.clear = connected_from(&ok, w, h, self.start_cell);
         self
-    }
-
-    /// Whether the ground-truth cell under `p` is reachable by the robot centre.
-    pub fn is_reachable(&self, p: &Point2<f64>) -> bool {
-        self.raster
-            .cell_of(p)
-            .is_some_and(|(x, y)| self.reachable[y * self.raster.width + x])
     }
 
     /// The ground truth raster the metrics are computed on.
@@ -351,7 +344,7 @@ impl CoverageTracker {
     /// the start with coverage done: what it drives is counted apart
     /// (`home_length`, `home_time`), it sweeps nothing, and only its
     /// collisions still count.
-    pub fn record_doing(&mut self, pose: &Pose, time: f64, motion: Motion, task: u32) {
+    pub(crate) fn record_doing(&mut self, pose: &Pose, time: f64, motion: Motion, task: u32) {
         let p: Point2<f64> = pose.translation.vector.into();
         if motion == Motion::Home && self.home_since.is_none() {
             self.home_since = Some(self.time);
@@ -536,7 +529,7 @@ impl CoverageTracker {
 
     /// Records whether the robot disk at `p` touches a person walking
     /// through the room at `time` (s); each new touch is a contact, logged.
-    pub fn record_contact(&mut self, touching: bool, p: &Point2<f64>, time: f64) {
+    pub(crate) fn record_contact(&mut self, touching: bool, p: &Point2<f64>, time: f64) {
         if begins(
             &mut self.touching_person,
             touching,

@@ -24,9 +24,9 @@ use crate::world::{FreeRaster, World};
 /// Metres per pixel of the benchmark floor plans.
 pub const PIXEL_SIZE: f64 = 0.05;
 /// Grey value above which a pixel is free floor (the IPA convention).
-pub const FREE_ABOVE: u8 = 250;
+pub(crate) const FREE_ABOVE: u8 = 250;
 /// Reflectivity given to every wall of a floor-plan world.
-pub const WALL_REFLECTIVITY: f64 = 0.5;
+pub(crate) const WALL_REFLECTIVITY: f64 = 0.5;
 
 /// Why a floor plan or room could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -106,7 +106,7 @@ impl GreyImage {
 
 /// Reads a PNG of any colour type and bit depth as 8-bit grey (luminance;
 /// alpha ignored).
-pub fn load_grey(path: &Path) -> Result<GreyImage, FloorPlanError> {
+pub(crate) fn load_grey(path: &Path) -> Result<GreyImage, FloorPlanError> {
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|source| FloorPlanError::Io {
         path: name.clone(),
@@ -117,7 +117,7 @@ pub fn load_grey(path: &Path) -> Result<GreyImage, FloorPlanError> {
 
 /// Decodes PNG bytes as 8-bit grey (see [`load_grey`]); `name` names the
 /// file in errors.
-pub fn decode_grey(bytes: &[u8], name: &str) -> Result<GreyImage, FloorPlanError> {
+pub(crate) fn decode_grey(bytes: &[u8], name: &str) -> Result<GreyImage, FloorPlanError> {
     let name = name.to_string();
     let decode = |e: png::DecodingError| FloorPlanError::Decode {
         path: name.clone(),
@@ -188,7 +188,7 @@ pub struct Room {
     /// Row-major (image rows, top first) free pixels of the room.
     pub free: Vec<bool>,
     /// Height of the whole image (px), to flip rows into world y.
-    pub image_height: usize,
+    pub(crate) image_height: usize,
     /// Whether the floor is the furnished plan's or the bare plan's.
     pub furnishing: Furnishing,
 }
@@ -249,7 +249,7 @@ impl Room {
 
 /// The free cell of `raster` farthest (Euclidean, brute force over obstacle
 /// boundary cells) from any non-free cell; ties go to the first in row order.
-pub fn farthest_from_obstacles(raster: &FreeRaster) -> Point2<f64> {
+pub(crate) fn farthest_from_obstacles(raster: &FreeRaster) -> Point2<f64> {
     let (w, h) = (raster.width, raster.height);
     let free = |x: i64, y: i64| raster.free_at(x, y);
     let mut boundary = Vec::new();
@@ -310,7 +310,7 @@ pub fn map_files(dir: &Path, map: &str) -> (PathBuf, PathBuf) {
 
 /// The base name of a floor plan given as the user may write it: `office_f`,
 /// or one of its files (`office_f_furnitures`, `office_f.png`, ...).
-pub fn map_base(name: &str) -> &str {
+pub(crate) fn map_base(name: &str) -> &str {
     let name = name.trim();
     let name = name.strip_suffix(".png").unwrap_or(name);
     ["_furnitures", "_gt_segmentation"]
@@ -321,7 +321,7 @@ pub fn map_base(name: &str) -> &str {
 
 /// The base names of the floor plans in `dir` (those with a furnished plan),
 /// sorted.
-pub fn plan_names(dir: &Path) -> Vec<String> {
+pub(crate) fn plan_names(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
@@ -389,7 +389,7 @@ pub fn rooms_as(
 /// Cuts rooms from already loaded images (see [`rooms`]): numbered by the
 /// furnished plan `furn`, their floor taken from `floor` where given (the
 /// plan without furniture), else from `furn`.
-pub fn cut_rooms(
+pub(crate) fn cut_rooms(
     map: &str,
     furn: &GreyImage,
     seg: &GreyImage,
@@ -469,7 +469,7 @@ pub fn cut_rooms(
 }
 
 /// Parses a room spec `MAP:N` into (map, index).
-pub fn parse_spec(spec: &str) -> Result<(String, usize), FloorPlanError> {
+pub(crate) fn parse_spec(spec: &str) -> Result<(String, usize), FloorPlanError> {
     let (m, n) = spec
         .rsplit_once(':')
         .ok_or_else(|| FloorPlanError::BadSpec(spec.to_string()))?;

@@ -102,13 +102,8 @@ impl DiffDriveSim {
         self.pose
     }
 
-    /// Moves the robot to `pose` without motion (test setup).
-    pub fn teleport(&mut self, pose: Pose) {
-        self.pose = pose;
-    }
-
     /// Current wheel surface speeds (m/s).
-    pub fn wheel_speeds(&self) -> WheelSpeeds {
+    pub(crate) fn wheel_speeds(&self) -> WheelSpeeds {
         self.wheel
     }
 
@@ -134,7 +129,7 @@ impl DiffDriveSim {
 
     /// [`Self::step`] with people standing in the room where `bodies` are:
     /// the body runs into them as into the world's obstacles.
-    pub fn step_among(
+    pub(crate) fn step_among(
         &mut self,
         target: WheelSpeeds,
         dt: f64,

@@ -29,15 +29,15 @@ use crate::walker::{cast_ray_among, touches, Body, Crowd};
 use crate::world::World;
 
 /// Simulated URG-04LX: number of beams (steps 44..=725).
-pub const URG_BEAMS: usize = 682;
+pub(crate) const URG_BEAMS: usize = 682;
 /// Angular step (rad): 360° / 1024.
-pub const URG_STEP: f64 = std::f64::consts::TAU / 1024.0;
+pub(crate) const URG_STEP: f64 = std::f64::consts::TAU / 1024.0;
 /// First beam's angle relative to the front (step 44 − 384).
 pub const URG_FIRST: f64 = -340.0 * URG_STEP;
 /// Shortest valid range (m).
-pub const URG_MIN_RANGE: f64 = 0.02;
+pub(crate) const URG_MIN_RANGE: f64 = 0.02;
 /// Longest valid range (m).
-pub const URG_MAX_RANGE: f64 = 5.6;
+pub(crate) const URG_MAX_RANGE: f64 = 5.6;
 
 /// Whether the robot explores or knows the room in advance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -189,7 +189,7 @@ pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
 /// Casts scans at the true pose and integrates them as a robot with
 /// [`SensingNoise`] would: each range off by its noise, the whole scan
 /// placed at a pose off by the localisation error. Seeded: repeatable.
-pub struct NoisyScanner {
+pub(crate) struct NoisyScanner {
     noise: SensingNoise,
     rng: ChaCha8Rng,
     ahead: ObstaclePoints,
@@ -234,7 +234,7 @@ impl NoisyScanner {
 /// frame) and its heading turned by `turn` about the robot's own position.
 /// (Composing an error pose on the left would turn the position about the
 /// world origin as well: 1.5 mrad at 45 m from it moves the scan 7 cm.)
-pub fn pose_off_by(pose: &Pose, shift: Vector2<f64>, turn: f64) -> Pose {
+pub(crate) fn pose_off_by(pose: &Pose, shift: Vector2<f64>, turn: f64) -> Pose {
     Pose::new(pose.translation.vector + shift, heading(pose) + turn)
 }
 

@@ -56,9 +56,9 @@ pub struct MapMeta {
     /// Rotation of the map (rad), reported and ignored.
     pub yaw: f64,
     /// Whether white means occupied.
-    pub negate: bool,
+    pub(crate) negate: bool,
     /// Occupancy above which a pixel is occupied (0..1).
-    pub occupied_thresh: f64,
+    pub(crate) occupied_thresh: f64,
     /// Occupancy below which a pixel is free (0..1).
     pub free_thresh: f64,
     /// How values are read.
@@ -125,7 +125,7 @@ pub enum RosMapError {
 
 /// Parses the text of a map YAML file; `dir` is the folder relative image
 /// paths are resolved against, `path` names the file in messages.
-pub fn parse_meta(text: &str, dir: &Path, path: &str) -> Result<MapMeta, RosMapError> {
+pub(crate) fn parse_meta(text: &str, dir: &Path, path: &str) -> Result<MapMeta, RosMapError> {
     let docs = YamlLoader::load_from_str(text).map_err(|e| RosMapError::Yaml {
         path: path.to_string(),
         message: e.to_string(),
@@ -251,7 +251,7 @@ fn show(v: &Yaml) -> String {
 
 /// Decodes a PGM image (binary `P5` or plain `P2`, 8 or 16 bits; 16-bit
 /// values are scaled to 8), row 0 at the top.
-pub fn decode_pgm(bytes: &[u8]) -> Result<GreyImage, String> {
+pub(crate) fn decode_pgm(bytes: &[u8]) -> Result<GreyImage, String> {
     let mut pos = 0;
     let mut token = |bytes: &[u8]| -> Result<String, String> {
         loop {
@@ -337,7 +337,7 @@ pub fn decode_pgm(bytes: &[u8]) -> Result<GreyImage, String> {
 }
 
 /// Reads the map image: PNG by its signature, PGM otherwise.
-pub fn load_image(path: &Path) -> Result<GreyImage, RosMapError> {
+pub(crate) fn load_image(path: &Path) -> Result<GreyImage, RosMapError> {
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|source| RosMapError::Io {
         path: name.clone(),

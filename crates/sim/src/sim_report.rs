@@ -39,7 +39,7 @@ fn polyline(poses: &[Pose], g: &Grid, scale: f64, colour: &str) -> Polyline {
 
 /// The map as the daemon built it (free light, occupied black, unknown
 /// grey), with the true trajectory (green) and the estimate (red, dashed).
-pub fn map_svg(g: &Grid, truth: &[Pose], estimate: &[Pose]) -> Document {
+pub(crate) fn map_svg(g: &Grid, truth: &[Pose], estimate: &[Pose]) -> Document {
     let scale = 100.0;
     let r = g.resolution() * scale;
     let (w, h) = (g.width(), g.height());
@@ -143,7 +143,7 @@ pub fn write(
 
 /// One line per scored localised pose: its stamp, the fix, the truth and
 /// the errors, for plotting where localisation went wrong.
-pub fn fixes_csv(pairs: &[FixPair]) -> String {
+pub(crate) fn fixes_csv(pairs: &[FixPair]) -> String {
     let mut s = String::from("t_s,fix_x_m,fix_y_m,fix_theta_rad,true_x_m,true_y_m,true_theta_rad,error_m,heading_error_rad\n");
     for p in pairs {
         let _ = writeln!(

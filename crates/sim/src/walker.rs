@@ -22,10 +22,10 @@ use crate::world::{RayHit, World};
 
 /// Gap (m) between a walker and the robot's body within which the walker
 /// waits rather than step nearer.
-pub const YIELD_GAP: f64 = 0.15;
+pub(crate) const YIELD_GAP: f64 = 0.15;
 
 /// Reflectivity of a walker when its line gives none (clothes).
-pub const DEFAULT_WALKER_REFLECTIVITY: f64 = 0.4;
+pub(crate) const DEFAULT_WALKER_REFLECTIVITY: f64 = 0.4;
 
 /// One person: a disc walking out and back along a path.
 #[derive(Clone, Debug, PartialEq)]
@@ -53,7 +53,7 @@ impl Walker {
     /// A walker from the words of its line: `RADIUS SPEED X0 Y0 X1 Y1
     /// [X Y ...]`, then optionally `refl R` (0..1), `after T` (s),
     /// `trips N` and `near D` (m); the message says what is wrong.
-    pub fn parse_words(words: &[&str]) -> Result<Walker, String> {
+    pub(crate) fn parse_words(words: &[&str]) -> Result<Walker, String> {
         let number = |w: &str| {
             w.parse::<f64>()
                 .ok()
@@ -169,7 +169,7 @@ impl Walker {
 /// Locks the people shared between the emulators and the sampler, even if a
 /// thread that held them panicked (their state is plain positions, never
 /// left half-written).
-pub fn lock_crowd(c: &Mutex<Crowd>) -> MutexGuard<'_, Crowd> {
+pub(crate) fn lock_crowd(c: &Mutex<Crowd>) -> MutexGuard<'_, Crowd> {
     c.lock().unwrap_or_else(|e| e.into_inner())
 }
 
@@ -186,7 +186,7 @@ pub struct Body {
 
 /// Where every walker of a world is, stepped along the simulation's clock.
 #[derive(Clone, Debug, Default)]
-pub struct Crowd {
+pub(crate) struct Crowd {
     walkers: Vec<Walker>,
     /// Per walker, metres into its round trip.
     walked: Vec<f64>,
@@ -277,7 +277,8 @@ impl Crowd {
     }
 
     /// Steps a walker waited for the robot, summed over walkers.
-    pub fn waits(&self) -> u64 {
+    #[cfg(test)]
+    pub(crate) fn waits(&self) -> u64 {
         self.waits
     }
 }
@@ -359,7 +360,7 @@ pub fn covers(bodies: &[Body], p: &Point2<f64>) -> bool {
 
 /// [`World::cast_ray`] with `bodies` standing in the room: the nearest of the
 /// wall hit and the discs' hits.
-pub fn cast_ray_among(
+pub(crate) fn cast_ray_among(
     world: &World,
     bodies: &[Body],
     origin: &Point2<f64>,

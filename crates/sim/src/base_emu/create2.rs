@@ -82,7 +82,7 @@ impl Brushes {
 
 /// An emulated Create 2.
 #[derive(Clone, Debug)]
-pub struct Create2Device {
+pub(crate) struct Create2Device {
     counts_per_metre: f64,
     wheel_base: f64,
     strict: bool,
@@ -129,7 +129,8 @@ impl Create2Device {
     }
 
     /// The current OI mode.
-    pub fn mode(&self) -> OiMode {
+    #[cfg(test)]
+    pub(crate) fn mode(&self) -> OiMode {
         self.mode
     }
 

@@ -27,7 +27,7 @@ pub struct FaultPlan {
 }
 
 /// The names the plan accepts, for error messages and `--help`.
-pub const NAMES: &str =
+pub(crate) const NAMES: &str =
     "silence=EVERY:SECS, corrupt-in=EVERY:BYTES, corrupt-out=EVERY:BYTES, bump=EVERY:SECS, wheel-drop=EVERY:SECS, unplug=EVERY:SECS";
 
 impl FromStr for FaultPlan {

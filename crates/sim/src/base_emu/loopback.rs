@@ -126,7 +126,7 @@ impl LinkOpener for Opener {
 
 /// Ground truth of a lock-step base.
 #[derive(Clone)]
-pub struct LoopbackTruth {
+pub(crate) struct LoopbackTruth {
     state: Arc<Mutex<State>>,
 }
 
@@ -138,24 +138,18 @@ impl LoopbackTruth {
         s.sim.pose()
     }
 
-    /// The wheel speeds the motors run at (m/s).
-    pub fn wheels(&self) -> WheelSpeeds {
-        let mut s = lock(&self.state);
-        s.catch_up();
-        s.sim.wheel_speeds()
-    }
 
     /// The device core's counters (what it accepted and rejected).
-    pub fn device_stats(&self) -> crate::base_emu::DeviceStats {
+    pub(crate) fn device_stats(&self) -> crate::base_emu::DeviceStats {
         lock(&self.state).device.stats()
     }
 }
 
 /// The driver `cfg.kind` selects, connected in lock-step to an emulated base
 /// described by `cfg`, both timed by `clock`; plus the base's ground truth.
-pub fn loopback_base(
+pub(crate) fn loopback_base(
     cfg: EmulatorConfig,
-    robot: &crate::robot::RobotParams,
+    robot: &sweepline_core::robot::RobotParams,
     clock: Arc<ManualClock>,
 ) -> (Box<dyn DiffDriveBase>, LoopbackTruth) {
     let state = Arc::new(Mutex::new(State {

@@ -40,8 +40,10 @@
 
 pub mod create2;
 pub mod faults;
-pub mod loopback;
-pub mod pty_wire;
+// The driver against its emulator in one thread, lock-step: a test harness.
+#[cfg(test)]
+mod loopback;
+pub(crate) mod pty_wire;
 pub mod roboclaw;
 pub mod runner;
 
@@ -84,7 +86,7 @@ pub struct BodyState {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DeviceStats {
     /// Bytes received from the host.
-    pub bytes_in: u64,
+    pub(crate) bytes_in: u64,
     /// Bytes skipped while looking for a packet start or known opcode.
     pub bytes_skipped: u64,
     /// Valid packets or commands handled.

@@ -13,7 +13,7 @@ use crate::serial::{PtyError, PtyHost};
 const READ_WAIT: Duration = Duration::from_millis(1);
 
 /// A [`PtyHost`] as an emulator wire.
-pub struct PtyWire {
+pub(crate) struct PtyWire {
     host: PtyHost,
 }
 

@@ -312,7 +312,7 @@ impl RoboClawDevice {
     /// `top_speed` m/s and that brake at `max_accel` m/s²: what the duty
     /// commands scale to, the QPPS it reports and how early a distance move
     /// slows down.
-    pub fn with_motors(mut self, top_speed: f64, max_accel: f64) -> Self {
+    pub(crate) fn with_motors(mut self, top_speed: f64, max_accel: f64) -> Self {
         self.top = (top_speed * self.counts_per_metre).max(0.0);
         self.decel = (max_accel * self.counts_per_metre).max(1.0);
         let qpps = self.top.round().clamp(0.0, u32::MAX as f64) as u32;

@@ -99,11 +99,11 @@ pub struct EmuStats {
     /// Bytes corrupted by fault injection (both directions).
     pub corrupted_bytes: u64,
     /// Bytes swallowed by a silence fault (both directions).
-    pub silenced_bytes: u64,
+    pub(crate) silenced_bytes: u64,
     /// Bumper closures (contact or injected).
     pub bumps: u64,
     /// Kinematics steps refused by a collision.
-    pub blocked_steps: u64,
+    pub(crate) blocked_steps: u64,
     /// Times the cable was pulled.
     pub unplugs: u64,
 }
@@ -138,7 +138,7 @@ pub struct EmulatorConfig {
     /// People walking through the room: stepped on the emulator's clock
     /// with the robot's true pose, run into by the body (and closing the
     /// bumper); `None` for nobody. Shared with the scanner emulator's scene.
-    pub crowd: Option<Arc<Mutex<Crowd>>>,
+    pub(crate) crowd: Option<Arc<Mutex<Crowd>>>,
     /// Kinematics step (s of clock time).
     pub step: f64,
     /// Seed of the fault-injection generator.
@@ -184,7 +184,7 @@ impl EmulatorConfig {
     }
 
     /// The device core this configuration describes.
-    pub(crate) fn device(&self) -> Box<dyn BaseDevice> {
+    pub fn device(&self) -> Box<dyn BaseDevice> {
         let per_metre = |counts_per_rev| counts_per_metre(counts_per_rev, self.wheel_radius);
         match self.kind {
             BaseKind::Roboclaw => Box::new(
@@ -260,14 +260,14 @@ impl EmulatorHandle {
 
     /// The robot's true pose with the clock time it was reached (s), for
     /// pose-error evaluation against timestamped estimates.
-    pub fn truth_stamped(&self) -> (f64, Pose) {
+    pub(crate) fn truth_stamped(&self) -> (f64, Pose) {
         self.with(|s| (s.now, s.truth))
     }
 
     /// Fills `out` with the true poses reached from just before clock time
     /// `from` on (with their times, oldest first; at most the last
     /// half second): where the robot was while a scanner swept.
-    pub fn truth_since(&self, from: f64, out: &mut Vec<(f64, Pose)>) {
+    pub(crate) fn truth_since(&self, from: f64, out: &mut Vec<(f64, Pose)>) {
         out.clear();
         self.with(|s| {
             let first = s.history.partition_point(|h| h.0 <= from).saturating_sub(1);

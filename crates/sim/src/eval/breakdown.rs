@@ -15,13 +15,13 @@ pub struct RelationError {
     /// Duration t2 − t1 (s).
     pub dt: f64,
     /// True yaw of the relation (deg).
-    pub true_yaw_deg: f64,
+    pub(crate) true_yaw_deg: f64,
     /// x error in the frame of t1 (m).
     pub dx: f64,
     /// y error in the frame of t1 (m).
     pub dy: f64,
     /// Yaw error (deg, wrapped).
-    pub dyaw_deg: f64,
+    pub(crate) dyaw_deg: f64,
 }
 
 /// The signed errors of every short relation both of whose stamps are in `traj`.
@@ -61,7 +61,7 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 }
 
 /// Upper bounds (deg) of the |true yaw| bins of [`breakdown`].
-pub const TURN_BINS: [f64; 5] = [0.5, 2.0, 5.0, 10.0, 30.0];
+pub(crate) const TURN_BINS: [f64; 5] = [0.5, 2.0, 5.0, 10.0, 30.0];
 
 /// A text report of the short relations' rotational error: quantiles, the
 /// mean without the worst relations, the bias, and the mean by size of the turn.
@@ -114,9 +114,9 @@ pub struct Shared {
     /// Relations compared.
     pub count: usize,
     /// Correlation of the signed errors.
-    pub correlation: [f64; 3],
+    pub(crate) correlation: [f64; 3],
     /// Standard deviation of the common part (√ of the covariance, 0 if negative).
-    pub common_sd: [f64; 3],
+    pub(crate) common_sd: [f64; 3],
     /// Standard deviations of the two error series.
     pub sd: [[f64; 3]; 2],
 }

@@ -19,7 +19,7 @@ use crate::geom::{pose, wrap_angle, Pose};
 
 /// Largest timestamp difference (s) at which a trajectory pose is taken to be
 /// the one a relation refers to (the benchmark's stamps agree to 5 µs).
-pub const STAMP_TOLERANCE: f64 = 1e-4;
+pub(crate) const STAMP_TOLERANCE: f64 = 1e-4;
 
 /// Why a relations or trajectory file could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -221,11 +221,11 @@ pub struct Scores {
     /// Absolute translational error (m).
     pub trans: MeanStd,
     /// Squared translational error (m²).
-    pub trans_sq: MeanStd,
+    pub(crate) trans_sq: MeanStd,
     /// Absolute rotational error (degrees).
     pub rot_deg: MeanStd,
     /// Squared rotational error (degrees²).
-    pub rot_sq_deg: MeanStd,
+    pub(crate) rot_sq_deg: MeanStd,
 }
 
 impl Scores {
@@ -260,7 +260,7 @@ pub struct Report {
 }
 
 /// Translational (m) and rotational (rad, absolute) error of one relation.
-pub fn relation_error(rel: &Relation, p1: &Pose, p2: &Pose) -> (f64, f64) {
+pub(crate) fn relation_error(rel: &Relation, p1: &Pose, p2: &Pose) -> (f64, f64) {
     let est = p1.inverse() * p2;
     let dx = est.translation.x - rel.delta.translation.x;
     let dy = est.translation.y - rel.delta.translation.y;

@@ -19,15 +19,15 @@ use super::{lookup, EvalError, Relation, Stamped, STAMP_TOLERANCE};
 use crate::geom::{wrap_angle, Pose};
 
 /// Largest `t2 − t1` (s) of a "short" relation, as in the benchmark's local group.
-pub const SHORT: f64 = 1.0;
+pub(crate) const SHORT: f64 = 1.0;
 
 /// Three measurements of the same short relative pose `b→c`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
     /// Stamp of scan `b`.
-    pub t_b: f64,
+    pub(crate) t_b: f64,
     /// Stamp of scan `c`.
-    pub t_c: f64,
+    pub(crate) t_c: f64,
     /// The annotated short relation `b→c`.
     pub short: Pose,
     /// `b→c` implied by the annotated `a→b` and `a→c`.
@@ -113,7 +113,7 @@ pub struct TruthNoise {
     pub floor_rot_deg: Interval,
     /// The trajectory's own mean (translational m, rotational deg) error on the
     /// short legs of the triangles (to compare this subset with the whole set).
-    pub subset_error: (f64, f64),
+    pub(crate) subset_error: (f64, f64),
 }
 
 /// Differences (x m, y m, yaw deg) between two measurements of a relative pose.

@@ -38,32 +38,32 @@ impl ScanFault {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Faults {
     /// Corrupt a data-line checksum of every N-th scan (0 = never).
-    pub checksum_every: u32,
+    pub(crate) checksum_every: u32,
     /// Drop one byte of every N-th scan.
-    pub drop_every: u32,
+    pub(crate) drop_every: u32,
     /// Insert one extra byte into every N-th scan.
-    pub extra_every: u32,
+    pub(crate) extra_every: u32,
     /// Replace every N-th scan by an error status block.
-    pub status_every: u32,
+    pub(crate) status_every: u32,
     /// Repeat the previous timestamp in every N-th scan (a stuck clock).
-    pub stuck_every: u32,
+    pub(crate) stuck_every: u32,
     /// After the N-th scan the firmware hangs: no scans, no answers, except
     /// to RB twice (reboot), which cures it. Happens once.
-    pub hang_after: u32,
+    pub(crate) hang_after: u32,
     /// Send a line of line noise (control and non-ASCII bytes) before every
     /// N-th scan; the scan itself is intact.
-    pub noise_every: u32,
+    pub(crate) noise_every: u32,
     /// The status code used by `status` (a hardware fault by default).
-    pub status_code: [u8; 2],
+    pub(crate) status_code: [u8; 2],
     /// End lines with CR LF instead of LF.
     pub crlf: bool,
     /// Split every write at random points, with short pauses between parts.
-    pub split_writes: bool,
+    pub(crate) split_writes: bool,
     /// After every N-th scan, go silent for the given seconds (no scans, input
     /// left unread), then carry on.
     pub stall: Option<(u32, f64)>,
     /// Start the 24-bit clock 2 s before it wraps.
-    pub clock_wrap: bool,
+    pub(crate) clock_wrap: bool,
     /// After every N-th scan, unplug for the given seconds, then replug (a
     /// new pty, the sensor rebooted).
     pub unplug: Option<(u32, f64)>,
@@ -172,7 +172,7 @@ impl std::str::FromStr for Faults {
 
 impl Faults {
     /// The fault (if any) for the `n`-th scan sent (from 1).
-    pub fn scan_fault(&self, n: u64) -> Option<ScanFault> {
+    pub(crate) fn scan_fault(&self, n: u64) -> Option<ScanFault> {
         let hit = |every: u32| every > 0 && n.is_multiple_of(u64::from(every));
         if hit(self.checksum_every) {
             Some(ScanFault::Checksum)

@@ -221,7 +221,7 @@ fn sleep_while(clock: &dyn Clock, dt: f64, keep_going: &dyn Fn() -> bool) {
 }
 
 /// The byte side of an emulated sensor: a pty master or a TCP connection.
-pub trait EmuIo: Read + Write {
+pub(crate) trait EmuIo: Read + Write {
     /// Sets how long one read waits for the first byte.
     fn set_read_timeout(&mut self, t: Duration) -> io::Result<()>;
 }

@@ -36,7 +36,7 @@ pub struct ModelSpec {
     /// VV reply fields, in order.
     pub vv: [(&'static str, &'static str); 5],
     /// MODL value (PP and II).
-    pub modl: &'static str,
+    pub(crate) modl: &'static str,
     /// Shortest valid range (mm); smaller values are error codes.
     pub dmin: u32,
     /// Longest range (mm).
@@ -50,30 +50,30 @@ pub struct ModelSpec {
     /// Last step a scan request may name ("step D" of the SCIP 2.0
     /// specification's measurement table: 768 on the URG-04LX, whose PP
     /// still says AMAX 725). Steps past AMAX look into the dead zone.
-    pub last_step: u16,
+    pub(crate) last_step: u16,
     /// Step pointing forward.
     pub afrt: u16,
     /// Motor speed (rpm).
     pub scan_rpm: u32,
     /// II `SCSP` value.
-    pub scsp: &'static str,
+    pub(crate) scsp: &'static str,
     /// II `SBPS` value.
-    pub sbps: &'static str,
+    pub(crate) sbps: &'static str,
     /// Whether ME/GE exist (else answered `0E`).
-    pub has_me: bool,
+    pub(crate) has_me: bool,
     /// Whether the `FF` cluster (URG-04LX raw intensity) exists.
-    pub has_ff: bool,
+    pub(crate) has_ff: bool,
     /// Status to a CR00 request (`03` on the URG-04LX, `04` on the UTM).
-    pub cr_status: [u8; 2],
+    pub(crate) cr_status: [u8; 2],
     /// Value sent for "no echo within range".
-    pub no_return_code: u32,
+    pub(crate) no_return_code: u32,
     /// How long before a revolution starts the firmware answers commands
     /// other than GD/GS (s). The captures show every VV, PP, II, BM, CR and
     /// TM0 reply leaving at one fixed point of the revolution: on the
     /// URG-04LX the II `TIME` values end in 24 ms while its revolutions
     /// start at clock values ending in 30 ms (the GD stamp); on the UTM-30LX
     /// the ME ack leaves 3 ms before the first streamed revolution's stamp.
-    pub tick_lead: f64,
+    pub(crate) tick_lead: f64,
 }
 
 impl ModelSpec {

@@ -278,7 +278,7 @@ impl ReplayScan {
     /// capture, see [`capture_stream`]), with angles from the PP reply in
     /// the same stream. Error codes replay as the same codes; intensities,
     /// when recorded, set the reflectivity.
-    pub fn from_reply_stream(bytes: &[u8]) -> Result<Self, ReplayError> {
+    pub(crate) fn from_reply_stream(bytes: &[u8]) -> Result<Self, ReplayError> {
         use crate::scip::{Decoder, DecoderOptions, Event, Reading, ReplyBody};
         let mut dec = Decoder::new(DecoderOptions { lenient_kv: true });
         let mut params = None;

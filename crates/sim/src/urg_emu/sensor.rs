@@ -49,9 +49,9 @@ use crate::scip::{
 };
 
 /// Period of the sensor clock (ms).
-pub const CLOCK_WRAP_MS: u64 = 1 << 24;
+pub(crate) const CLOCK_WRAP_MS: u64 = 1 << 24;
 /// How many sent scans the log keeps.
-pub const LOG_CAPACITY: usize = 100_000;
+pub(crate) const LOG_CAPACITY: usize = 100_000;
 
 /// One scan the emulator put on the wire.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,7 +88,7 @@ pub struct EmuLog {
     /// Steps measured over all scans sent.
     pub steps: u64,
     /// Of those, steps sent as an error code (below DMIN).
-    pub error_steps: u64,
+    pub(crate) error_steps: u64,
 }
 
 impl EmuLog {
@@ -271,7 +271,7 @@ impl Sensor {
     /// Power-on reset at `now`: SCIP mode as booted, laser off, no stream;
     /// `reset_clock` restarts the sensor clock at 0 (a reboot), otherwise it
     /// keeps its origin (first boot).
-    pub fn power_on(&mut self, now: f64, reset_clock: bool) {
+    pub(crate) fn power_on(&mut self, now: f64, reset_clock: bool) {
         if reset_clock {
             self.true0 = self.true_ms(now);
             self.clock0 = 0;
@@ -321,11 +321,6 @@ impl Sensor {
 
     fn true_ms(&self, now: f64) -> u64 {
         self.true0 + self.elapsed_ms(now)
-    }
-
-    /// Whether the sensor is in time-adjust mode.
-    pub fn in_time_adjust(&self) -> bool {
-        self.adjust
     }
 
     /// When the streamed revolution now due is sent (emulator clock), if
@@ -422,7 +417,7 @@ impl Sensor {
     }
 
     /// The pending stall or unplug, if any.
-    pub fn take_action(&mut self) -> Option<Action> {
+    pub(crate) fn take_action(&mut self) -> Option<Action> {
         self.action.take()
     }
 
