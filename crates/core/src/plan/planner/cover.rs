@@ -14,7 +14,7 @@ impl CoveragePlanner {
     /// [`crate::plan::tour`]); `cands` sorted nearest first, not empty, and
     /// [`CSpace::dist`] holding the travel cost from the robot.
     pub(super) fn take_lane_tour(&mut self, cands: &[Candidate]) -> PlanStatus {
-        self.toured = true;
+        self.tour.toured = true;
         let mut pooled: Vec<Lane> = Vec::new();
         let mut region: Vec<usize> = Vec::new();
         let mut taken = 0;
@@ -37,13 +37,13 @@ impl CoveragePlanner {
             .iter()
             .map(|&i| self.cspace.dist.get(i).copied().unwrap_or(f64::INFINITY))
             .collect();
-        let mut between = std::mem::take(&mut self.tour_costs);
+        let mut between = std::mem::take(&mut self.scratch.tour_costs);
         self.cspace.travel_linked(&ends, &mut between);
         let tour = lane_tour(&TourCosts {
             start: &start,
             between: &between,
         });
-        self.tour_costs = between;
+        self.scratch.tour_costs = between;
         let lanes: Vec<Lane> = tour
             .iter()
             .map(|&(k, rev)| if rev { pooled[k].reversed() } else { pooled[k] })
@@ -62,26 +62,25 @@ impl CoveragePlanner {
             );
         }
         let (path, motions) = self.cover_path(&lanes, &new_region);
-        self.motions = motions;
+        self.current.motions = motions;
         let pooled_cands = &cands[..taken];
         for id in pooled_cands.iter().filter_map(|c| c.cell) {
             self.count_cell(id);
         }
-        if !self.retour {
+        if !self.tour.retour {
             self.stats.patches += pooled_cands.iter().filter(|c| c.cell.is_none()).count();
             self.stats.lanes += lanes.len();
         }
-        self.planned_lanes = lanes.len();
+        self.current.planned_lanes = lanes.len();
         // Every pooled region's lanes are driven whole: what they leave
         // uncovered is charged a try as a region's task would be.
-        self.split_task = false;
+        self.current.split = false;
         let first = tour.first().map_or(0, |&(k, _)| region[k]);
         let task = Task::Cover(cands[first].cell);
         self.set_task(task, path, None);
-        self.touring = true;
         let firsts = &pooled_cands[first].targets;
-        self.tour_first = firsts.len();
-        self.task_targets = firsts
+        self.tour.begin(firsts.len());
+        self.current.targets = firsts
             .iter()
             .chain(
                 pooled_cands
@@ -108,7 +107,7 @@ impl CoveragePlanner {
         for l in ls {
             for p in crate::geom::points_along(l.a, l.b, f.res * 0.5) {
                 for j in cells_within(f, &p, &self.reach_disk, radius) {
-                    self.targets[j] = false;
+                    self.regions.targets[j] = false;
                 }
             }
         }
