@@ -218,3 +218,120 @@ pub(super) fn splice(
     }
     t
 }
+
+impl CoveragePlanner {
+    /// Floor seen (or made reachable) near the robot (at `p`, cell `robot`,
+    /// driving to waypoint `next`) during a lane tour joins the tour now,
+    /// not in a drive back once the tour is done: whether the tour is
+    /// taken again from here.
+    pub(super) fn tour_again_for_new_floor(
+        &mut self,
+        decomp: &Decomposition,
+        robot: usize,
+        p: &Point2<f64>,
+        next: usize,
+    ) -> bool {
+        let new_floor = self.new_floor_near(decomp, robot, p, next);
+        if new_floor < NEW_FLOOR_MIN_CELLS {
+            return false;
+        }
+        log::debug!(
+            "new floor near ({:.2}, {:.2}) m, {new_floor} cells: the lane tour is taken again from here",
+            p.x,
+            p.y
+        );
+        self.stats.retours += 1;
+        // The task is not at fault: its floor is in the new tour.
+        self.current.forgive();
+        self.tour.retour = true;
+        true
+    }
+
+    /// Counts the floor cells, within the tool's reach of places in final
+    /// cells the robot gets to within [`NEW_FLOOR_NEAR`] of where it is (at
+    /// `p`, cell `robot`, driving to waypoint `next`), that would be targets
+    /// now but were none at the last decision (seen free since, or next to
+    /// places that became traversable), and that the rest of the path does
+    /// not sweep. Floor of a cell still settling waits until the cell is
+    /// final: a decision before would leave it out again. Only on a lane
+    /// tour (the room explored; before that each decision is one region
+    /// anyway, and regions change as cells grow), every
+    /// [`NEW_FLOOR_SETTLE`] updates of the task (0 otherwise). Local: a few
+    /// thousand cells, whatever the size of the map.
+    pub(super) fn new_floor_near(
+        &mut self,
+        decomp: &Decomposition,
+        robot: usize,
+        p: &Point2<f64>,
+        next: usize,
+    ) -> usize {
+        if !self.tour.touring
+            || self.current.updates == 0
+            || !self.current.updates.is_multiple_of(NEW_FLOOR_SETTLE)
+            || !self.cspace.traversable[robot]
+        {
+            return 0;
+        }
+        let f = self.cspace.frame;
+        let at = f.centre(robot);
+        let mut queue = std::mem::take(&mut self.scratch.near_queue);
+        queue.clear();
+        queue.push(robot);
+        self.scratch.near_reached[robot] = true;
+        let mut k = 0;
+        while k < queue.len() {
+            let i = queue[k];
+            k += 1;
+            for j in f.neighbours8(i) {
+                if !self.scratch.near_reached[j]
+                    && self.cspace.traversable[j]
+                    && (f.centre(j) - at).norm() <= NEW_FLOOR_NEAR
+                {
+                    self.scratch.near_reached[j] = true;
+                    queue.push(j);
+                }
+            }
+        }
+        let reached = queue.len();
+        // Floor the rest of the path sweeps anyway is no reason to re-plan.
+        let rest = &self.current.path[next.min(self.current.path.len())..];
+        let reach = self.reach + f.res * 0.5;
+        let swept_later = |c: Point2<f64>| {
+            let mut a = *p;
+            rest.iter().any(|&b| {
+                let near = Segment::new(a, b).distance_to(&c) <= reach;
+                a = b;
+                near
+            })
+        };
+        let in_final = |c: Point2<f64>| {
+            decomp.cells.iter().any(|cell| {
+                cell.status == CellStatus::Final && cell.polygon.len() >= 3 && cell.contains(&c)
+            })
+        };
+        let mut new = 0;
+        for q in 0..reached {
+            let i = queue[q];
+            let mut from_final = None;
+            for j in f.around(i, &self.reach_disk) {
+                if self.scratch.near_counted[j] || self.tour.decided[j] || !self.open_floor(j) {
+                    continue;
+                }
+                if !*from_final.get_or_insert_with(|| in_final(f.centre(i))) {
+                    break;
+                }
+                self.scratch.near_counted[j] = true;
+                queue.push(j);
+                if !swept_later(f.centre(j)) {
+                    new += 1;
+                }
+            }
+        }
+        for &i in &queue {
+            self.scratch.near_reached[i] = false;
+            self.scratch.near_counted[i] = false;
+        }
+        self.scratch.near_queue = queue;
+        new
+    }
+}

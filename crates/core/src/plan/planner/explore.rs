@@ -25,8 +25,8 @@ impl CoveragePlanner {
     /// Floor never within reach (a pocket behind furniture) is not in it.
     pub(super) fn walled_off(&self) -> Vec<bool> {
         let f = self.cspace.frame;
-        let own = super::touch_from(&self.cspace, &self.regions.reachable);
-        let once = super::touch_from(&self.cspace, &self.tried.ever_reachable);
+        let own = super::end::touch_from(&self.cspace, &self.regions.reachable);
+        let once = super::end::touch_from(&self.cspace, &self.tried.ever_reachable);
         let mut walled: Vec<bool> = (0..f.len())
             .map(|i| self.cspace.state[i] == FREE && !self.swept.covered[i] && !own[i] && once[i])
             .collect();
@@ -293,15 +293,7 @@ impl CoveragePlanner {
         let view = self.params.explore_view_distance;
         for &i in &list {
             if (f.centre(i) - g).norm() <= view + f.res {
-                self.tried.tries[i] = self.tried.tries[i].saturating_add(1);
-                self.tried.tries_generation += 1;
-                if self.tried.tries[i] >= limit {
-                    // With the cells beside it: the frontier along a wall
-                    // seen at a grazing angle shifts by a cell or two as
-                    // rays go on clearing and marking it, and must not come
-                    // back as new frontier.
-                    self.tried.give_up_around(f, i);
-                }
+                self.tried.charge_frontier(f, i, limit);
             }
         }
         self.scratch.frontier = list;

@@ -29,14 +29,22 @@
 //! poses it is given), so a cell that was partly swept by transits or by
 //! neighbouring lanes only gets the lanes it still needs.
 //!
-//! This file holds the planner's state, its update and the choice of the
-//! next task. Beside it: `status` what the planner reports, `regions` the
-//! candidate regions (targets, the lane lattice and who owns which floor),
-//! `order` the look-ahead order of one region at a time, `cover` the lane
-//! tour and the path through a task's lanes, `explore` the exploration
-//! goals, ways out and what is given up, `escape` the way out of an
-//! inflation zone, `home` the drive back to the start, and `records` what
-//! a restart needs.
+//! This file holds the planner's state and its update; `choose` the choice
+//! of the next task, the policy above as a sequence of named decisions.
+//! The state is a few owned parts, each in its own module with its own
+//! `impl`: `swept_record` what the tool has swept, `tried` the tries,
+//! give-ups and floor once within reach, `tour_state` the lane tour,
+//! `home` the start and the drive back to it, `current` the task being
+//! driven, `region_map` the regions of the last decision and the lane
+//! lattice, `stalls` the counters of getting nowhere and the waits, and
+//! `scratch` buffers reused between decisions. Beside them: `status` what
+//! the planner reports, `regions` the candidate regions (targets, the lane
+//! lattice and who owns which floor), `order` the look-ahead order of one
+//! region at a time, `cover` the lane tour (and when to take it again) and
+//! the path through a task's lanes, `explore` the exploration goals, ways
+//! out and what is given up, `escape` the way out of an inflation zone,
+//! `end` the leftovers declined and the report at the end, and `records`
+//! what a restart needs.
 
 use nalgebra::Point2;
 
@@ -51,6 +59,7 @@ use crate::robot::RobotParams;
 mod choose;
 mod cover;
 mod current;
+mod end;
 mod escape;
 mod explore;
 mod home;
@@ -147,6 +156,17 @@ const GIVEN_UP_AGAIN: f64 = 1.0;
 
 /// Interruptions after which a target or frontier is given up.
 const MAX_TRIES: u8 = 2;
+
+/// Where the path ahead is blocked (see `CoveragePlanner::path_blocked`).
+struct Blocked {
+    /// The stretch of path blocked, from `a` to `b`.
+    a: Point2<f64>,
+    b: Point2<f64>,
+    /// The first place on it that is not safe now.
+    at: Point2<f64>,
+    /// Waypoints ahead of the robot the stretch is.
+    ahead: usize,
+}
 
 /// The online coverage planner (see the module docs).
 ///
@@ -478,14 +498,12 @@ impl CoveragePlanner {
         self.report = None;
         self.home.homing = None;
         self.current.task = Task::Idle;
-        self.current.targets.clear();
-        self.current.explore_goal = None;
+        self.current.forgive();
         let f = self.cspace.frame;
         for i in 0..self.tried.abandoned.len().min(f.len()) {
             let c = f.centre(i);
             if around.iter().any(|p| (c - p).norm() <= radius) && !self.swept.covered[i] {
-                self.tried.abandoned[i] = false;
-                self.tried.tries[i] = 0;
+                self.tried.take_back(i);
             }
         }
         self.tried.tries_generation += 1;
@@ -530,13 +548,42 @@ impl CoveragePlanner {
         self.current.updates += 1;
         self.home.note_start(pose);
         let mut replan = progress.is_none() || self.current.task == Task::Idle;
-        if progress.is_none() && self.current.task == Task::Explore {
+        if progress.is_none() {
+            self.task_finished();
+        }
+        if let Some(next) = progress {
+            replan |= self.path_blocked(next, &p);
+            replan |= self.exploration_resolved();
+        }
+        if self.home.homing.is_some() {
+            return self.home_update(pose, robot, progress.is_none(), replan);
+        }
+        if !replan {
+            if let Some(next) = progress {
+                replan = self.tour_again_for_new_floor(decomp, robot, &p, next);
+            }
+        }
+        if !replan {
+            return Ok(PlanStatus::Working {
+                task: self.current.task,
+                new_path: false,
+            });
+        }
+        let keep_exploring = progress.is_some() && self.current.task == Task::Explore;
+        self.choose(decomp, pose, robot, keep_exploring)
+    }
+
+    /// The follower reached the end of the path: an exploration move's
+    /// frontier still in view from here cannot be seen, and a cover task's
+    /// targets its lanes did not reach get one more try.
+    fn task_finished(&mut self) {
+        if self.current.task == Task::Explore {
             // Arrived: whatever frontier is still in view from here cannot be seen.
             if let Some(g) = self.current.explore_goal.take() {
                 self.give_up_frontier_near(&g, 0);
             }
         }
-        if progress.is_none() && matches!(self.current.task, Task::Cover(_)) {
+        if matches!(self.current.task, Task::Cover(_)) {
             // Targets the finished lanes did not reach get one more try; after
             // MAX_TRIES they are given up (when the task was only part
             // of its region's lanes: only the floor near its lanes, and
@@ -552,199 +599,106 @@ impl CoveragePlanner {
             targets.clear();
             self.current.targets = targets;
         }
-        if let Some(next) = progress {
-            // Blocked by something seen since?
-            let from = next.min(self.current.path.len());
-            // The stretch the robot is on, from a little ahead of where it
-            // is along it (a person who stepped beside the robot's way),
-            // then the rest. Along the planned stretch, not from the robot
-            // itself: a few millimetres of tracking error beside a wall
-            // would block every plan.
-            let on_way = self.current.path.get(from).and_then(|&b| {
-                let a0 = from.checked_sub(1).map_or(p, |k| self.current.path[k]);
-                let d = b - a0;
-                let len = d.norm();
-                if len <= ON_WAY_SKIP {
-                    return None;
-                }
-                let along = ((p - a0).dot(&d) / len).clamp(0.0, len) + ON_WAY_SKIP;
-                if along >= len {
-                    return None;
-                }
-                let a = a0 + d * (along / len);
-                self.cspace.first_unsafe(&a, &b).map(|q| (a, b, q))
-            });
-            let ahead = || {
-                self.current.path[from..]
-                    .windows(2)
-                    .enumerate()
-                    .find_map(|(k, s)| {
-                        self.cspace
-                            .first_unsafe(&s[0], &s[1])
-                            .map(|q| (s[0], s[1], q, k))
-                    })
-            };
-            if let Some((a, b, q, k)) = on_way.map(|(a, b, q)| (a, b, q, 0)).or_else(ahead) {
-                if log::log_enabled!(log::Level::Debug) {
-                    let by = self
-                        .cspace
-                        .blocker(&q)
-                        .map_or("nothing found".to_string(), |bl| {
-                            format!(
-                                "{} at ({:.3}, {:.3}), {:.3} m from the path",
-                                bl.kind.describe(),
-                                bl.at.x,
-                                bl.at.y,
-                                bl.distance
-                            )
-                        });
-                    log::debug!(
-                        "plan: path blocked between ({:.2}, {:.2}) and ({:.2}, {:.2}) m, {} waypoints ahead, by {by}; planning again",
-                        a.x,
-                        a.y,
-                        b.x,
-                        b.y,
-                        k
-                    );
-                }
-                replan = true;
-                self.stats.blocked += 1;
-                // Still on the way to the task's first lane: the region is
-                // not at fault (the transit ran into something seen on the
-                // way, typically at a gap between furniture seen closer);
-                // its floor is not charged a try, up to a bound.
-                let in_transit = self.current.motions.get(from) == Some(&Motion::Transit);
-                if in_transit && self.may_forgive() {
-                    self.current.forgive();
-                }
-            }
-            if self.current.task == Task::Explore {
-                let resolved = match self.current.explore_goal {
-                    Some(g) => !self.frontier_in_view(&g),
-                    None => true,
-                };
-                if resolved || self.current.updates.is_multiple_of(EXPLORE_RECHECK) {
-                    replan = true;
-                }
-            }
-        }
-        if self.home.homing.is_some() {
-            return self.home_update(pose, robot, progress.is_none(), replan);
-        }
-        // Floor seen (or made reachable) near the robot during a lane tour
-        // joins the tour now, not in a drive back once the tour is done.
-        let new_floor = match progress {
-            Some(next) if !replan => self.new_floor_near(decomp, robot, &p, next),
-            _ => 0,
-        };
-        if new_floor >= NEW_FLOOR_MIN_CELLS {
-            log::debug!(
-                "new floor near ({:.2}, {:.2}) m, {new_floor} cells: the lane tour is taken again from here",
-                p.x,
-                p.y
-            );
-            replan = true;
-            self.stats.retours += 1;
-            // The task is not at fault: its floor is in the new tour.
-            self.current.forgive();
-            self.tour.retour = true;
-        }
-        if !replan {
-            return Ok(PlanStatus::Working {
-                task: self.current.task,
-                new_path: false,
-            });
-        }
-        let keep_exploring = progress.is_some() && self.current.task == Task::Explore;
-        self.choose(decomp, pose, robot, keep_exploring)
     }
 
-    /// Counts the floor cells, within the tool's reach of places in final
-    /// cells the robot gets to within [`NEW_FLOOR_NEAR`] of where it is (at
-    /// `p`, cell `robot`, driving to waypoint `next`), that would be targets
-    /// now but were none at the last decision (seen free since, or next to
-    /// places that became traversable), and that the rest of the path does
-    /// not sweep. Floor of a cell still settling waits until the cell is
-    /// final: a decision before would leave it out again. Only on a lane
-    /// tour (the room explored; before that each decision is one region
-    /// anyway, and regions change as cells grow), every
-    /// [`NEW_FLOOR_SETTLE`] updates of the task (0 otherwise). Local: a few
-    /// thousand cells, whatever the size of the map.
-    fn new_floor_near(
-        &mut self,
-        decomp: &Decomposition,
-        robot: usize,
-        p: &Point2<f64>,
-        next: usize,
-    ) -> usize {
-        if !self.tour.touring
-            || self.current.updates == 0
-            || !self.current.updates.is_multiple_of(NEW_FLOOR_SETTLE)
-            || !self.cspace.traversable[robot]
-        {
-            return 0;
-        }
-        let f = self.cspace.frame;
-        let at = f.centre(robot);
-        let mut queue = std::mem::take(&mut self.scratch.near_queue);
-        queue.clear();
-        queue.push(robot);
-        self.scratch.near_reached[robot] = true;
-        let mut k = 0;
-        while k < queue.len() {
-            let i = queue[k];
-            k += 1;
-            for j in f.neighbours8(i) {
-                if !self.scratch.near_reached[j]
-                    && self.cspace.traversable[j]
-                    && (f.centre(j) - at).norm() <= NEW_FLOOR_NEAR
-                {
-                    self.scratch.near_reached[j] = true;
-                    queue.push(j);
-                }
-            }
-        }
-        let reached = queue.len();
-        // Floor the rest of the path sweeps anyway is no reason to re-plan.
-        let rest = &self.current.path[next.min(self.current.path.len())..];
-        let reach = self.reach + f.res * 0.5;
-        let swept_later = |c: Point2<f64>| {
-            let mut a = *p;
-            rest.iter().any(|&b| {
-                let near = Segment::new(a, b).distance_to(&c) <= reach;
-                a = b;
-                near
-            })
+    /// Whether the path ahead of the robot at `p`, driving to waypoint
+    /// `next`, is blocked by something seen since it was planned; counts
+    /// it, and forgives the task when it was still in transit.
+    fn path_blocked(&mut self, next: usize, p: &Point2<f64>) -> bool {
+        let from = next.min(self.current.path.len());
+        let Some(Blocked {
+            a,
+            b,
+            at: q,
+            ahead: k,
+        }) = self.first_unsafe_ahead(from, p)
+        else {
+            return false;
         };
-        let in_final = |c: Point2<f64>| {
-            decomp.cells.iter().any(|cell| {
-                cell.status == CellStatus::Final && cell.polygon.len() >= 3 && cell.contains(&c)
-            })
-        };
-        let mut new = 0;
-        for q in 0..reached {
-            let i = queue[q];
-            let mut from_final = None;
-            for j in f.around(i, &self.reach_disk) {
-                if self.scratch.near_counted[j] || self.tour.decided[j] || !self.open_floor(j) {
-                    continue;
-                }
-                if !*from_final.get_or_insert_with(|| in_final(f.centre(i))) {
-                    break;
-                }
-                self.scratch.near_counted[j] = true;
-                queue.push(j);
-                if !swept_later(f.centre(j)) {
-                    new += 1;
-                }
+        if log::log_enabled!(log::Level::Debug) {
+            let by = self
+                .cspace
+                .blocker(&q)
+                .map_or("nothing found".to_string(), |bl| {
+                    format!(
+                        "{} at ({:.3}, {:.3}), {:.3} m from the path",
+                        bl.kind.describe(),
+                        bl.at.x,
+                        bl.at.y,
+                        bl.distance
+                    )
+                });
+            log::debug!(
+                "plan: path blocked between ({:.2}, {:.2}) and ({:.2}, {:.2}) m, {} waypoints ahead, by {by}; planning again",
+                a.x,
+                a.y,
+                b.x,
+                b.y,
+                k
+            );
+        }
+        self.stats.blocked += 1;
+        // Still on the way to the task's first lane: the region is
+        // not at fault (the transit ran into something seen on the
+        // way, typically at a gap between furniture seen closer);
+        // its floor is not charged a try, up to a bound.
+        let in_transit = self.current.motions.get(from) == Some(&Motion::Transit);
+        if in_transit && self.may_forgive() {
+            self.current.forgive();
+        }
+        true
+    }
+
+    /// The first place on the path from waypoint `from` on that is not
+    /// safe now (see [`Blocked`]). The stretch the robot (at `p`) is
+    /// on, from a little ahead of where it is along it (a person who
+    /// stepped beside the robot's way), then the rest. Along the planned
+    /// stretch, not from the robot itself: a few millimetres of tracking
+    /// error beside a wall would block every plan.
+    fn first_unsafe_ahead(&self, from: usize, p: &Point2<f64>) -> Option<Blocked> {
+        let p = *p;
+        let on_way = self.current.path.get(from).and_then(|&b| {
+            let a0 = from.checked_sub(1).map_or(p, |k| self.current.path[k]);
+            let d = b - a0;
+            let len = d.norm();
+            if len <= ON_WAY_SKIP {
+                return None;
             }
+            let along = ((p - a0).dot(&d) / len).clamp(0.0, len) + ON_WAY_SKIP;
+            if along >= len {
+                return None;
+            }
+            let a = a0 + d * (along / len);
+            self.cspace.first_unsafe(&a, &b).map(|q| (a, b, q))
+        });
+        let ahead = || {
+            self.current.path[from..]
+                .windows(2)
+                .enumerate()
+                .find_map(|(k, s)| {
+                    self.cspace
+                        .first_unsafe(&s[0], &s[1])
+                        .map(|q| (s[0], s[1], q, k))
+                })
+        };
+        on_way
+            .map(|(a, b, q)| (a, b, q, 0))
+            .or_else(ahead)
+            .map(|(a, b, at, ahead)| Blocked { a, b, at, ahead })
+    }
+
+    /// Whether an exploration move under way is to be decided again: its
+    /// frontier is out of view (seen, or given up), or it is time for
+    /// the periodic look at whether a cell became final.
+    fn exploration_resolved(&mut self) -> bool {
+        if self.current.task != Task::Explore {
+            return false;
         }
-        for &i in &queue {
-            self.scratch.near_reached[i] = false;
-            self.scratch.near_counted[i] = false;
-        }
-        self.scratch.near_queue = queue;
-        new
+        let resolved = match self.current.explore_goal {
+            Some(g) => !self.frontier_in_view(&g),
+            None => true,
+        };
+        resolved || self.current.updates.is_multiple_of(EXPLORE_RECHECK)
     }
 
     /// Begins `task` along `path` (turning to `final_heading` at its end):
@@ -792,107 +746,6 @@ impl CoveragePlanner {
             self.count_fruitless_explore();
         }
     }
-
-    /// The end game: once the room has been toured and less than
-    /// [`LEFTOVER_AREA`] of floor is left, a leftover whose fetching sweeps
-    /// more floor again than `plan.leftover_ratio` times its own (travel
-    /// to it, priced as transits are, × tool width) is left, worst first,
-    /// while `plan.coverage_goal` of the places the bare body can reach
-    /// (no safety margin: floor behind passages narrower than the margin
-    /// counts as missed, as the ground truth counts it) stays swept or to
-    /// be swept. Left floor is reported as declined (a resumed run fetches
-    /// it again).
-    fn decline_leftovers(&mut self, cands: &mut Vec<Candidate>, robot: usize) {
-        let goal = self.params.coverage_goal;
-        let f = self.cspace.frame;
-        let area = f.res * f.res;
-        let total: usize = cands.iter().map(|c| c.targets.len()).sum();
-        if goal >= 1.0 || !self.tour.toured || total as f64 * area > LEFTOVER_AREA {
-            return;
-        }
-        let bare = super::unbox::bare_body_reach(&self.cspace, robot);
-        let known = bare.iter().filter(|&&b| b).count();
-        let in_bare = |c: &Candidate| c.targets.iter().filter(|&&i| bare[i]).count();
-        let swept = (0..f.len())
-            .filter(|&i| bare[i] && self.swept.covered[i])
-            .count();
-        let mut kept: usize = swept + cands.iter().map(in_bare).sum::<usize>();
-        let tool = 2.0 * self.reach;
-        let ratio = |c: &Candidate| c.cost() * tool / (c.targets.len().max(1) as f64 * area);
-        let mut order: Vec<usize> = (0..cands.len()).collect();
-        order.sort_by(|&x, &y| ratio(&cands[y]).total_cmp(&ratio(&cands[x])));
-        let mut keep = vec![true; cands.len()];
-        for j in order {
-            let c = &cands[j];
-            let (r, lost) = (ratio(c), in_bare(c));
-            if r <= self.params.leftover_ratio || ((kept - lost) as f64) < goal * known as f64 {
-                continue;
-            }
-            kept -= lost;
-            keep[j] = false;
-            log::info!(
-                "leaving {:.3} m² of leftover floor: fetching it would sweep {r:.0}x as much again (plan.leftover_ratio {})",
-                c.targets.len() as f64 * area,
-                self.params.leftover_ratio
-            );
-            for &i in &c.targets {
-                self.tried.abandoned[i] = true;
-                self.tried.declined[i] = true;
-            }
-        }
-        let mut k = keep.iter();
-        cands.retain(|_| k.next().copied().unwrap_or(true));
-    }
-
-    /// What is left at the end; the reachable centres
-    /// (`reachable_mask`) must be this decision's.
-    fn done_report(&self, robot: usize) -> DoneReport {
-        let f = self.cspace.frame;
-        let a = f.res * f.res;
-        let touch = body_touch(&self.cspace, robot);
-        let own = touch_from(&self.cspace, &self.regions.reachable);
-        let mut r = DoneReport::default();
-        for (i, &t) in touch.iter().enumerate() {
-            if self.cspace.state[i] == FREE && !t {
-                r.unreachable_area += a;
-            }
-            if self.cspace.state[i] == FREE && t && !own[i] && !self.swept.covered[i] {
-                r.behind_tight_passages += a;
-            } else if self.tried.declined[i] && !self.swept.covered[i] {
-                r.declined_area += a;
-            } else if self.tried.abandoned[i] && !self.swept.covered[i] {
-                r.abandoned_area += a;
-            }
-            if self.swept.covered[i] {
-                r.covered_area += a;
-            }
-        }
-        let mut frontier = Vec::new();
-        self.cspace.frontier(&mut frontier);
-        r.unexplored_frontier = frontier.len() as f64 * f.res;
-        r
-    }
-}
-
-/// The cells the body touches from some place the robot at `robot` can get
-/// to (passages only the bare body fits included): seen free floor outside
-/// it is floor no reachable centre can sweep.
-fn body_touch(cs: &CSpace, robot: usize) -> Vec<bool> {
-    touch_from(cs, &super::unbox::reachable_with_ways_out(cs, robot))
-}
-
-/// The cells the body touches (generously: the clearance and two cells)
-/// from the places marked in `places`.
-fn touch_from(cs: &CSpace, places: &[bool]) -> Vec<bool> {
-    let f = cs.frame;
-    let body = disk(cs.inflation() + 2.0 * f.res, f.res);
-    let mut touch = vec![false; f.len()];
-    for i in (0..f.len()).filter(|&i| places[i]) {
-        for j in f.around(i, &body) {
-            touch[j] = true;
-        }
-    }
-    touch
 }
 
 /// The cells among `offsets` (cell offsets around the cell holding `p`)

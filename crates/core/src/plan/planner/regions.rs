@@ -323,10 +323,7 @@ impl CoveragePlanner {
         }
         if vars.is_empty() {
             // Nothing the lanes can reach from here: give these up.
-            for &i in &targets {
-                self.tried.abandoned[i] = true;
-            }
-            self.tried.tries_generation += 1;
+            self.tried.abandon(&targets);
             return None;
         }
         Some(Candidate {

@@ -78,6 +78,41 @@ impl ReachAndTries {
         self.tries_generation += 1;
     }
 
+    /// Charges frontier cell `i` of grid `f` one try; at `limit` (0: at
+    /// once) it is given up with the cells beside it: the frontier along a
+    /// wall seen at a grazing angle shifts by a cell or two as rays go on
+    /// clearing and marking it, and must not come back as new frontier.
+    pub(crate) fn charge_frontier(&mut self, f: Frame, i: usize, limit: u8) {
+        self.tries[i] = self.tries[i].saturating_add(1);
+        self.tries_generation += 1;
+        if self.tries[i] >= limit {
+            self.give_up_around(f, i);
+        }
+    }
+
+    /// Gives up the floor `cells` as cover targets: the lanes cannot reach it.
+    pub(crate) fn abandon(&mut self, cells: &[usize]) {
+        for &i in cells {
+            self.abandoned[i] = true;
+        }
+        self.tries_generation += 1;
+    }
+
+    /// Leaves the leftover floor `cells` (the end game): abandoned, and
+    /// reported as declined.
+    pub(crate) fn decline(&mut self, cells: &[usize]) {
+        for &i in cells {
+            self.abandoned[i] = true;
+            self.declined[i] = true;
+        }
+    }
+
+    /// Gives floor cell `i` its tries back.
+    pub(crate) fn take_back(&mut self, i: usize) {
+        self.abandoned[i] = false;
+        self.tries[i] = 0;
+    }
+
     /// Whether an interruption may be forgiven (see [`MAX_FORGIVEN`]), with
     /// `swept` cells swept so far and a footprint of `footprint` cells;
     /// counts it when so.
@@ -134,9 +169,9 @@ impl ReachAndTries {
         self.tries_generation += 1;
         let mut any = false;
         self.retry_set.clear();
-        for i in 0..self.abandoned.len() {
-            if self.abandoned[i] && !covered[i] && !self.declined[i] {
-                self.abandoned[i] = false;
+        for (i, (a, &c)) in self.abandoned.iter_mut().zip(covered).enumerate() {
+            if *a && !c && !self.declined[i] {
+                *a = false;
                 self.tries[i] = 0;
                 self.retry_set.push(i);
                 any = true;
