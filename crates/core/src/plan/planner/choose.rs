@@ -51,13 +51,13 @@ impl CoveragePlanner {
                 return new_path(task);
             }
         }
-        if !(cands.is_empty() && self.boxed_in_now()) {
+        if cands.is_empty() && self.boxed_in_now() {
+            let boxed_in = self.wait_while_boxed_in(&p);
+            if let Some(task) = boxed_in.or_else(|| self.step_out_of_pocket(&p, robot)) {
+                return new_path(task);
+            }
+        } else {
             self.stalls.boxed_in = 0;
-        } else if let Some(task) = self
-            .wait_while_boxed_in(&p)
-            .or_else(|| self.step_out_of_pocket(&p, robot))
-        {
-            return new_path(task);
         }
         if cands.is_empty() {
             if let Some(task) = self.end_surface_hold() {

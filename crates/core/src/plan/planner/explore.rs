@@ -69,7 +69,7 @@ impl CoveragePlanner {
 
     /// The nearest reachable place with unexplored space in view (within
     /// `explore_view_distance`, along a line a scan would pass: see
-    /// [`CSpace::sees_unknown_beside`]), and the frontier point to face
+    /// [`crate::plan::cspace::CSpace::sees_unknown_beside`]), and the frontier point to face
     /// there. A frontier no reachable place sees now is kept: it may come
     /// into reach later (through a way out, or once a passage is seen from
     /// closer); at the end it is reported (`unexplored_frontier`).
@@ -199,7 +199,7 @@ impl CoveragePlanner {
     }
 
     /// Whether the space reachable from the robot is smaller than its own
-    /// footprint (see [`BOXED_IN_UPDATES`]).
+    /// footprint (see [`super::BOXED_IN_UPDATES`]).
     pub(super) fn boxed_in_now(&self) -> bool {
         self.regions.reachable_cells() < self.swept.footprint()
     }
@@ -230,7 +230,7 @@ impl CoveragePlanner {
     /// Whether floor given up may be tried again now: the first round
     /// always; up to [`MAX_EXTRA_RETRIES`] more while the last round swept
     /// at least `plan.min_patch_area` of the floor it tried again, or while
-    /// [`GIVEN_UP_AGAIN`] or more is given up and `plan.clear_wait` has
+    /// [`super::GIVEN_UP_AGAIN`] or more is given up and `plan.clear_wait` has
     /// passed since the last round: people crossing the robot's paths had
     /// it given up, not the room (a room nobody walks through gives up a
     /// few tenths of a square metre at most).
@@ -251,7 +251,7 @@ impl CoveragePlanner {
             && (swept >= self.params.min_patch_area || (self.much_given_up() && waited))
     }
 
-    /// Whether [`GIVEN_UP_AGAIN`] or more floor is given up, after its first
+    /// Whether [`super::GIVEN_UP_AGAIN`] or more floor is given up, after its first
     /// round, with rounds left (see [`Self::may_retry_again`]).
     pub(super) fn much_given_up(&self) -> bool {
         let a = self.cspace.frame.res * self.cspace.frame.res;

@@ -201,7 +201,7 @@ pub struct CoveragePlanner {
     stalls: Stalls,
     /// Buffers reused between decisions (no state of their own).
     scratch: Scratch,
-    /// The look around at the start is behind (or was not asked for).
+    /// The look around at the start is done (or was not asked for).
     started: bool,
     stats: PlanStats,
     /// The cells counted in `stats.cells`.
