@@ -14,7 +14,7 @@ impl CoveragePlanner {
     /// [`crate::plan::tour`]); `cands` sorted nearest first, not empty, and
     /// [`CSpace::dist`] holding the travel cost from the robot.
     pub(super) fn take_lane_tour(&mut self, cands: &[Candidate]) -> PlanStatus {
-        self.toured = true;
+        self.tour.toured = true;
         let mut pooled: Vec<Lane> = Vec::new();
         let mut region: Vec<usize> = Vec::new();
         let mut taken = 0;
@@ -37,13 +37,13 @@ impl CoveragePlanner {
             .iter()
             .map(|&i| self.cspace.dist.get(i).copied().unwrap_or(f64::INFINITY))
             .collect();
-        let mut between = std::mem::take(&mut self.tour_costs);
+        let mut between = std::mem::take(&mut self.scratch.tour_costs);
         self.cspace.travel_linked(&ends, &mut between);
         let tour = lane_tour(&TourCosts {
             start: &start,
             between: &between,
         });
-        self.tour_costs = between;
+        self.scratch.tour_costs = between;
         let lanes: Vec<Lane> = tour
             .iter()
             .map(|&(k, rev)| if rev { pooled[k].reversed() } else { pooled[k] })
@@ -62,26 +62,25 @@ impl CoveragePlanner {
             );
         }
         let (path, motions) = self.cover_path(&lanes, &new_region);
-        self.motions = motions;
+        self.current.motions = motions;
         let pooled_cands = &cands[..taken];
         for id in pooled_cands.iter().filter_map(|c| c.cell) {
             self.count_cell(id);
         }
-        if !self.retour {
+        if !self.tour.retour {
             self.stats.patches += pooled_cands.iter().filter(|c| c.cell.is_none()).count();
             self.stats.lanes += lanes.len();
         }
-        self.planned_lanes = lanes.len();
+        self.current.planned_lanes = lanes.len();
         // Every pooled region's lanes are driven whole: what they leave
         // uncovered is charged a try as a region's task would be.
-        self.split_task = false;
+        self.current.split = false;
         let first = tour.first().map_or(0, |&(k, _)| region[k]);
         let task = Task::Cover(cands[first].cell);
         self.set_task(task, path, None);
-        self.touring = true;
         let firsts = &pooled_cands[first].targets;
-        self.tour_first = firsts.len();
-        self.task_targets = firsts
+        self.tour.begin(firsts.len());
+        self.current.targets = firsts
             .iter()
             .chain(
                 pooled_cands
@@ -108,7 +107,7 @@ impl CoveragePlanner {
         for l in ls {
             for p in crate::geom::points_along(l.a, l.b, f.res * 0.5) {
                 for j in cells_within(f, &p, &self.reach_disk, radius) {
-                    self.targets[j] = false;
+                    self.regions.targets[j] = false;
                 }
             }
         }
@@ -218,4 +217,121 @@ pub(super) fn splice(
         t.pop();
     }
     t
+}
+
+impl CoveragePlanner {
+    /// Floor seen (or made reachable) near the robot (at `p`, cell `robot`,
+    /// driving to waypoint `next`) during a lane tour joins the tour now,
+    /// not in a drive back once the tour is done: whether the tour is
+    /// taken again from here.
+    pub(super) fn tour_again_for_new_floor(
+        &mut self,
+        decomp: &Decomposition,
+        robot: usize,
+        p: &Point2<f64>,
+        next: usize,
+    ) -> bool {
+        let new_floor = self.new_floor_near(decomp, robot, p, next);
+        if new_floor < NEW_FLOOR_MIN_CELLS {
+            return false;
+        }
+        log::debug!(
+            "new floor near ({:.2}, {:.2}) m, {new_floor} cells: the lane tour is taken again from here",
+            p.x,
+            p.y
+        );
+        self.stats.retours += 1;
+        // The task is not at fault: its floor is in the new tour.
+        self.current.forgive();
+        self.tour.retour = true;
+        true
+    }
+
+    /// Counts the floor cells, within the tool's reach of places in final
+    /// cells the robot gets to within [`NEW_FLOOR_NEAR`] of where it is (at
+    /// `p`, cell `robot`, driving to waypoint `next`), that would be targets
+    /// now but were none at the last decision (seen free since, or next to
+    /// places that became traversable), and that the rest of the path does
+    /// not sweep. Floor of a cell still settling waits until the cell is
+    /// final: a decision before would leave it out again. Only on a lane
+    /// tour (the room explored; before that each decision is one region
+    /// anyway, and regions change as cells grow), every
+    /// [`NEW_FLOOR_SETTLE`] updates of the task (0 otherwise). Local: a few
+    /// thousand cells, whatever the size of the map.
+    pub(super) fn new_floor_near(
+        &mut self,
+        decomp: &Decomposition,
+        robot: usize,
+        p: &Point2<f64>,
+        next: usize,
+    ) -> usize {
+        if !self.tour.touring
+            || self.current.updates == 0
+            || !self.current.updates.is_multiple_of(NEW_FLOOR_SETTLE)
+            || !self.cspace.traversable[robot]
+        {
+            return 0;
+        }
+        let f = self.cspace.frame;
+        let at = f.centre(robot);
+        let mut queue = std::mem::take(&mut self.scratch.near_queue);
+        queue.clear();
+        queue.push(robot);
+        self.scratch.near_reached[robot] = true;
+        let mut k = 0;
+        while k < queue.len() {
+            let i = queue[k];
+            k += 1;
+            for j in f.neighbours8(i) {
+                if !self.scratch.near_reached[j]
+                    && self.cspace.traversable[j]
+                    && (f.centre(j) - at).norm() <= NEW_FLOOR_NEAR
+                {
+                    self.scratch.near_reached[j] = true;
+                    queue.push(j);
+                }
+            }
+        }
+        let reached = queue.len();
+        // Floor the rest of the path sweeps anyway is no reason to re-plan.
+        let rest = &self.current.path[next.min(self.current.path.len())..];
+        let reach = self.reach + f.res * 0.5;
+        let swept_later = |c: Point2<f64>| {
+            let mut a = *p;
+            rest.iter().any(|&b| {
+                let near = Segment::new(a, b).distance_to(&c) <= reach;
+                a = b;
+                near
+            })
+        };
+        let in_final = |c: Point2<f64>| {
+            decomp.cells.iter().any(|cell| {
+                cell.status == CellStatus::Final && cell.polygon.len() >= 3 && cell.contains(&c)
+            })
+        };
+        let mut new = 0;
+        for q in 0..reached {
+            let i = queue[q];
+            let mut from_final = None;
+            for j in f.around(i, &self.reach_disk) {
+                if self.scratch.near_counted[j] || self.tour.decided[j] || !self.open_floor(j) {
+                    continue;
+                }
+                if !*from_final.get_or_insert_with(|| in_final(f.centre(i))) {
+                    break;
+                }
+                self.scratch.near_counted[j] = true;
+                queue.push(j);
+                if !swept_later(f.centre(j)) {
+                    new += 1;
+                }
+            }
+        }
+        for &i in &queue {
+            self.scratch.near_reached[i] = false;
+            self.scratch.near_counted[i] = false;
+        }
+        self.scratch.near_queue = queue;
+        new
+    }
 }

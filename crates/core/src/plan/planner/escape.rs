@@ -24,6 +24,7 @@ impl CoveragePlanner {
             None => "in a cell the clearance rules out".into(),
         };
         let nearest = self
+            .current
             .path
             .windows(2)
             .map(|s| Segment::new(s[0], s[1]).closest_point(p))
@@ -68,7 +69,7 @@ impl CoveragePlanner {
             return Err(PlanError::Trapped { x: p.x, y: p.y });
         };
         if forgive && self.may_forgive() {
-            self.forgive_task();
+            self.current.forgive();
         }
         self.stats.escapes += 1;
         self.set_task(Task::Escape, path, None);
@@ -89,7 +90,7 @@ impl CoveragePlanner {
     pub(super) fn escape_path(&self, robot: usize) -> Option<Vec<Point2<f64>>> {
         let f = self.cspace.frame;
         let goal = self.escape_target(robot)?;
-        let need = self.stamp.len();
+        let need = self.swept.stamp.len();
         if self.cspace.traversable_part_holds(goal, need) {
             return Some(vec![f.centre(goal)]);
         }

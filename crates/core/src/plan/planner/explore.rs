@@ -5,8 +5,8 @@ use nalgebra::Point2;
 
 use super::regions::drop_specks;
 use super::{
-    CoveragePlanner, Task, FRONTIER_SPREAD, FRUITFUL_EXPLORE_CELLS, GIVEN_UP_AGAIN,
-    MAX_EXTRA_RETRIES, MAX_FRUITLESS_EXPLORES, MAX_WAYS_OUT,
+    CoveragePlanner, Task, FRUITFUL_EXPLORE_CELLS, MAX_EXTRA_RETRIES, MAX_FRUITLESS_EXPLORES,
+    MAX_WAYS_OUT,
 };
 use crate::plan::cspace::{Frame, FREE};
 
@@ -25,10 +25,10 @@ impl CoveragePlanner {
     /// Floor never within reach (a pocket behind furniture) is not in it.
     pub(super) fn walled_off(&self) -> Vec<bool> {
         let f = self.cspace.frame;
-        let own = super::touch_from(&self.cspace, &self.reachable_mask);
-        let once = super::touch_from(&self.cspace, &self.ever_reachable);
+        let own = super::end::touch_from(&self.cspace, &self.regions.reachable);
+        let once = super::end::touch_from(&self.cspace, &self.tried.ever_reachable);
         let mut walled: Vec<bool> = (0..f.len())
-            .map(|i| self.cspace.state[i] == FREE && !self.covered[i] && !own[i] && once[i])
+            .map(|i| self.cspace.state[i] == FREE && !self.swept.covered[i] && !own[i] && once[i])
             .collect();
         let mut cells: Vec<usize> = (0..f.len()).filter(|&i| walled[i]).collect();
         let min_cells = (self.params.min_patch_area / (f.res * f.res)).ceil() as usize;
@@ -48,7 +48,7 @@ impl CoveragePlanner {
         let want = LOOK_DISTANCE / f.res;
         let key = |j: usize| ((away[j] - want).abs().round(), self.cspace.dist[j]);
         let best = (0..f.len())
-            .filter(|&j| self.reachable_mask[j] && self.cspace.dist[j].is_finite())
+            .filter(|&j| self.regions.reachable[j] && self.cspace.dist[j].is_finite())
             .filter(|&j| away[j].is_finite())
             .min_by(|&a, &b| {
                 let (ka, kb) = (key(a), key(b));
@@ -69,15 +69,15 @@ impl CoveragePlanner {
 
     /// The nearest reachable place with unexplored space in view (within
     /// `explore_view_distance`, along a line a scan would pass: see
-    /// [`CSpace::sees_unknown_beside`]), and the frontier point to face
+    /// [`crate::plan::cspace::CSpace::sees_unknown_beside`]), and the frontier point to face
     /// there. A frontier no reachable place sees now is kept: it may come
     /// into reach later (through a way out, or once a passage is seen from
     /// closer); at the end it is reported (`unexplored_frontier`).
     pub(super) fn explore_goal_from(&mut self, _robot: usize) -> Option<(usize, Point2<f64>)> {
         let f = self.cspace.frame;
-        let mut list = std::mem::take(&mut self.frontier);
+        let mut list = std::mem::take(&mut self.scratch.frontier);
         self.cspace.frontier(&mut list);
-        list.retain(|&i| !self.given_up[i]);
+        list.retain(|&i| !self.tried.given_up[i]);
         // Drop speckle: frontier clusters smaller than the minimum.
         let keep = cluster_filter(&list, f, self.params.min_frontier_cells);
         let view = self.params.explore_view_distance;
@@ -94,7 +94,7 @@ impl CoveragePlanner {
                     }
                     let j = ny as usize * f.w + nx as usize;
                     let d = self.cspace.dist[j];
-                    if !self.reachable_mask[j] || !d.is_finite() {
+                    if !self.regions.reachable[j] || !d.is_finite() {
                         continue;
                     }
                     if ((dx * dx + dy * dy) as f64).sqrt() * f.res > view {
@@ -109,7 +109,7 @@ impl CoveragePlanner {
                 }
             }
         }
-        self.frontier = list;
+        self.scratch.frontier = list;
         best.map(|(_, j, fp)| (j, fp))
     }
 
@@ -118,22 +118,23 @@ impl CoveragePlanner {
     /// in view), through a passage only the bare body fits; `None` when
     /// there is none, or after [`MAX_WAYS_OUT`] in a row.
     pub(super) fn way_out(&mut self, robot: usize, max_tight: f64) -> Option<Vec<Point2<f64>>> {
-        if self.ways_out_in_a_row >= MAX_WAYS_OUT || max_tight <= 0.0 {
+        if self.stalls.ways_out_in_a_row >= MAX_WAYS_OUT || max_tight <= 0.0 {
             return None;
         }
         let f = self.cspace.frame;
-        let mut list = std::mem::take(&mut self.frontier);
+        let mut list = std::mem::take(&mut self.scratch.frontier);
         self.cspace.frontier(&mut list);
-        list.retain(|&i| !self.given_up[i]);
+        list.retain(|&i| !self.tried.given_up[i]);
         let frontier = cluster_filter(&list, f, self.params.min_frontier_cells);
-        self.frontier = list;
+        self.scratch.frontier = list;
         let min_floor = self.min_patch_cells();
         let view = self.params.explore_view_distance;
         let vr = (view / f.res).ceil() as i64;
-        let (covered, abandoned, reach_disk) = (&self.covered, &self.abandoned, &self.reach_disk);
+        let (covered, abandoned, reach_disk) =
+            (&self.swept.covered, &self.tried.abandoned, &self.reach_disk);
         // Floor the robot's own part reaches is left to it (it found nothing
         // it could plan there): only what the other part alone reaches counts.
-        let own = &self.targets;
+        let own = &self.regions.targets;
         let cs = &self.cspace;
         let state = &cs.state;
         let mut counted = vec![false; f.len()];
@@ -182,7 +183,7 @@ impl CoveragePlanner {
         crate::plan::unbox::way_out(
             &self.cspace,
             robot,
-            &self.reachable_mask,
+            &self.regions.reachable,
             max_tight,
             has_work,
         )
@@ -191,50 +192,35 @@ impl CoveragePlanner {
     /// Starts driving a way out (see [`Self::way_out`]): the task it leaves
     /// is not charged a try, and ways out in a row are counted.
     pub(super) fn take_way_out(&mut self, path: Vec<Point2<f64>>) {
-        self.forgive_task();
+        self.current.forgive();
         self.stats.ways_out += 1;
-        self.ways_out_in_a_row += 1;
+        self.stalls.ways_out_in_a_row += 1;
         self.set_task(Task::Escape, path, None);
     }
 
     /// Whether the space reachable from the robot is smaller than its own
-    /// footprint (see [`BOXED_IN_UPDATES`]).
+    /// footprint (see [`super::BOXED_IN_UPDATES`]).
     pub(super) fn boxed_in_now(&self) -> bool {
-        self.reachable_mask.iter().filter(|r| **r).count() < self.stamp.len()
+        self.regions.reachable_cells() < self.swept.footprint()
     }
 
     pub(super) fn frontier_in_view(&mut self, g: &Point2<f64>) -> bool {
-        let mut list = std::mem::take(&mut self.frontier);
+        let mut list = std::mem::take(&mut self.scratch.frontier);
         self.cspace.frontier(&mut list);
         let f = self.cspace.frame;
         let view = self.params.explore_view_distance;
         let any = list
             .iter()
-            .any(|&i| !self.given_up[i] && (f.centre(i) - g).norm() <= view);
-        self.frontier = list;
+            .any(|&i| !self.tried.given_up[i] && (f.centre(i) - g).norm() <= view);
+        self.scratch.frontier = list;
         any
     }
 
     /// Takes back every give-up of floor not swept yet (see [`Self::choose`]);
     /// false when there is none.
     pub(super) fn retry_given_up(&mut self) -> bool {
-        if self.retried {
-            self.extra_retries += 1;
-            self.reach_generation += 1;
-        }
-        self.retried = true;
-        self.retry_at = self.now();
-        self.tries_generation += 1;
-        let mut any = false;
-        self.retry_set.clear();
-        for i in 0..self.abandoned.len() {
-            if self.abandoned[i] && !self.covered[i] && !self.declined[i] {
-                self.abandoned[i] = false;
-                self.tries[i] = 0;
-                self.retry_set.push(i);
-                any = true;
-            }
-        }
+        let now = self.now();
+        let any = self.tried.retry_given_up(&self.swept.covered, now);
         if any {
             self.compute_targets();
         }
@@ -244,30 +230,32 @@ impl CoveragePlanner {
     /// Whether floor given up may be tried again now: the first round
     /// always; up to [`MAX_EXTRA_RETRIES`] more while the last round swept
     /// at least `plan.min_patch_area` of the floor it tried again, or while
-    /// [`GIVEN_UP_AGAIN`] or more is given up and `plan.clear_wait` has
+    /// [`super::GIVEN_UP_AGAIN`] or more is given up and `plan.clear_wait` has
     /// passed since the last round: people crossing the robot's paths had
     /// it given up, not the room (a room nobody walks through gives up a
     /// few tenths of a square metre at most).
     pub(super) fn may_retry_again(&self) -> bool {
-        if !self.retried {
+        if !self.tried.retried {
             return true;
         }
         let a = self.cspace.frame.res * self.cspace.frame.res;
-        let swept = self.retry_set.iter().filter(|&&i| self.covered[i]).count() as f64 * a;
-        let waited = self.now() - self.retry_at >= self.params.clear_wait;
-        self.extra_retries < MAX_EXTRA_RETRIES
+        let swept = self
+            .tried
+            .retry_set
+            .iter()
+            .filter(|&&i| self.swept.covered[i])
+            .count() as f64
+            * a;
+        let waited = self.now() - self.tried.retry_at >= self.params.clear_wait;
+        self.tried.extra_retries < MAX_EXTRA_RETRIES
             && (swept >= self.params.min_patch_area || (self.much_given_up() && waited))
     }
 
-    /// Whether [`GIVEN_UP_AGAIN`] or more floor is given up, after its first
+    /// Whether [`super::GIVEN_UP_AGAIN`] or more floor is given up, after its first
     /// round, with rounds left (see [`Self::may_retry_again`]).
     pub(super) fn much_given_up(&self) -> bool {
         let a = self.cspace.frame.res * self.cspace.frame.res;
-        let given_up = (0..self.abandoned.len())
-            .filter(|&i| self.abandoned[i] && !self.covered[i] && !self.declined[i])
-            .count() as f64
-            * a;
-        self.retried && self.extra_retries < MAX_EXTRA_RETRIES && given_up >= GIVEN_UP_AGAIN
+        self.tried.much_given_up(&self.swept.covered, a)
     }
 
     /// Seen-free cells of the map.
@@ -281,59 +269,34 @@ impl CoveragePlanner {
     /// grazing angle keeps showing new frontier cells as its cells flip
     /// between free and occupied: an endless walk along it otherwise).
     pub(super) fn count_fruitless_explore(&mut self) {
-        if self.known_free() >= self.free_at_explore + FRUITFUL_EXPLORE_CELLS {
-            self.fruitless_explores = 0;
+        let known_free = self.known_free();
+        if !self
+            .stalls
+            .explore_ended(known_free, FRUITFUL_EXPLORE_CELLS, MAX_FRUITLESS_EXPLORES)
+        {
             return;
         }
-        self.fruitless_explores += 1;
-        if self.fruitless_explores < MAX_FRUITLESS_EXPLORES {
-            return;
-        }
-        self.fruitless_explores = 0;
-        let mut list = std::mem::take(&mut self.frontier);
+        let mut list = std::mem::take(&mut self.scratch.frontier);
         self.cspace.frontier(&mut list);
         for &i in &list {
-            self.give_up_around(i);
+            self.tried.give_up_around(self.cspace.frame, i);
         }
-        self.frontier = list;
-    }
-
-    /// Gives up frontier cell `i` and the cells within [`FRONTIER_SPREAD`].
-    fn give_up_around(&mut self, i: usize) {
-        let f = self.cspace.frame;
-        let (x, y) = ((i % f.w) as i64, (i / f.w) as i64);
-        for dy in -FRONTIER_SPREAD..=FRONTIER_SPREAD {
-            for dx in -FRONTIER_SPREAD..=FRONTIER_SPREAD {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx >= 0 && ny >= 0 && (nx as usize) < f.w && (ny as usize) < f.h {
-                    self.given_up[ny as usize * f.w + nx as usize] = true;
-                }
-            }
-        }
-        self.tries_generation += 1;
+        self.scratch.frontier = list;
     }
 
     /// Frontier cells in view of `g` get one more try; at `limit` tries (0:
     /// at once) they are given up.
     pub(super) fn give_up_frontier_near(&mut self, g: &Point2<f64>, limit: u8) {
-        let mut list = std::mem::take(&mut self.frontier);
+        let mut list = std::mem::take(&mut self.scratch.frontier);
         self.cspace.frontier(&mut list);
         let f = self.cspace.frame;
         let view = self.params.explore_view_distance;
         for &i in &list {
             if (f.centre(i) - g).norm() <= view + f.res {
-                self.tries[i] = self.tries[i].saturating_add(1);
-                self.tries_generation += 1;
-                if self.tries[i] >= limit {
-                    // With the cells beside it: the frontier along a wall
-                    // seen at a grazing angle shifts by a cell or two as
-                    // rays go on clearing and marking it, and must not come
-                    // back as new frontier.
-                    self.give_up_around(i);
-                }
+                self.tried.charge_frontier(f, i, limit);
             }
         }
-        self.frontier = list;
+        self.scratch.frontier = list;
     }
 }
 

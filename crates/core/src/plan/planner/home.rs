@@ -64,7 +64,7 @@ impl HomeOutcome {
 
 /// The planner's state while it drives back.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Homing {
+pub(crate) struct Homing {
     /// The report of the coverage just finished, handed out on arrival.
     report: DoneReport,
     /// Ways back planned so far.
@@ -74,36 +74,64 @@ pub(super) struct Homing {
     to_start: bool,
 }
 
-impl CoveragePlanner {
-    /// Where the robot started (recorded at its first update, or restored),
-    /// for a checkpoint; `None` before.
-    pub fn home(&self) -> Option<HomePlace> {
-        self.home
-    }
+/// Where the robot started, and the drive back to it once coverage is done.
+#[derive(Default)]
+pub(crate) struct HomeState {
+    /// Where the robot started (recorded at its first update, or restored).
+    pub(crate) start: Option<HomePlace>,
+    /// Coverage is done and the robot drives back to the start.
+    pub(crate) homing: Option<Homing>,
+}
 
-    /// Restores the start recorded before a restart: the robot drives back
-    /// there, not to where it was resumed. A non-finite place is ignored.
-    pub fn restore_home(&mut self, home: HomePlace) {
+impl HomeState {
+    /// Restores the start recorded before a restart; a non-finite place is
+    /// ignored.
+    pub(crate) fn restore(&mut self, home: HomePlace) {
         if home.x.is_finite() && home.y.is_finite() && home.heading.is_finite() {
-            self.home = Some(home);
+            self.start = Some(home);
         }
     }
 
-    /// Ways back planned since coverage was done (0 when not on the way
-    /// back): 1 on the update that planned the first.
-    pub fn home_plans(&self) -> usize {
+    /// Ways back planned since coverage was done (0 when not on the way back).
+    pub(crate) fn plans(&self) -> usize {
         self.homing.map_or(0, |h| h.plans)
     }
 
     /// Records `pose` as the start when none is known yet.
-    pub(super) fn note_start(&mut self, pose: &Pose) {
-        if self.home.is_none() {
-            self.home = Some(HomePlace {
+    pub(crate) fn note_start(&mut self, pose: &Pose) {
+        if self.start.is_none() {
+            self.start = Some(HomePlace {
                 x: pose.translation.x,
                 y: pose.translation.y,
                 heading: heading(pose),
             });
         }
+    }
+
+    /// Distance (m) of `p` from the start, NaN when it is unknown.
+    pub(crate) fn distance_to_start(&self, p: &Point2<f64>) -> f64 {
+        self.start
+            .map_or(f64::NAN, |s| (p - Point2::new(s.x, s.y)).norm())
+    }
+}
+
+impl CoveragePlanner {
+    /// Where the robot started (recorded at its first update, or restored),
+    /// for a checkpoint; `None` before.
+    pub fn home(&self) -> Option<HomePlace> {
+        self.home.start
+    }
+
+    /// Restores the start recorded before a restart: the robot drives back
+    /// there, not to where it was resumed. A non-finite place is ignored.
+    pub fn restore_home(&mut self, home: HomePlace) {
+        self.home.restore(home);
+    }
+
+    /// Ways back planned since coverage was done (0 when not on the way
+    /// back): 1 on the update that planned the first.
+    pub fn home_plans(&self) -> usize {
+        self.home.plans()
     }
 
     /// Coverage is done with `report`: drive back to the start when asked
@@ -114,11 +142,11 @@ impl CoveragePlanner {
         pose: &Pose,
         robot: usize,
     ) -> Result<PlanStatus, PlanError> {
-        if !self.params.return_home || self.home.is_none() {
+        if !self.params.return_home || self.home.start.is_none() {
             let p: Point2<f64> = pose.translation.vector.into();
             return Ok(self.finish(report, HomeOutcome::NotAsked, &p));
         }
-        self.homing = Some(Homing {
+        self.home.homing = Some(Homing {
             report,
             plans: 0,
             to_start: false,
@@ -135,8 +163,8 @@ impl CoveragePlanner {
         arrived: bool,
         replan: bool,
     ) -> Result<PlanStatus, PlanError> {
-        let to_start = self.homing.is_some_and(|h| h.to_start);
-        if arrived && self.task == Task::Home && to_start {
+        let to_start = self.home.homing.is_some_and(|h| h.to_start);
+        if arrived && self.current.task == Task::Home && to_start {
             return Ok(self.home_reached(pose));
         }
         if !replan && !arrived {
@@ -148,7 +176,7 @@ impl CoveragePlanner {
     /// Plans the way back from `pose` (cell `robot`), or finishes when the
     /// robot is home, has no way there, or has planned too many.
     fn plan_home(&mut self, pose: &Pose, robot: usize) -> Result<PlanStatus, PlanError> {
-        let (Some(home), Some(h)) = (self.home, self.homing.as_mut()) else {
+        let (Some(home), Some(h)) = (self.home.start, self.home.homing.as_mut()) else {
             return Ok(self.driving_on());
         };
         let p: Point2<f64> = pose.translation.vector.into();
@@ -226,7 +254,7 @@ impl CoveragePlanner {
                 self.cspace.dist[goal]
             );
         }
-        if let Some(h) = self.homing.as_mut() {
+        if let Some(h) = self.home.homing.as_mut() {
             h.to_start = true;
         }
         self.set_task(Task::Home, path, Some(home.heading));
@@ -277,7 +305,7 @@ impl CoveragePlanner {
 
     fn home_reached(&mut self, pose: &Pose) -> PlanStatus {
         let p: Point2<f64> = pose.translation.vector.into();
-        if let Some(home) = self.home {
+        if let Some(home) = self.home.start {
             log::info!(
                 "back at the start: ({:.2}, {:.2}) m, {:.2} m from where it started",
                 p.x,
@@ -289,7 +317,7 @@ impl CoveragePlanner {
     }
 
     fn home_ends(&mut self, outcome: HomeOutcome, p: &Point2<f64>) -> PlanStatus {
-        let Some(h) = self.homing.take() else {
+        let Some(h) = self.home.homing.take() else {
             return self.driving_on();
         };
         self.finish(h.report, outcome, p)
@@ -298,15 +326,9 @@ impl CoveragePlanner {
     /// The status of an update that keeps the current path.
     fn driving_on(&self) -> PlanStatus {
         PlanStatus::Working {
-            task: self.task,
+            task: self.current.task,
             new_path: false,
         }
-    }
-
-    /// Distance (m) of `p` from the start, NaN when it is unknown.
-    fn distance_to_start(&self, p: &Point2<f64>) -> f64 {
-        self.home
-            .map_or(f64::NAN, |s| (p - Point2::new(s.x, s.y)).norm())
     }
 
     /// Ends the run with `report`, the drive back ended by `outcome` with
@@ -318,7 +340,7 @@ impl CoveragePlanner {
         p: &Point2<f64>,
     ) -> PlanStatus {
         report.home = outcome;
-        report.home_distance = self.distance_to_start(p);
+        report.home_distance = self.home.distance_to_start(p);
         self.report = Some(report);
         self.set_task(Task::Done, Vec::new(), None);
         PlanStatus::Done(report)
@@ -398,7 +420,7 @@ mod tests {
             None,
         )
         .unwrap();
-        p.homing = Some(Homing {
+        p.home.homing = Some(Homing {
             report: DoneReport::default(),
             plans: 0,
             to_start: false,
@@ -442,7 +464,7 @@ mod tests {
         let far = pose(2.5, 1.0, 0.0);
         let robot = p.cspace.frame.index_of(&Point2::new(2.5, 1.0)).unwrap();
         p.cspace.rebuild(&shut);
-        p.homing = Some(Homing {
+        p.home.homing = Some(Homing {
             report: DoneReport::default(),
             plans: 0,
             to_start: false,
@@ -463,7 +485,7 @@ mod tests {
         let start = pose(0.5, 1.0, 0.0);
         let empty = crate::decomp::Decomposition::default();
         p.update(&grid, &empty, &start, None).unwrap();
-        p.homing = Some(Homing {
+        p.home.homing = Some(Homing {
             report: DoneReport::default(),
             plans: 0,
             to_start: false,

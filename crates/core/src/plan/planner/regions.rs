@@ -24,9 +24,10 @@ impl CoveragePlanner {
     pub(super) fn compute_targets(&mut self) {
         let f = self.cspace.frame;
         for i in 0..f.len() {
-            self.reachable_mask[i] = self.cspace.traversable[i] && self.cspace.dist[i].is_finite();
-            self.targets[i] = false;
-            self.owner[i] = if self.reachable_mask[i] {
+            self.regions.reachable[i] =
+                self.cspace.traversable[i] && self.cspace.dist[i].is_finite();
+            self.regions.targets[i] = false;
+            self.regions.owner[i] = if self.regions.reachable[i] {
                 i as u32
             } else {
                 u32::MAX
@@ -37,21 +38,21 @@ impl CoveragePlanner {
         // pass on), in index order as before.
         let mut queue: std::collections::VecDeque<usize> = (0..f.len())
             .filter(|&i| {
-                self.reachable_mask[i]
+                self.regions.reachable[i]
                     && f.neighbours8(i)
-                        .any(|j| !self.reachable_mask[j] && self.cspace.state[j] == FREE)
+                        .any(|j| !self.regions.reachable[j] && self.cspace.state[j] == FREE)
             })
             .collect();
         let limit = self.reach + f.res;
         while let Some(i) = queue.pop_front() {
-            let o = self.owner[i] as usize;
+            let o = self.regions.owner[i] as usize;
             let oc = f.centre(o);
             for j in f.neighbours8(i) {
-                if self.owner[j] == u32::MAX
+                if self.regions.owner[j] == u32::MAX
                     && self.cspace.state[j] == FREE
                     && (f.centre(j) - oc).norm() <= limit
                 {
-                    self.owner[j] = o as u32;
+                    self.regions.owner[j] = o as u32;
                     queue.push_back(j);
                 }
             }
@@ -59,52 +60,28 @@ impl CoveragePlanner {
         // Floor within reach of a reachable centre (a centre inside the
         // reachable space adds only itself: see `four_neighbours_in`).
         for i in 0..f.len() {
-            if !self.reachable_mask[i] {
+            if !self.regions.reachable[i] {
                 continue;
             }
-            if four_neighbours_in(&self.reachable_mask, f, i) {
+            if four_neighbours_in(&self.regions.reachable, f, i) {
                 if self.open_floor(i) {
-                    self.targets[i] = true;
+                    self.regions.targets[i] = true;
                 }
                 continue;
             }
             for j in f.around(i, &self.reach_disk) {
                 if self.open_floor(j) {
-                    self.targets[j] = true;
+                    self.regions.targets[j] = true;
                 }
             }
         }
-        self.decided.clone_from(&self.targets);
+        self.tour.decided.clone_from(&self.regions.targets);
     }
 
     /// Seen-free floor not swept yet and not given up: a target wherever
     /// the tool can reach it.
     pub(super) fn open_floor(&self, j: usize) -> bool {
-        self.cspace.state[j] == FREE && !self.covered[j] && !self.abandoned[j]
-    }
-
-    /// The phase of the lane lattice along `axis`, fixed for the whole run
-    /// at its first use: a lane hugs the lowest wall (across the lanes) of
-    /// the space reachable then.
-    fn lattice_phase(&mut self, axis: Axis) -> f64 {
-        let k = axis as usize;
-        if let Some(p) = self.phase[k] {
-            return p;
-        }
-        let f = self.cspace.frame;
-        let lowest = (0..f.len())
-            .filter(|&i| self.reachable_mask[i])
-            .map(|i| {
-                let c = f.centre(i);
-                match axis {
-                    Axis::X => c.y,
-                    Axis::Y => c.x,
-                }
-            })
-            .fold(f64::INFINITY, f64::min);
-        let p = if lowest.is_finite() { lowest } else { 0.0 };
-        self.phase[k] = Some(p);
-        p
+        self.cspace.state[j] == FREE && !self.swept.covered[j] && !self.tried.abandoned[j]
     }
 
     /// The reachable centre on floor cell `j`'s nearest lattice lane (same
@@ -126,7 +103,7 @@ impl CoveragePlanner {
             Axis::X => row * f.w + j % f.w,
             Axis::Y => (j / f.w) * f.w + row,
         };
-        (self.region_of[k] != u32::MAX).then_some(k)
+        (self.regions.region_of[k] != u32::MAX).then_some(k)
     }
 
     /// The reachable centre whose region floor cell `j` belongs to: the one
@@ -138,7 +115,7 @@ impl CoveragePlanner {
         if owners[j] == OWNER_UNSET {
             owners[j] = match self.lattice_owner(j, axis, phase) {
                 Some(k) => k as u32,
-                None => self.owner[j],
+                None => self.regions.owner[j],
             };
         }
         owners[j] as usize
@@ -156,7 +133,7 @@ impl CoveragePlanner {
     /// covers it as part of itself.
     pub(super) fn mark_cells(&mut self, decomp: &Decomposition) {
         let f = self.cspace.frame;
-        self.region_of.fill(u32::MAX);
+        self.regions.region_of.fill(u32::MAX);
         let mut centres = vec![0usize; decomp.cells.len()];
         for (n, cell) in decomp.cells.iter().enumerate() {
             if cell.polygon.len() < 3 {
@@ -168,11 +145,11 @@ impl CoveragePlanner {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let i = y * f.w + x;
-                    if self.reachable_mask[i]
-                        && self.region_of[i] == u32::MAX
+                    if self.regions.reachable[i]
+                        && self.regions.region_of[i] == u32::MAX
                         && cell.contains(&f.centre(i))
                     {
-                        self.region_of[i] = n as u32;
+                        self.regions.region_of[i] = n as u32;
                         centres[n] += 1;
                     }
                 }
@@ -180,11 +157,11 @@ impl CoveragePlanner {
         }
         let min = self.min_patch_cells();
         let index = |id: CellId| decomp.cells.iter().position(|c| c.id == id);
-        self.lent_to.clear();
+        self.regions.lent_to.clear();
         for (n, cell) in decomp.cells.iter().enumerate() {
             let sliver = cell.status != CellStatus::Open && (1..min).contains(&centres[n]);
             if !sliver {
-                self.lent_to.push(None);
+                self.regions.lent_to.push(None);
                 continue;
             }
             let mut best: Option<(f64, usize)> = None;
@@ -207,10 +184,15 @@ impl CoveragePlanner {
                     best = Some((shared, m));
                 }
             }
-            self.lent_to.push(best.map(|(_, m)| m));
+            self.regions.lent_to.push(best.map(|(_, m)| m));
         }
-        for r in self.region_of.iter_mut().filter(|r| **r != u32::MAX) {
-            if let Some(host) = self.lent_to[*r as usize] {
+        for r in self
+            .regions
+            .region_of
+            .iter_mut()
+            .filter(|r| **r != u32::MAX)
+        {
+            if let Some(host) = self.regions.lent_to[*r as usize] {
                 *r = host as u32;
             }
         }
@@ -234,7 +216,7 @@ impl CoveragePlanner {
     /// left costs more than that share (one 0.06 m² corner is 1 % of a
     /// 6 m² room).
     fn cleanup_patch_cells(&self) -> usize {
-        let reachable = self.reachable_mask.iter().filter(|&&r| r).count() as f64;
+        let reachable = self.regions.reachable_cells() as f64;
         let share = (self.params.min_patch_share * reachable).ceil() as usize;
         let min = self.min_patch_cells();
         if share == 0 {
@@ -255,18 +237,18 @@ impl CoveragePlanner {
         min: usize,
     ) -> Option<Candidate> {
         let f = self.cspace.frame;
-        let phase = self.lattice_phase(axis);
+        let phase = self.regions.lattice_phase(axis, f);
         let r = (self.reach / f.res).ceil() as usize + 1;
         let (x0, y0) = (bbox.0.saturating_sub(r), bbox.1.saturating_sub(r));
         let (x1, y1) = ((bbox.2 + r).min(f.w - 1), (bbox.3 + r).min(f.h - 1));
         for y in y0..=y1 {
             for x in x0..=x1 {
-                self.scratch_t[y * f.w + x] = false;
+                self.scratch.targets[y * f.w + x] = false;
             }
         }
         let mut targets = Vec::new();
         // A patch (no cell) takes all its floor and asks no owner.
-        let mut owners = std::mem::take(&mut self.floor_owner[axis as usize]);
+        let mut owners = std::mem::take(&mut self.regions.floor_owner[axis as usize]);
         if cell.is_some() && owners.len() != f.len() {
             owners.clear();
             owners.resize(f.len(), OWNER_UNSET);
@@ -277,39 +259,45 @@ impl CoveragePlanner {
         for y in bbox.1..=bbox.3 {
             for x in bbox.0..=bbox.2 {
                 let i = y * f.w + x;
-                if !self.scratch_a[i] {
+                if !self.scratch.admissible[i] {
                     continue;
                 }
-                let within = four_neighbours_in(&self.scratch_a, f, i);
+                let within = four_neighbours_in(&self.scratch.admissible, f, i);
                 let disk: &[(i64, i64)] = if within { &inner } else { ring };
                 for j in f.around(i, disk) {
-                    if !self.targets[j] || self.scratch_t[j] {
+                    if !self.regions.targets[j] || self.scratch.targets[j] {
                         continue;
                     }
                     // Floor belongs to one region: see `floor_owner`.
                     let own = cell.is_none() || {
                         let k = self.floor_owner(&mut owners, j, axis, phase);
-                        k < f.len() && self.scratch_a[k]
+                        k < f.len() && self.scratch.admissible[k]
                     };
                     if own {
-                        self.scratch_t[j] = true;
+                        self.scratch.targets[j] = true;
                         targets.push(j);
                     }
                 }
             }
         }
-        self.floor_owner[axis as usize] = owners;
+        self.regions.floor_owner[axis as usize] = owners;
         // Scattered leftovers (single cells at lane ends along a wall, where
         // no connection passes) are not worth a drive: a region needs one
         // patch of at least the smallest patch worth covering.
-        if drop_specks(&mut targets, &mut self.scratch_t, f, MIN_TARGET_CLUSTER) < min {
+        if drop_specks(
+            &mut targets,
+            &mut self.scratch.targets,
+            f,
+            MIN_TARGET_CLUSTER,
+        ) < min
+        {
             return None;
         }
         let input = LaneInput {
             frame: f,
-            admissible: &self.scratch_a,
-            drivable: &self.reachable_mask,
-            targets: &self.scratch_t,
+            admissible: &self.scratch.admissible,
+            drivable: &self.regions.reachable,
+            targets: &self.scratch.targets,
             bbox: (x0, y0, x1, y1),
             axis,
             spacing: self.spacing,
@@ -335,10 +323,7 @@ impl CoveragePlanner {
         }
         if vars.is_empty() {
             // Nothing the lanes can reach from here: give these up.
-            for &i in &targets {
-                self.abandoned[i] = true;
-            }
-            self.tries_generation += 1;
+            self.tried.abandon(&targets);
             return None;
         }
         Some(Candidate {
@@ -355,20 +340,21 @@ impl CoveragePlanner {
         status: CellStatus,
     ) -> Vec<Candidate> {
         let f = self.cspace.frame;
-        for owners in &mut self.floor_owner {
+        for owners in &mut self.regions.floor_owner {
             owners.clear();
         }
         let min = self.min_patch_cells();
         let mut out = Vec::new();
         for (n, cell) in decomp.cells.iter().enumerate() {
-            if cell.status != status || cell.polygon.len() < 3 || self.lent_to[n].is_some() {
+            if cell.status != status || cell.polygon.len() < 3 || self.regions.lent_to[n].is_some()
+            {
                 continue;
             }
             // The cell and the slivers lent to it.
             let Some(bbox) = std::iter::once(cell)
                 .chain(
                     (0..decomp.cells.len())
-                        .filter(|&m| self.lent_to[m] == Some(n))
+                        .filter(|&m| self.regions.lent_to[m] == Some(n))
                         .map(|m| &decomp.cells[m]),
                 )
                 .filter_map(|c| cell_bbox(c, &f))
@@ -380,8 +366,8 @@ impl CoveragePlanner {
             for y in bbox.1..=bbox.3 {
                 for x in bbox.0..=bbox.2 {
                     let i = y * f.w + x;
-                    let inside = self.region_of[i] == n as u32;
-                    self.scratch_a[i] = inside;
+                    let inside = self.regions.region_of[i] == n as u32;
+                    self.scratch.admissible[i] = inside;
                     any |= inside;
                 }
             }
@@ -396,7 +382,7 @@ impl CoveragePlanner {
             }
             for y in bbox.1..=bbox.3 {
                 for x in bbox.0..=bbox.2 {
-                    self.scratch_a[y * f.w + x] = false;
+                    self.scratch.admissible[y * f.w + x] = false;
                 }
             }
         }
@@ -411,7 +397,7 @@ impl CoveragePlanner {
         let min = self.cleanup_patch_cells();
         let mut stack = Vec::new();
         for s in 0..f.len() {
-            if !self.targets[s] || seen[s] {
+            if !self.regions.targets[s] || seen[s] {
                 continue;
             }
             let mut comp = Vec::new();
@@ -420,7 +406,7 @@ impl CoveragePlanner {
             while let Some(i) = stack.pop() {
                 comp.push(i);
                 for j in f.neighbours8(i) {
-                    if self.targets[j] && !seen[j] {
+                    if self.regions.targets[j] && !seen[j] {
                         seen[j] = true;
                         stack.push(j);
                     }
@@ -433,9 +419,9 @@ impl CoveragePlanner {
             let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
             for &i in &comp {
                 for j in f.around(i, &self.reach_disk) {
-                    if self.reachable_mask[j] {
+                    if self.regions.reachable[j] {
                         let (nx, ny) = (j % f.w, j / f.w);
-                        self.scratch_a[j] = true;
+                        self.scratch.admissible[j] = true;
                         x0 = x0.min(nx);
                         y0 = y0.min(ny);
                         x1 = x1.max(nx);
@@ -460,7 +446,7 @@ impl CoveragePlanner {
             }
             for y in y0..=y1 {
                 for x in x0..=x1 {
-                    self.scratch_a[y * f.w + x] = false;
+                    self.scratch.admissible[y * f.w + x] = false;
                 }
             }
         }

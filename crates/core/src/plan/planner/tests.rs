@@ -222,14 +222,14 @@ fn an_escape_passes_over_an_island_smaller_than_the_footprint() {
     assert!(!p.cspace.traversable[robot]);
     let island = f.index_of(&g.centre_of((43, 36))).unwrap();
     assert!(p.cspace.traversable[island], "no island under the notch");
-    assert!(!p.cspace.traversable_part_holds(island, p.stamp.len()));
+    assert!(!p.cspace.traversable_part_holds(island, p.swept.stamp.len()));
     let (path, _) = p.path();
-    assert_eq!(p.task, Task::Escape);
+    assert_eq!(p.current.task, Task::Escape);
     let end = *path.last().unwrap();
     let e = f.index_of(&end).unwrap();
     assert!(end.x < 1.0, "escapes west, not to the island: {end:?}");
     assert!(p.cspace.traversable[e]);
-    assert!(p.cspace.traversable_part_holds(e, p.stamp.len()));
+    assert!(p.cspace.traversable_part_holds(e, p.swept.stamp.len()));
     let mut from = at;
     for q in path {
         assert!(p.cspace.segment_safe(&from, q), "{from:?} -> {q:?}");
@@ -379,7 +379,7 @@ fn pillar_part_seen_free(
     let mut p = crate::plan::test_support::planner();
     let start = crate::geom::pose(0.3, 0.3, 0.0);
     p.update(&before, d.decomposition(), &start, None).unwrap();
-    assert!(p.touring, "the room is explored: a lane tour");
+    assert!(p.tour.touring, "the room is explored: a lane tour");
     let stats = p.stats();
     let pillar = Point2::new(0.6, 1.0);
     let path = p.path().0.to_vec();
@@ -542,18 +542,18 @@ fn floor_given_up_gets_one_more_round_before_done() {
     let at = crate::geom::pose(1.5, 1.0, 0.0);
     p.update(&g, &empty, &at, None).unwrap();
     // All of it given up, as after tasks interrupted again and again.
-    p.abandoned.iter_mut().for_each(|a| *a = true);
+    p.tried.abandoned.iter_mut().for_each(|a| *a = true);
     p.interrupt();
     let st = p.update(&g, &empty, &at, None).unwrap();
     assert!(covers_floor(&st), "{st:?}");
-    assert!(p.abandoned.iter().all(|a| !a));
+    assert!(p.tried.abandoned.iter().all(|a| !a));
     // Given up again, all of it: no third round at once, but a wait of
     // `plan.clear_wait` (people crossing the robot's paths may have had it
     // given up), then another round; at most MAX_EXTRA_RETRIES more.
     let mut t = 0.0;
     let mut rounds = 0;
     loop {
-        p.abandoned.iter_mut().for_each(|a| *a = true);
+        p.tried.abandoned.iter_mut().for_each(|a| *a = true);
         p.interrupt();
         p.set_time(t);
         let st = p.update(&g, &empty, &at, None).unwrap();
@@ -598,14 +598,14 @@ fn a_little_floor_given_up_gets_no_third_round() {
         (2.0..2.5).contains(&c.x) && (1.0..1.5).contains(&c.y)
     };
     for i in 0..f.len() {
-        p.covered[i] = !patch(i);
-        p.abandoned[i] = patch(i);
+        p.swept.covered[i] = !patch(i);
+        p.tried.abandoned[i] = patch(i);
     }
     p.interrupt();
     let st = p.update(&g, &empty, &at, None).unwrap();
     assert!(covers_floor(&st), "{st:?}");
     for i in 0..f.len() {
-        p.abandoned[i] = patch(i);
+        p.tried.abandoned[i] = patch(i);
     }
     p.interrupt();
     p.set_time(1000.0);
@@ -637,7 +637,7 @@ fn a_mark_that_shuts_a_passage_walls_off_the_floor_behind_it_until_taken_out() {
     p.update(&g, &empty, &at, None).unwrap();
     // The left half swept: done, the right half unreachable.
     let f = p.cspace.frame;
-    for (i, c) in p.covered.iter_mut().enumerate() {
+    for (i, c) in p.swept.covered.iter_mut().enumerate() {
         *c = i % f.w < 30;
     }
     p.interrupt();
@@ -686,8 +686,8 @@ fn a_bumper_mark_off_the_stool_walls_off_more_floor_than_those_on_it() {
     let at = crate::geom::pose(0.5, 0.5, 0.0);
     p.update(&g, &empty, &at, None).unwrap();
     // Everything the planner can reach swept: done.
-    let reached = p.targets.clone();
-    p.covered.copy_from_slice(&reached);
+    let reached = p.regions.targets.clone();
+    p.swept.covered.copy_from_slice(&reached);
     p.interrupt();
     let st = p.update(&g, &empty, &at, None).unwrap();
     assert!(matches!(st, PlanStatus::Done(_)), "{st:?}");
@@ -721,7 +721,7 @@ fn a_small_rooms_patch_under_the_fixed_size_is_covered_at_clean_up() {
         let g = crate::plan::test_support::walled_room();
         p.update(&g, &empty, &at, None).unwrap();
         let f = p.cspace.frame;
-        for (i, c) in p.covered.iter_mut().enumerate() {
+        for (i, c) in p.swept.covered.iter_mut().enumerate() {
             let (x, y) = (i % f.w, i / f.w);
             *c = !((20..24).contains(&x) && (10..15).contains(&y));
         }
@@ -797,14 +797,14 @@ fn floor_whose_nearest_lattice_lane_lies_in_a_sliver_cell_is_still_some_regions(
         p.compute_targets();
         p.mark_cells(&decomp);
         if !lend {
-            p.lent_to.iter_mut().for_each(|l| *l = None);
-            for (i, r) in p.region_of.iter_mut().enumerate() {
-                if p.reachable_mask[i] && decomp.cells[4].contains(&f.centre(i)) {
+            p.regions.lent_to.iter_mut().for_each(|l| *l = None);
+            for (i, r) in p.regions.region_of.iter_mut().enumerate() {
+                if p.regions.reachable[i] && decomp.cells[4].contains(&f.centre(i)) {
                     *r = 4;
                 }
             }
         }
-        assert_eq!(p.lent_to[4], lend.then_some(0), "lend {lend}");
+        assert_eq!(p.regions.lent_to[4], lend.then_some(0), "lend {lend}");
         let cands = p.cell_candidates(&decomp, CellStatus::Final);
         let mut claimed = vec![false; f.len()];
         for c in &cands {
@@ -813,7 +813,7 @@ fn floor_whose_nearest_lattice_lane_lies_in_a_sliver_cell_is_still_some_regions(
             }
         }
         let orphans: Vec<_> = (0..f.len())
-            .filter(|&i| p.targets[i] && !claimed[i])
+            .filter(|&i| p.regions.targets[i] && !claimed[i])
             .map(|i| f.centre(i))
             .collect();
         assert_eq!(
@@ -859,7 +859,7 @@ fn with_nothing_left_the_hold_ends_and_floor_beside_the_surfaces_it_kept_is_cove
             }
         }
         let f = p.cspace.frame;
-        for (i, c) in p.covered.iter_mut().enumerate() {
+        for (i, c) in p.swept.covered.iter_mut().enumerate() {
             let q = f.centre(i);
             *c = (q.y - y).abs() > 0.06 || q.x < 0.95 || q.x > 2.1;
         }
@@ -913,11 +913,11 @@ fn the_end_game_leaves_a_far_leftover_within_the_coverage_goal() {
         let g = crate::plan::test_support::walled_room();
         p.update(&g, &empty, at, None).unwrap();
         let f = p.cspace.frame;
-        for (i, c) in p.covered.iter_mut().enumerate() {
+        for (i, c) in p.swept.covered.iter_mut().enumerate() {
             let (x, y) = (i % f.w, i / f.w);
             *c = !((50..54).contains(&x) && (18..23).contains(&y));
         }
-        p.toured = toured;
+        p.tour.toured = toured;
         p.interrupt();
         let st = p.update(&g, &empty, at, None).unwrap();
         let case = format!("goal {goal}, toured {toured}, at x {:.1}", at.translation.x);
@@ -1018,7 +1018,7 @@ fn task_with_unexplored(corner: bool) -> Task {
     let start = crate::geom::pose(1.5, 1.0, 0.0);
     p.update(&grid, &Decomposition::default(), &start, None)
         .unwrap();
-    p.task
+    p.current.task
 }
 
 /// A 3 m × 2 m room with a table in the top-left corner (its outline
@@ -1075,8 +1075,12 @@ fn unexplored_space_no_reachable_place_sees_does_not_hold_the_lane_tour_back() {
         let mut p = crate::plan::test_support::planner();
         let start = crate::geom::pose(1.5, 1.0, 0.0);
         p.update(&grid, &decomp, &start, None).unwrap();
-        assert!(matches!(p.task, Task::Cover(_)), "{:?}", p.task);
-        p.touring
+        assert!(
+            matches!(p.current.task, Task::Cover(_)),
+            "{:?}",
+            p.current.task
+        );
+        p.tour.touring
     };
     // Space a scan from some reachable place would show: regions one at
     // a time, since what is seen there may change the rest.
@@ -1115,12 +1119,12 @@ fn a_cell_back_under_the_tool_after_a_gap_is_a_second_pass() {
     for _ in 0..100 {
         p.record_pose(&crate::geom::pose(1.5, 1.0, 0.0));
     }
-    assert_eq!(p.passes[c], 1);
+    assert_eq!(p.swept.passes[c], 1);
     // Driving back over it after a while is a second pass.
     drive(&mut p, 1.5, 0.5);
-    assert_eq!(p.passes[c], 2);
+    assert_eq!(p.swept.passes[c], 2);
     let far = f.index_of(&Point2::new(2.5, 1.0)).unwrap();
-    assert_eq!(p.passes[far], 0);
+    assert_eq!(p.swept.passes[far], 0);
 }
 
 #[test]
@@ -1134,8 +1138,9 @@ fn travel_prefers_floor_swept_twice_where_more_adds_no_overlap() {
     let across = f.index_of(&Point2::new(0.5, 1.7)).unwrap();
     let travel = |p: &mut CoveragePlanner, w: f64| {
         p.params.new_overlap_cost = w;
-        p.fresh_share();
-        let fresh = p.fresh.clone();
+        p.swept
+            .fresh_share(&p.cspace, p.reach, p.params.new_overlap_cost);
+        let fresh = p.swept.fresh.clone();
         p.cspace.set_extra_cost(|i| w * f64::from(fresh[i]));
         p.cspace.distances_from(robot);
         (p.cspace.dist[along], p.cspace.dist[across])
