@@ -34,11 +34,6 @@ impl WheelSpeeds {
     pub fn is_finite(&self) -> bool {
         self.left.is_finite() && self.right.is_finite()
     }
-
-    /// Whether both wheels are commanded to stand still.
-    pub fn is_stop(&self) -> bool {
-        self.left == 0.0 && self.right == 0.0
-    }
 }
 
 /// One odometry increment from the wheel encoders: how the base moved between

@@ -133,7 +133,7 @@ impl Segment {
     }
 
     /// The point of the segment closest to `p`.
-    pub fn closest_point(&self, p: &Point2<f64>) -> Point2<f64> {
+    pub(crate) fn closest_point(&self, p: &Point2<f64>) -> Point2<f64> {
         let d = self.b - self.a;
         let l2 = d.norm_squared();
         if l2 == 0.0 {

@@ -35,7 +35,7 @@ const MISS: u8 = 8;
 /// before a surface hit there is taken for gone (see [`Grid::holds_surface`]): a
 /// few scans of a cell near the robot, so a person who walked by does not
 /// stay an obstacle, while a chair leg hit by some beam in every scan stays.
-pub const HIT_CREDIT: u8 = 64;
+pub(crate) const HIT_CREDIT: u8 = 64;
 /// How close (share of a cell) a cell's mean hit position may lie to a face
 /// the beam heads for, with a solid cell across it, for the hit to count as
 /// that cell's surface: 10 mm on a 5 cm grid, the default safety margin, so
@@ -202,7 +202,7 @@ pub fn neighbours8_of(i: usize, w: usize, h: usize) -> impl Iterator<Item = usiz
 }
 
 /// Integer cell coordinates (column, row); row 0 is the lowest y.
-pub type CellIndex = (usize, usize);
+pub(crate) type CellIndex = (usize, usize);
 
 impl Grid {
     /// A grid of `width` × `height` cells of `resolution` metres whose lower-left
@@ -275,10 +275,10 @@ impl Grid {
     /// The lowest raw evidence value of an occupied cell: every value from
     /// it up is [`CellState::Occupied`] (for scans that pass over blocks of
     /// cells below it at once).
-    pub const OCCUPIED_EVIDENCE: u8 = OCCUPIED_AT;
+    pub(crate) const OCCUPIED_EVIDENCE: u8 = OCCUPIED_AT;
 
     /// The state a cell of raw evidence `v` is in (see [`Grid::raw_evidence`]).
-    pub fn state_of(v: u8) -> CellState {
+    pub(crate) fn state_of(v: u8) -> CellState {
         match v {
             UNKNOWN => CellState::Unknown,
             v if v >= OCCUPIED_AT => CellState::Occupied,
@@ -289,7 +289,7 @@ impl Grid {
     /// [`Grid::state_of`] of every raw evidence value, indexed by the value:
     /// for passes over [`Grid::raw_evidence`] that map each cell through a
     /// table (`.map` it to the reader's own codes).
-    pub fn state_table() -> [CellState; 256] {
+    pub(crate) fn state_table() -> [CellState; 256] {
         std::array::from_fn(|v| Self::state_of(v as u8))
     }
 
@@ -302,7 +302,7 @@ impl Grid {
     /// columns `cols` (clipped to the grid), as `(first column, one past the
     /// last, state)`, unknown runs included: what a picture draws as one
     /// rectangle each.
-    pub fn state_runs(
+    pub(crate) fn state_runs(
         &self,
         y: usize,
         cols: std::ops::Range<usize>,
@@ -323,7 +323,7 @@ impl Grid {
 
     /// The lowest and highest cell (column, row) of the bounding box of every
     /// observed cell (evidence not 0), or `None` when nothing was observed yet.
-    pub fn explored_cells(&self) -> Option<(CellIndex, CellIndex)> {
+    pub(crate) fn explored_cells(&self) -> Option<(CellIndex, CellIndex)> {
         self.explored
     }
 
@@ -556,7 +556,8 @@ impl Grid {
     /// True when cell `c` is free and touches an unknown cell (4-neighbourhood,
     /// the grid's edge counts as unknown): the explored boundary, where free
     /// space seen by the scanner ends in unexplored space.
-    pub fn is_frontier(&self, c: CellIndex) -> bool {
+    #[cfg(test)]
+    pub(crate) fn is_frontier(&self, c: CellIndex) -> bool {
         if self.state(c) != CellState::Free {
             return false;
         }
@@ -573,7 +574,8 @@ impl Grid {
 
     /// Writes every explored-boundary cell ([`is_frontier`](Self::is_frontier))
     /// into `out` (cleared first), row by row.
-    pub fn frontier_into(&self, out: &mut Vec<CellIndex>) {
+    #[cfg(test)]
+    pub(crate) fn frontier_into(&self, out: &mut Vec<CellIndex>) {
         out.clear();
         for y in 0..self.height {
             for x in 0..self.width {
@@ -607,7 +609,8 @@ impl Grid {
     /// balance (a wall seen at a grazing angle, a face on the cell's edge).
     /// Unknown space behind such a cell is not a way into unexplored floor.
     /// Not kept in checkpoints: a restored grid starts with no cell hit.
-    pub fn was_hit(&self, c: CellIndex) -> bool {
+    #[cfg(test)]
+    pub(crate) fn was_hit(&self, c: CellIndex) -> bool {
         self.hit[c.1 * self.width + c.0]
     }
 
@@ -617,19 +620,20 @@ impl Grid {
     /// may be free on balance (a chair leg or a wall filling part of the
     /// cell, passed by the beams beside it), yet the robot's body must keep
     /// off it. Not kept in checkpoints (like [`Grid::was_hit`]).
-    pub fn holds_surface(&self, c: CellIndex) -> bool {
+    #[cfg(test)]
+    pub(crate) fn holds_surface(&self, c: CellIndex) -> bool {
         self.held[c.1 * self.width + c.0] > 0
     }
 
     /// [`Grid::was_hit`] of every cell, row-major from row 0: for readers
     /// that compare the whole grid with a copy of their own.
-    pub fn hit_flags(&self) -> &[bool] {
+    pub(crate) fn hit_flags(&self) -> &[bool] {
         &self.hit
     }
 
     /// The pass-throughs left of every cell's held surface (0: none; see
     /// [`Grid::holds_surface`]), row-major from row 0.
-    pub fn surface_credits(&self) -> &[u8] {
+    pub(crate) fn surface_credits(&self) -> &[u8] {
         &self.held
     }
 
@@ -641,7 +645,7 @@ impl Grid {
     /// Rebuilds a grid from raw evidence (checkpoint restore). `None` when
     /// `cells` does not hold `width` × `height` values or the geometry is not
     /// finite with a positive resolution.
-    pub fn from_raw_evidence(
+    pub(crate) fn from_raw_evidence(
         origin: Point2<f64>,
         resolution: f64,
         width: usize,
@@ -671,7 +675,7 @@ impl Grid {
     }
 
     /// A grid read back from its serialised form (geometry and evidence):
-    /// checked as [`Grid::from_raw_evidence`] checks it, with the surface
+    /// checked as `Grid::from_raw_evidence` checks it, with the surface
     /// memory empty and the explored box recomputed. `None` when the
     /// geometry is invalid or disagrees with the evidence.
     pub fn rebuilt(self) -> Option<Self> {

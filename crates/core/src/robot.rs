@@ -20,9 +20,9 @@ pub struct RobotParams {
     /// Wheel radius (m).
     pub wheel_radius: f64,
     /// Top linear speed (m/s); the paper's robot: 0.226.
-    pub max_speed: f64,
+    pub(crate) max_speed: f64,
     /// Top turn rate (rad/s); the paper's robot: 0.78.
-    pub max_turn_rate: f64,
+    pub(crate) max_turn_rate: f64,
     /// Scanner mounting offset forward of the wheel axle centre (m).
     pub scanner_offset_x: f64,
     /// Scanner mounting offset to the left of the wheel axle centre (m).

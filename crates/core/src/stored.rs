@@ -23,7 +23,7 @@ pub mod bits {
     /// Reads flags [`serialize`] packed; the byte string must hold exactly
     /// the bits of the length given (so a hostile length allocates nothing
     /// the input does not back).
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<bool>, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<bool>, D::Error> {
         let (n, packed): (u64, Vec<u8>) = Deserialize::deserialize(d)?;
         let n = usize::try_from(n).map_err(|_| D::Error::custom("flag count overflows"))?;
         if packed.len() != n.div_ceil(8) {
@@ -53,7 +53,7 @@ pub mod f32_points {
     }
 
     /// Reads points [`serialize`] wrote.
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<IPoint>, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<IPoint>, D::Error> {
         let v: Vec<[f32; 3]> = Deserialize::deserialize(d)?;
         Ok(v.into_iter()
             .map(|[x, y, i]| IPoint::new(f64::from(x), f64::from(y), f64::from(i)))
@@ -77,7 +77,9 @@ pub mod normal_directions {
     }
 
     /// Reads normals [`serialize`] wrote: unit vectors, zero where unknown.
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vector2<f64>>, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Vec<Vector2<f64>>, D::Error> {
         let v: Vec<Option<f32>> = Deserialize::deserialize(d)?;
         Ok(v.into_iter()
             .map(|a| match a {
@@ -115,7 +117,7 @@ mod tests {
 
     #[test]
     fn flags_with_the_wrong_byte_count_are_refused() {
-        let bytes = postcard::to_allocvec(&(22u64, vec![0xffu8; 3])).unwrap();
+        let bytes = postcard::to_allocvec(&(25u64, vec![0xffu8; 3])).unwrap();
         assert!(postcard::from_bytes::<Flags>(&bytes).is_err());
         let huge = postcard::to_allocvec(&(u64::MAX, vec![0u8; 1])).unwrap();
         assert!(postcard::from_bytes::<Flags>(&huge).is_err());

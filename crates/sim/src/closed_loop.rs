@@ -206,7 +206,7 @@ pub struct SimReport {
     pub scored_fixes: usize,
     /// Shift of the scan stamps against the emulator's sampling times that
     /// fits best (s; diagnostic of the scanner's time stamping, see
-    /// [`best_stamp_shift`]; 0 when the stamps are right).
+    /// `best_stamp_shift`; 0 when the stamps are right).
     pub stamp_offset: f64,
     /// Rotation (rad) the daemon turned its start heading by to lay its map
     /// along the walls (`None`: not decided, or `daemon.align_to_walls` off).
@@ -282,7 +282,7 @@ pub struct SimReport {
     pub truth: Vec<Pose>,
     /// Estimated trajectory (same samples), in the daemon's map frame.
     pub estimate: Vec<Pose>,
-    /// Every scored localised pose with its true pose (see [`fix_pairs`]),
+    /// Every scored localised pose with its true pose (see `fix_pairs`),
     /// both in the world frame.
     pub fixes: Vec<FixPair>,
 }

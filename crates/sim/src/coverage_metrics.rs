@@ -11,7 +11,7 @@
 //!   dilated by the tool half-width: all floor the tool could touch.
 //! * **reachable with clearance** (laxer, reported beside it): reachable cells
 //!   where a disk of the robot radius plus a clearance (the planner's safety
-//!   margin, see [`CoverageTracker::with_clearance`]) is free, connected to
+//!   margin, see `CoverageTracker::with_clearance`) is free, connected to
 //!   the start: floor behind a passage that leaves the body less than that
 //!   clearance is out of it. It tells floor missed from floor behind such a
 //!   passage (5 mm a side in some of the floor-plan rooms).
@@ -198,7 +198,12 @@ pub(crate) fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
 }
 
 /// Cells of `mask` 8-connected to `start` (empty when `start` is not in `mask`).
-pub(crate) fn connected_from(mask: &[bool], w: usize, h: usize, start: (usize, usize)) -> Vec<bool> {
+pub(crate) fn connected_from(
+    mask: &[bool],
+    w: usize,
+    h: usize,
+    start: (usize, usize),
+) -> Vec<bool> {
     let mut out = vec![false; w * h];
     let s = start.1 * w + start.0;
     if start.0 >= w || start.1 >= h || !mask[s] {

@@ -6,7 +6,7 @@
 //! on must still be covered.
 //!
 //! A person waits rather than walk into a robot: a walker does not step
-//! nearer to the robot once it is within [`YIELD_GAP`] of the robot's body.
+//! nearer to the robot once it is within `YIELD_GAP` of the robot's body.
 //! Whether the robot keeps off a walker standing still, or one walking away,
 //! is the daemon's business; a touch is counted as a contact.
 //!
@@ -121,7 +121,7 @@ impl Walker {
     }
 
     /// A walker from the text of a `--walker` option: the words of
-    /// [`Walker::parse_words`], spaces or commas between them.
+    /// `Walker::parse_words`, spaces or commas between them.
     pub fn parse(text: &str) -> Result<Walker, String> {
         let words: Vec<&str> = text
             .split(|c: char| c == ',' || c.is_whitespace())

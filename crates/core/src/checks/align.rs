@@ -13,10 +13,10 @@ use crate::map::lines::{Curve, LineExtractor, ScanLine};
 use crate::map::params::MapParams;
 
 /// Least length (m) of the first scan's line features within
-/// [`INLIER_BAND`] of the axes found.
+/// `INLIER_BAND` of the axes found.
 pub const MIN_WALL_EVIDENCE: f64 = 3.0;
 
-/// Least share of the line features' length within [`INLIER_BAND`] of the
+/// Least share of the line features' length within `INLIER_BAND` of the
 /// axes found: below it the scan sees no rectilinear room (clutter, walls
 /// at several angles).
 pub const MIN_AGREEMENT: f64 = 0.7;
@@ -24,7 +24,7 @@ pub const MIN_AGREEMENT: f64 = 0.7;
 /// Lines within this angle (rad) of the axes, modulo 90°, count as walls
 /// along them: the axes are re-estimated from these alone, so that clutter
 /// at other angles does not pull them.
-pub const INLIER_BAND: f64 = 8.0 * std::f64::consts::PI / 180.0;
+pub(crate) const INLIER_BAND: f64 = 8.0 * std::f64::consts::PI / 180.0;
 
 /// Re-estimations of the axes from the lines within [`INLIER_BAND`].
 const REFINE_ROUNDS: usize = 3;
@@ -87,7 +87,7 @@ impl WallAlign {
     /// order), re-estimated from the lines within [`INLIER_BAND`] of it,
     /// with the length (m) and the share of the lines that agree with it;
     /// `None` without line features.
-    pub fn wall_axis(&mut self, points: &[IPoint]) -> Option<(AxisEstimate, f64)> {
+    pub(crate) fn wall_axis(&mut self, points: &[IPoint]) -> Option<(AxisEstimate, f64)> {
         let origin = nalgebra::Point2::origin();
         self.extractor.extract(
             points,

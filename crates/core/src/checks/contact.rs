@@ -35,7 +35,7 @@ pub struct ContactParams {
     pub side_bearing: f64,
     /// Bearing of a contact closed by turning in place on the side switch
     /// leading the turn (rad): the leading end of the front shell.
-    pub turn_bearing: f64,
+    pub(crate) turn_bearing: f64,
     /// Half width of the bumper's arc (rad from straight ahead).
     pub bumper_half_arc: f64,
     /// Distance of the contact outside the body (m): half the bumper's travel.
@@ -131,11 +131,11 @@ const EXPLAIN_SLACK: f64 = 0.2;
 /// Step of the bearings tried along the bumper's arc (rad).
 const BEARING_STEP: f64 = 0.05;
 /// Longest half arc a mark is drawn with (m), whatever it holds.
-pub const MAX_ARC_HALF_LENGTH: f64 = 0.5;
+pub(crate) const MAX_ARC_HALF_LENGTH: f64 = 0.5;
 /// Most points along one marked arc.
 const MAX_ARC_STEPS: usize = 1000;
 /// Cell size of the [`BodyTrack`] (m).
-pub const TRACK_RESOLUTION: f64 = 0.02;
+pub(crate) const TRACK_RESOLUTION: f64 = 0.02;
 
 /// Where the robot's body has been: cells wholly under the body at some
 /// executed pose. Allocated once for the map's extent.

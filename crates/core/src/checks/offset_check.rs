@@ -3,7 +3,7 @@
 //! its mounting offset. A `robot.scanner_offset_x`/`_y` configured wrong by
 //! e makes the localised robot position swing on a circle of radius |e| as
 //! the robot turns: lanes laid centimetres off, inside the planner's 1 cm
-//! safety margin. Over the first [`CHECK_TURN`] of turning in place (the
+//! safety margin. Over the first `CHECK_TURN` of turning in place (the
 //! look-around at the start) the scanner positions the matcher found are
 //! fitted, by linear least squares, to a fixed centre plus the offset
 //! turned with the robot's heading. The localise stage takes an offset off
@@ -16,7 +16,7 @@ use nalgebra::{Matrix2, Vector2};
 use crate::geom::{heading, Pose};
 
 /// Turning in place (rad) over which the fit is made.
-pub const CHECK_TURN: f64 = std::f64::consts::PI;
+pub(crate) const CHECK_TURN: f64 = std::f64::consts::PI;
 
 /// An offset error (m) up to this is within the fit's noise: the mount
 /// stands (correctly configured runs fitted 0-4 mm off).
@@ -86,7 +86,7 @@ impl OffsetCheck {
 
     /// Adds one scan: the scanner pose the matcher found (`None` when the
     /// scan was not matched, which ends the stretch) and the robot's wheel
-    /// odometry pose at it. Returns the fit once, after [`CHECK_TURN`].
+    /// odometry pose at it. Returns the fit once, after `CHECK_TURN`.
     pub fn step(&mut self, scanner: Option<&Pose>, odom: &Pose) -> Option<OffsetFit> {
         if self.done {
             return None;

@@ -10,7 +10,7 @@
 /// which a path is given up.
 pub const STUCK_AFTER: f64 = 20.0;
 /// Getting this much closer to the waypoint (m) counts as headway.
-pub const HEADWAY: f64 = 0.05;
+pub(crate) const HEADWAY: f64 = 0.05;
 
 /// Watches the follower's headway on the current path.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -3,7 +3,7 @@
 //! along the robot's own heading. A scanner whose `robot.scanner_yaw` is
 //! configured wrong by δ makes every scan-matched step appear turned by δ
 //! against the heading (the robot seems to crab), and the pose then steers
-//! the robot with its heading off by δ. Over the first [`CHECK_DISTANCE`]
+//! the robot with its heading off by δ. Over the first `CHECK_DISTANCE`
 //! of straight wheel travel the pose steps are summed in the robot's frame;
 //! the direction of the sum is the mount's yaw error, its length over the
 //! wheels' distance the odometry's scale. Above [`YAW_TOLERANCE`] the
@@ -19,7 +19,7 @@ use nalgebra::Vector2;
 use crate::geom::{heading, Pose};
 
 /// Straight wheel travel (m) over which the check is made.
-pub const CHECK_DISTANCE: f64 = 1.0;
+pub(crate) const CHECK_DISTANCE: f64 = 1.0;
 
 /// A yaw error (rad) up to this is within the measurement's noise: the
 /// mount stands (the check measured 0.0-0.3° on correctly configured runs).
@@ -91,7 +91,7 @@ impl TravelCheck {
 
     /// Adds one scan: the localised robot pose (`None` when the scan was
     /// not matched, which breaks the chain) and the wheel odometry pose at
-    /// it. Returns the fit once, when [`CHECK_DISTANCE`] is reached.
+    /// it. Returns the fit once, when `CHECK_DISTANCE` is reached.
     ///
     /// Odometry held at an older reading (none came after the scan) must
     /// come as `None` too: its step shows no wheel travel and is left out

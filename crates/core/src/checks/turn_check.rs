@@ -12,10 +12,10 @@ use super::align::{turn_to_axes, WallAlign, MIN_AGREEMENT, MIN_WALL_EVIDENCE};
 use crate::geom::{heading, wrap_angle, IPoint, Pose};
 
 /// Wheel turn (rad) over which the check is made.
-pub const CHECK_TURN: f64 = std::f64::consts::FRAC_PI_2;
+pub(crate) const CHECK_TURN: f64 = std::f64::consts::FRAC_PI_2;
 
 /// The scans' turn over the wheels' must lie within these bounds.
-pub const AGREE: (f64, f64) = (0.5, 1.5);
+pub(crate) const AGREE: (f64, f64) = (0.5, 1.5);
 
 /// A ratio that agrees but lies outside these bounds is logged as a
 /// warning naming the wheel base it fits (the wheels' turn is the wheel
@@ -31,7 +31,7 @@ pub fn fitting_wheel_base(ratio: f64, configured: f64) -> f64 {
 
 /// Scans after which an undecided check stops looking (no quarter turn
 /// with walls in view: nothing to compare, and no cost from then on).
-pub const MAX_SCANS: u32 = 600;
+pub(crate) const MAX_SCANS: u32 = 600;
 
 /// Largest wheel turn (rad) between two scans that is compared: the wall
 /// axes repeat every 90°, so larger steps could alias.
@@ -42,7 +42,7 @@ const MAX_STEP: f64 = 0.5;
 pub enum TurnVerdict {
     /// Not enough turn seen yet.
     Undecided,
-    /// Scans and wheels agree (ratio within [`AGREE`]).
+    /// Scans and wheels agree (ratio within `AGREE`).
     Agree {
         /// The scans' turn over the wheels'.
         ratio: f64,
@@ -95,7 +95,7 @@ impl TurnCheck {
 
     /// [`TurnCheck::step`] with the scan's wall axis (rad, scanner frame,
     /// modulo 90°) already found.
-    pub fn step_axis(&mut self, axis: f64, odom: &Pose) -> TurnVerdict {
+    pub(crate) fn step_axis(&mut self, axis: f64, odom: &Pose) -> TurnVerdict {
         if self.done {
             return TurnVerdict::Undecided;
         }

@@ -28,7 +28,7 @@ pub const WATCH_RANGE: f64 = 2.0;
 /// of a covered window, never something in its way: left out, or it would
 /// hold the robot for good. Nearer the outline it may be something
 /// touching the body, read a little short: kept.
-pub const SELF_INSIDE: f64 = 0.03;
+pub(crate) const SELF_INSIDE: f64 = 0.03;
 
 /// One scan's end points in the robot frame, and where the robot was.
 #[derive(Clone, Debug, Default)]
@@ -92,7 +92,7 @@ impl ObstaclePoints {
     /// can drive straight ahead from odometry pose `now` before it touches
     /// a point of the scan lying within `radius - side_clearance` of its
     /// centre line. A point at the front of the body gives 0; points more
-    /// than [`SELF_INSIDE`] inside it (the robot itself) and points behind
+    /// than `SELF_INSIDE` inside it (the robot itself) and points behind
     /// the axle do not stop forward motion. With no scan loaded nothing is
     /// known ahead: [`WATCH_RANGE`].
     pub fn free_ahead(&self, now: &Pose, radius: f64, side_clearance: f64) -> f64 {
@@ -121,19 +121,19 @@ impl ObstaclePoints {
 }
 
 /// Seconds of clear way that end a stop of the protective field.
-pub const CLEAR_AFTER: f64 = 1.0;
+pub(crate) const CLEAR_AFTER: f64 = 1.0;
 
 /// A change in the follower's stop short of something ahead.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StopEvent {
     /// The follower began to slow or stop for something unplanned ahead.
     Began,
-    /// The way has been clear for [`CLEAR_AFTER`] seconds.
+    /// The way has been clear for `CLEAR_AFTER` seconds.
     Ended,
 }
 
 /// Counts stops of the protective field: one stop lasts until the way has
-/// been clear for [`CLEAR_AFTER`] seconds, so a speed cap that comes and
+/// been clear for `CLEAR_AFTER` seconds, so a speed cap that comes and
 /// goes from step to step is one stop, not many.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StopCounter {

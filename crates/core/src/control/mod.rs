@@ -27,19 +27,19 @@ use crate::robot::RobotParams;
 #[serde(deny_unknown_fields, default)]
 pub struct ControlParams {
     /// Distance at which a waypoint counts as reached (m).
-    pub waypoint_tolerance: f64,
+    pub(crate) waypoint_tolerance: f64,
     /// Heading error above which the robot stops and turns in place (rad).
-    pub turn_in_place_above: f64,
+    pub(crate) turn_in_place_above: f64,
     /// Heading error below which a turn in place is finished (rad).
-    pub aligned_below: f64,
+    pub(crate) aligned_below: f64,
     /// Proportional gain from heading error to turn rate (1/s).
     pub heading_gain: f64,
     /// Gain from cross-track error to turn rate (rad/(m·s)).
-    pub cross_track_gain: f64,
+    pub(crate) cross_track_gain: f64,
     /// Deceleration used to slow down before a stop (m/s²).
     pub max_accel: f64,
     /// Angular deceleration used to end turns in place without overshoot (rad/s²).
-    pub max_angular_accel: f64,
+    pub(crate) max_angular_accel: f64,
     /// Whether the follower stops short of something the newest scan shows
     /// ahead, nearer than its next waypoint (the protective field).
     pub guard: bool,
@@ -51,7 +51,7 @@ pub struct ControlParams {
     pub guard_side_clearance: f64,
     /// Something at most this much nearer than the next waypoint is what
     /// the path expects (the wall at a lane's end, read short) (m).
-    pub guard_slack: f64,
+    pub(crate) guard_slack: f64,
 }
 
 impl Default for ControlParams {
@@ -146,7 +146,7 @@ pub struct Twist {
 
 impl Twist {
     /// The wheel speeds of this twist for a wheel base `b` (m).
-    pub fn to_wheels(&self, b: f64) -> WheelCmd {
+    pub(crate) fn to_wheels(self, b: f64) -> WheelCmd {
         WheelCmd {
             left: self.v - self.w * b / 2.0,
             right: self.v + self.w * b / 2.0,

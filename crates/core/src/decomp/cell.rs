@@ -83,7 +83,7 @@ pub struct Decomposition {
     pub frontiers: Vec<Frontier>,
     /// Virtual edges: critical edges extended along the sweep direction, the
     /// cell boundaries that are not walls (m).
-    pub virtual_edges: Vec<Segment>,
+    pub(crate) virtual_edges: Vec<Segment>,
     /// Distance by which seen walls were inflated to get the cells (m).
     pub inflation: f64,
 }
@@ -129,7 +129,7 @@ impl Cell {
 }
 
 /// Signed area of a polygon (m², positive when counter-clockwise).
-pub fn polygon_area(poly: &[Point2<f64>]) -> f64 {
+pub(crate) fn polygon_area(poly: &[Point2<f64>]) -> f64 {
     let n = poly.len();
     if n < 3 {
         return 0.0;
@@ -146,7 +146,7 @@ pub fn polygon_area(poly: &[Point2<f64>]) -> f64 {
 }
 
 /// Even-odd point-in-polygon test (false for degenerate polygons).
-pub fn polygon_contains(poly: &[Point2<f64>], p: &Point2<f64>) -> bool {
+pub(crate) fn polygon_contains(poly: &[Point2<f64>], p: &Point2<f64>) -> bool {
     let n = poly.len();
     if n < 3 {
         return false;

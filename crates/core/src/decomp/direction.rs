@@ -12,7 +12,7 @@ use crate::grid::{CellState, Grid};
 /// A direction estimate: the axis angle in (-π/4, π/4] and how much wall (m)
 /// supports it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AxisEstimate {
+pub(crate) struct AxisEstimate {
     /// Angle of one of the two dominant axes (rad).
     pub angle: f64,
     /// Supporting wall length (m).
@@ -30,7 +30,7 @@ fn finish(sx: f64, sy: f64, evidence: f64) -> Option<AxisEstimate> {
 }
 
 /// Dominant axis of `segments`, weighted by length; `None` without usable segments.
-pub fn from_segments(segments: &[Segment]) -> Option<AxisEstimate> {
+pub(crate) fn from_segments(segments: &[Segment]) -> Option<AxisEstimate> {
     let (mut sx, mut sy, mut total) = (0.0, 0.0, 0.0);
     for s in segments {
         let len = s.length();
@@ -47,12 +47,13 @@ pub fn from_segments(segments: &[Segment]) -> Option<AxisEstimate> {
 
 /// Dominant axis of the occupied structure of `grid` (Sobel gradients of the
 /// occupied indicator); `None` when nothing is occupied.
-pub fn from_grid(grid: &Grid) -> Option<AxisEstimate> {
+#[cfg(test)]
+pub(crate) fn from_grid(grid: &Grid) -> Option<AxisEstimate> {
     from_grid_window(grid, (0, 0, grid.width(), grid.height()))
 }
 
 /// [`from_grid`] over the cells `x0..x1`, `y0..y1` only (the explored part).
-pub fn from_grid_window(
+pub(crate) fn from_grid_window(
     grid: &Grid,
     (x0, y0, x1, y1): (usize, usize, usize, usize),
 ) -> Option<AxisEstimate> {

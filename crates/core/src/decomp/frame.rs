@@ -21,19 +21,19 @@ pub struct SweepFrame {
     /// Pixel size and slice spacing (m).
     pub h: f64,
     /// Columns.
-    pub nu: usize,
+    pub(crate) nu: usize,
     /// Rows (slices).
     pub nv: usize,
 }
 
 impl SweepFrame {
     /// Largest raster the decomposition works on (pixels).
-    pub const MAX_PIXELS: usize = 64 << 20;
+    pub(crate) const MAX_PIXELS: usize = 64 << 20;
 
     /// A frame with lanes along `angle` whose raster of pixel size `h` covers the
     /// whole of `grid`; `None` when the grid's geometry is not finite or the
     /// raster would exceed [`SweepFrame::MAX_PIXELS`].
-    pub fn over_grid(grid: &Grid, angle: f64, h: f64) -> Option<Self> {
+    pub(crate) fn over_grid(grid: &Grid, angle: f64, h: f64) -> Option<Self> {
         if !(angle.is_finite() && h.is_finite() && h > 0.0) {
             return None;
         }
@@ -83,7 +83,7 @@ impl SweepFrame {
     }
 
     /// World point to lane coordinates `(u, v)`.
-    pub fn to_uv(&self, p: &Point2<f64>) -> (f64, f64) {
+    pub(crate) fn to_uv(self, p: &Point2<f64>) -> (f64, f64) {
         (
             self.cos * p.x + self.sin * p.y,
             -self.sin * p.x + self.cos * p.y,
@@ -96,27 +96,27 @@ impl SweepFrame {
     }
 
     /// `v` of slice `k` (the centre of row `k`).
-    pub fn row_v(&self, k: usize) -> f64 {
+    pub(crate) fn row_v(&self, k: usize) -> f64 {
         self.v0 + (k as f64 + 0.5) * self.h
     }
 
     /// `v` of the lower edge of row `k`.
-    pub fn row_edge(&self, k: usize) -> f64 {
+    pub(crate) fn row_edge(&self, k: usize) -> f64 {
         self.v0 + k as f64 * self.h
     }
 
     /// `u` of the centre of column `i`.
-    pub fn col_u(&self, i: usize) -> f64 {
+    pub(crate) fn col_u(&self, i: usize) -> f64 {
         self.u0 + (i as f64 + 0.5) * self.h
     }
 
     /// The column whose pixel contains `u`, clamped into the raster.
-    pub fn col_of(&self, u: f64) -> usize {
+    pub(crate) fn col_of(&self, u: f64) -> usize {
         (((u - self.u0) / self.h).floor().max(0.0) as usize).min(self.nu - 1)
     }
 
     /// The row whose pixel contains `v`, clamped into the raster.
-    pub fn row_of(&self, v: f64) -> usize {
+    pub(crate) fn row_of(&self, v: f64) -> usize {
         (((v - self.v0) / self.h).floor().max(0.0) as usize).min(self.nv - 1)
     }
 }

@@ -17,7 +17,7 @@ struct Span {
 
 /// The spans painted in this update and those of the last one, by row.
 #[derive(Clone, Debug, Default)]
-pub struct LabelSpans {
+pub(crate) struct LabelSpans {
     /// This update's spans, in paint order.
     painted: Vec<Span>,
     /// The last update's spans, sorted by row, then `a`.
@@ -71,7 +71,7 @@ impl LabelSpans {
     }
 
     /// Paints the pixels `a..b` of row `row` with cell `id`.
-    pub fn paint(&mut self, row: usize, (a, b): (usize, usize), id: u32) {
+    pub(crate) fn paint(&mut self, row: usize, (a, b): (usize, usize), id: u32) {
         if a < b {
             let order = self.painted.len() as u32;
             self.painted.push(Span {

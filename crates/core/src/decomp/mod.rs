@@ -66,19 +66,19 @@ pub struct PhaseTimes {
     /// Lane direction.
     pub direction: std::time::Duration,
     /// Grid resampled into the lane frame.
-    pub resample: std::time::Duration,
+    pub(crate) resample: std::time::Duration,
     /// Short unknown gaps filled.
     pub gaps: std::time::Duration,
     /// Wall points collected.
     pub wall_points: std::time::Duration,
     /// Wall points inflated into blocked intervals.
-    pub inflate: std::time::Duration,
+    pub(crate) inflate: std::time::Duration,
     /// Free pieces cut from the slices.
     pub pieces: std::time::Duration,
     /// Sweep over the slices into cells.
     pub sweep: std::time::Duration,
     /// Ids inherited, polygons and adjacency published.
-    pub inherit: std::time::Duration,
+    pub(crate) inherit: std::time::Duration,
 }
 
 impl PhaseTimes {

@@ -2,7 +2,7 @@
 
 /// Douglas–Peucker simplification of an open polyline: keeps both ends and
 /// every vertex farther than `tol` (m) from the simplified line.
-pub fn simplify_chain(pts: &[(f64, f64)], tol: f64) -> Vec<(f64, f64)> {
+pub(crate) fn simplify_chain(pts: &[(f64, f64)], tol: f64) -> Vec<(f64, f64)> {
     if pts.len() <= 2 {
         return pts.to_vec();
     }

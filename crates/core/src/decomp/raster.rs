@@ -33,7 +33,7 @@ fn word(row: &[u8], j: usize) -> u64 {
 
 /// The first index at or after `j` whose pixel is not of class `class`
 /// (`row.len()` if there is none): the end of a run.
-pub fn skip_class(row: &[u8], mut j: usize, class: u8) -> usize {
+pub(crate) fn skip_class(row: &[u8], mut j: usize, class: u8) -> usize {
     let pattern = u64::from_ne_bytes([class; 8]);
     while j + 8 <= row.len() && word(row, j) & CLASS_WORD == pattern {
         j += 8;
@@ -46,7 +46,7 @@ pub fn skip_class(row: &[u8], mut j: usize, class: u8) -> usize {
 
 /// The first index at or after `j` whose pixel is of class `class`
 /// (`row.len()` if there is none).
-pub fn find_class(row: &[u8], mut j: usize, class: u8) -> usize {
+pub(crate) fn find_class(row: &[u8], mut j: usize, class: u8) -> usize {
     let pattern = u64::from_ne_bytes([class; 8]);
     while j + 8 <= row.len() {
         // A byte of `x` is zero exactly where the pixel is of `class`.
@@ -65,7 +65,7 @@ pub fn find_class(row: &[u8], mut j: usize, class: u8) -> usize {
 /// Along one row of pure class codes: unknown runs of at most `max` pixels
 /// with a free pixel at both ends become free (an occupied pixel between
 /// breaks the pair).
-pub fn fill_row(row: &mut [u8], max: usize) {
+pub(crate) fn fill_row(row: &mut [u8], max: usize) {
     let n = row.len();
     let mut j = find_class(row, 0, FREE);
     while j < n {
@@ -91,7 +91,7 @@ pub fn fill_row(row: &mut [u8], max: usize) {
 /// (saturating; `u16::MAX` after an occupied one or before any free one).
 /// Rows with no gap to close cost one branch-free pass the compiler
 /// vectorises.
-pub fn fill_columns(
+pub(crate) fn fill_columns(
     px: &mut [u8],
     nu: usize,
     cols: std::ops::Range<usize>,
@@ -135,7 +135,7 @@ pub fn fill_columns(
 
 /// The first index at or after `j` whose byte is at most `max` (`row.len()`
 /// if there is none); `max` below 128.
-pub fn find_at_most(row: &[u8], mut j: usize, max: u8) -> usize {
+pub(crate) fn find_at_most(row: &[u8], mut j: usize, max: u8) -> usize {
     debug_assert!(max < 128);
     while j + 8 <= row.len() {
         if has_byte_below(word(row, j), max + 1) {
@@ -153,7 +153,7 @@ pub fn find_at_most(row: &[u8], mut j: usize, max: u8) -> usize {
 /// `nu` bytes wide: each byte becomes the distance in rows to the nearest 0
 /// of its column (saturating at 255), given 0 at the seeds and 255 elsewhere.
 /// Row against row, so the passes go in memory order and vectorise.
-pub fn column_distances(
+pub(crate) fn column_distances(
     near: &mut [u8],
     nu: usize,
     cols: std::ops::Range<usize>,
@@ -203,7 +203,7 @@ fn one_more_row(cur: &mut [u8], from: &[u8]) {
 /// intervals given in increasing order of their centres (so none ends left
 /// of a run before it): the runs it touches or overlaps are merged into it
 /// from the back, and `runs` stays sorted and disjoint.
-pub fn push_union(runs: &mut Vec<(f64, f64)>, iv: (f64, f64)) {
+pub(crate) fn push_union(runs: &mut Vec<(f64, f64)>, iv: (f64, f64)) {
     let (mut l, mut r) = iv;
     while let Some(&(pl, pr)) = runs.last() {
         if pr < l {
@@ -227,7 +227,7 @@ pub fn classify(raw: &[u8], out: &mut [u8], occupied_from: u8) {
 /// Transposes an 8 × 8 block of bytes held as eight words (byte `c` of word
 /// `r` is element `(r, c)`, native byte order): three rounds of swapping
 /// 2 × 2 blocks of bytes, pairs of bytes, then halves.
-pub fn transpose8(mut a: [u64; 8]) -> [u64; 8] {
+pub(crate) fn transpose8(mut a: [u64; 8]) -> [u64; 8] {
     let little = |w: u64| {
         if cfg!(target_endian = "little") {
             w

@@ -6,7 +6,7 @@
 /// item `x` goes to row `row(x)` as `map(x)`; `None`, or a row at or past
 /// `rows`, drops it. On return `out[starts[k]..starts[k + 1]]` is row `k`
 /// (`starts` has `rows + 1` entries).
-pub fn group_by_row<T, U: Copy>(
+pub(crate) fn group_by_row<T, U: Copy>(
     items: &[T],
     rows: usize,
     row: impl Fn(&T) -> Option<usize>,

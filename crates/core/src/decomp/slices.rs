@@ -60,7 +60,7 @@ pub struct WallPoint {
 
 impl WallPoint {
     /// Half length of the blocked interval on the slice at `v`, if any.
-    pub fn half_width_at(&self, v: f64) -> Option<f64> {
+    pub(crate) fn half_width_at(&self, v: f64) -> Option<f64> {
         let dv = ((v - self.v).abs() - self.e).max(0.0);
         let d2 = self.r * self.r - dv * dv;
         (d2 > 0.0).then(|| self.e + d2.sqrt())
@@ -69,7 +69,7 @@ impl WallPoint {
     /// How far across the lanes (from `v`) it blocks a slice interval
     /// `[l, r]`: the blocked region's extent toward the interval, if it
     /// reaches the interval's `u` range at all.
-    pub fn reach_across(&self, l: f64, r: f64) -> Option<f64> {
+    pub(crate) fn reach_across(&self, l: f64, r: f64) -> Option<f64> {
         let du = ((l - self.u).max(self.u - r).max(0.0) - self.e).max(0.0);
         let d2 = self.r * self.r - du * du;
         (d2 > 0.0).then(|| self.e + d2.sqrt())
@@ -78,7 +78,7 @@ impl WallPoint {
 
 /// An interval of a frozen cell in one row.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FrozenSpan {
+pub(crate) struct FrozenSpan {
     /// Row.
     pub row: u32,
     /// Lower `u` (m).
@@ -97,17 +97,17 @@ pub struct Slices {
     /// Wall points sorted by row of `v`.
     pub points: Vec<WallPoint>,
     /// Largest `e + r` of any wall point: how far a point blocks (m).
-    pub max_extent: f64,
+    pub(crate) max_extent: f64,
     /// `points[point_rows[k]..point_rows[k+1]]` lie in row `k`.
-    pub point_rows: Vec<u32>,
+    pub(crate) point_rows: Vec<u32>,
     /// Merged blocked intervals, sorted by row then `l`.
     pub blocked: Vec<(f64, f64)>,
     /// Row offsets into `blocked`.
-    pub blocked_rows: Vec<u32>,
+    pub(crate) blocked_rows: Vec<u32>,
     /// Pieces, sorted by row then `l`.
     pub pieces: Vec<Piece>,
     /// Row offsets into `pieces`.
-    pub piece_rows: Vec<u32>,
+    pub(crate) piece_rows: Vec<u32>,
     /// Processed window: columns `i0..i1`, rows `k0..k1`.
     pub window: (usize, usize, usize, usize),
     /// Time of each step of the last pass (the slicing fields only).
@@ -138,7 +138,7 @@ pub struct Slices {
 }
 
 /// Inputs of one slicing pass.
-pub struct SliceInput<'a> {
+pub(crate) struct SliceInput<'a> {
     /// The evidence grid.
     pub grid: &'a Grid,
     /// Wall segments seen (may be empty).
@@ -146,12 +146,12 @@ pub struct SliceInput<'a> {
     /// Inflation radius (m).
     pub radius: f64,
     /// Unknown gaps up to this many pixels between free pixels are filled.
-    pub gap_pixels: usize,
+    pub(crate) gap_pixels: usize,
     /// Frozen cells' spans, sorted by row then `l`.
-    pub frozen: &'a [FrozenSpan],
+    pub(crate) frozen: &'a [FrozenSpan],
     /// Pieces shorter than this beside a frozen cell are left to that cell's
     /// tool overlap and dropped (m).
-    pub min_beside_frozen: f64,
+    pub(crate) min_beside_frozen: f64,
 }
 
 impl Slices {
@@ -162,7 +162,7 @@ impl Slices {
 
     /// Whether pixel `(i, k)` is unexplored and not within a wall's inflation
     /// (outside the raster counts as unexplored).
-    pub fn is_frontier(&self, f: &SweepFrame, i: isize, k: isize) -> bool {
+    pub(crate) fn is_frontier(&self, f: &SweepFrame, i: isize, k: isize) -> bool {
         if i < 0 || k < 0 || i as usize >= f.nu || k as usize >= f.nv {
             return true;
         }
@@ -171,18 +171,18 @@ impl Slices {
     }
 
     /// The pieces of row `k`.
-    pub fn row_pieces(&self, k: usize) -> std::ops::Range<usize> {
+    pub(crate) fn row_pieces(&self, k: usize) -> std::ops::Range<usize> {
         self.piece_rows[k] as usize..self.piece_rows[k + 1] as usize
     }
 
     /// The obstacle points of row `k`.
-    pub fn row_points(&self, k: usize) -> &[WallPoint] {
+    pub(crate) fn row_points(&self, k: usize) -> &[WallPoint] {
         &self.points[self.point_rows[k] as usize..self.point_rows[k + 1] as usize]
     }
 
     /// Runs the whole slicing pass for `input` in frame `f`. Returns false when
     /// nothing of the grid is explored (no pieces).
-    pub fn compute(&mut self, f: &SweepFrame, input: &SliceInput<'_>) -> bool {
+    pub(crate) fn compute(&mut self, f: &SweepFrame, input: &SliceInput<'_>) -> bool {
         self.times = PhaseTimes::default();
         let mut clock = Lap::start();
         self.piece_rows.clear();

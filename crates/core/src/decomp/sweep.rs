@@ -25,15 +25,15 @@ pub struct RawCell {
     /// Its pieces, one per row, bottom to top.
     pub pieces: Vec<Piece>,
     /// Indices of those pieces in the slices.
-    pub piece_idx: Vec<u32>,
+    pub(crate) piece_idx: Vec<u32>,
     /// `v` of the bottom boundary (m).
     pub vb: f64,
     /// `v` of the top boundary (m).
-    pub vt: f64,
+    pub(crate) vt: f64,
     /// Frontier stretches `(u1, v1, u2, v2)`.
     pub frontier: Vec<(f64, f64, f64, f64)>,
     /// Total frontier length (m).
-    pub frontier_len: f64,
+    pub(crate) frontier_len: f64,
 }
 
 impl RawCell {
@@ -76,12 +76,12 @@ pub struct SweepInput<'a> {
     /// Inflation radius (m), for refining top and bottom boundaries.
     pub radius: f64,
     /// Frozen spans, sorted by row then `l`.
-    pub frozen: &'a [FrozenSpan],
+    pub(crate) frozen: &'a [FrozenSpan],
     /// Cells thinner than this across the lanes are merged into a neighbour (m).
-    pub min_width: f64,
+    pub(crate) min_width: f64,
     /// Cells smaller than this are merged into a neighbour; isolated ones
     /// under a 25th of it are dropped as specks (m²).
-    pub min_area: f64,
+    pub(crate) min_area: f64,
 }
 
 /// The sweep's output and buffers.

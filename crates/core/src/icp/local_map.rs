@@ -140,7 +140,7 @@ impl KeyframeMap {
 
     /// The keyframes, oldest first, as plain data (allocates: for
     /// checkpoints, once per new keyframe at most).
-    pub fn export(&self) -> Vec<KeyframeState> {
+    pub(crate) fn export(&self) -> Vec<KeyframeState> {
         self.keyframes
             .iter()
             .map(|k| KeyframeState {

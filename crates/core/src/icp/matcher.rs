@@ -173,7 +173,7 @@ impl Matcher {
     }
 
     /// Like [`Matcher::prepare_points`], from a scan's valid beams.
-    pub fn prepare_scan(&mut self, scan: &LaserScan) -> Result<usize, IcpError> {
+    pub(crate) fn prepare_scan(&mut self, scan: &LaserScan) -> Result<usize, IcpError> {
         if scan.beams.is_empty() {
             return Err(IcpError::EmptyScan);
         }
@@ -245,7 +245,7 @@ impl Matcher {
 
     /// Registers the points last given to a `prepare_*` method, with the
     /// guess held by the configured `prior_weight` (see [`Matcher::match_prepared_weighted`]).
-    pub fn match_prepared(
+    pub(crate) fn match_prepared(
         &mut self,
         reference: &Reference,
         guess: &Pose,

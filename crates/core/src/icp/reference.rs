@@ -134,7 +134,7 @@ impl Reference {
     /// Rebuilds from points with their normals (zero vector = unknown) and
     /// intensity-edge flags already known. Entries with a non-finite point or
     /// normal are dropped; slices are read up to the shortest length.
-    pub fn rebuild_with_normals(
+    pub(crate) fn rebuild_with_normals(
         &mut self,
         points: &[IPoint],
         normals: &[Vector2<f64>],
@@ -230,12 +230,12 @@ impl Reference {
     /// Per point: true where the intensity steps by at least `intensity_edge`
     /// between surface neighbours (a marker's border) and `w` > 0. Such points
     /// constrain the pose along the surface too.
-    pub fn intensity_edges(&self) -> &[bool] {
+    pub(crate) fn intensity_edges(&self) -> &[bool] {
         &self.edges
     }
 
     /// Scale of the intensity axis in the tree (√w).
-    pub fn intensity_scale(&self) -> f64 {
+    pub(crate) fn intensity_scale(&self) -> f64 {
         self.intensity_scale
     }
 

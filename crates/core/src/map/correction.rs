@@ -30,7 +30,7 @@ pub struct Correction {
     /// Number of scan lines paired with map segments.
     pub pairs: usize,
     /// Total length of the paired scan lines (m).
-    pub paired_length: f64,
+    pub(crate) paired_length: f64,
 }
 
 /// What segment correction did for one scan.

@@ -16,7 +16,7 @@ pub struct Moments {
     /// Σ (x − x̄)(y − ȳ).
     pub sxy: f64,
     /// Σ (y − ȳ)².
-    pub syy: f64,
+    pub(crate) syy: f64,
 }
 
 /// A fitted line: centre, unit direction, and how well the points fit it.
@@ -29,9 +29,9 @@ pub struct LineFit {
     /// RMS perpendicular distance of the points to the line (m).
     pub rms: f64,
     /// Variance of the direction angle estimate (rad²).
-    pub var_angle: f64,
+    pub(crate) var_angle: f64,
     /// Variance of the line's perpendicular offset estimate (m²).
-    pub var_offset: f64,
+    pub(crate) var_offset: f64,
 }
 
 impl LineFit {
@@ -63,13 +63,13 @@ impl LineFit {
 
 /// |sin| of the angle between two undirected lines with unit directions `a`
 /// and `b`: 0 when parallel, 1 when perpendicular. No trigonometry.
-pub fn undirected_sin(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
+pub(crate) fn undirected_sin(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
     a.perp(b).abs()
 }
 
 /// Signed angle (rad, in (−π/2, π/2]) that turns the undirected line with unit
 /// direction `a` onto the one with unit direction `b`.
-pub fn undirected_turn(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
+pub(crate) fn undirected_turn(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
     let (c, s) = (a.dot(b), a.perp(b));
     if c >= 0.0 {
         s.atan2(c)
@@ -79,7 +79,7 @@ pub fn undirected_turn(a: &Vector2<f64>, b: &Vector2<f64>) -> f64 {
 }
 
 /// Folds an angle into (−π/2, π/2]: the direction of an undirected line.
-pub fn undirected(a: f64) -> f64 {
+pub(crate) fn undirected(a: f64) -> f64 {
     let mut r = crate::geom::wrap_angle(a);
     if r > std::f64::consts::FRAC_PI_2 {
         r -= std::f64::consts::PI;

@@ -17,7 +17,7 @@ const TINY_PIECE: usize = 4;
 const MIN_CURVE_PIECE: f64 = 0.05;
 
 /// Most vertices a curve keeps (2 values each: the paper's 100 values).
-pub const MAX_CURVE_VERTICES: usize = 50;
+pub(crate) const MAX_CURVE_VERTICES: usize = 50;
 
 /// A line feature of one scan, in the world frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -222,14 +222,14 @@ impl LineExtractor {
         }
     }
 
-    /// Clusters (first, last inclusive) found by the last [`extract`](Self::extract).
+    /// Clusters (first, last inclusive) found by the last `extract`.
     pub fn clusters(&self) -> &[(usize, usize)] {
         &self.clusters
     }
 
     /// Extracts line features and curves from `pts`, points of one scan in beam
     /// order seen from `origin` (same frame). Clears and fills `lines` and `curves`.
-    pub fn extract(
+    pub(crate) fn extract(
         &mut self,
         pts: &[IPoint],
         origin: &Point2<f64>,

@@ -23,7 +23,7 @@
 //! Allocation in steady state: none in steps 1-6 except growth of the point
 //! store and its hash index (amortised, reserved up front for
 //! `reserve_points`), of the segment list when a new wall appears, of the
-//! curve list (bounded by [`segments::MAX_CURVES`]) and of the trajectory
+//! curve list (bounded by `segments::MAX_CURVES`) and of the trajectory
 //! (one pose per 5 cm or 0.1 rad driven). Publication reuses the buffers of the snapshot
 //! before last when no reader holds it any more, else builds a new one.
 
@@ -100,7 +100,7 @@ pub struct UpdateReport {
     /// Line features found in the scan.
     pub lines: usize,
     /// Curves found in the scan.
-    pub curves: usize,
+    pub(crate) curves: usize,
     /// Points stored after the update.
     pub points_total: usize,
     /// Map segments after the update.
@@ -181,11 +181,6 @@ impl Map {
         self.points.points()
     }
 
-    /// The point map with its spatial index.
-    pub fn point_map(&self) -> &PointMap {
-        &self.points
-    }
-
     /// The segments and curves.
     pub fn segment_map(&self) -> &SegmentMap {
         &self.segments
@@ -204,11 +199,6 @@ impl Map {
     /// Scans offered to the map, and scans merged.
     pub fn scan_counts(&self) -> (u64, u64) {
         (self.scans_seen, self.scans_merged)
-    }
-
-    /// The line features of the last merged scan (world frame, corrected).
-    pub fn last_lines(&self) -> &[ScanLine] {
-        &self.lines
     }
 
     /// The points of the last merged scan (world frame, corrected), in beam order.

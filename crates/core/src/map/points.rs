@@ -129,7 +129,12 @@ impl PointMap {
     }
 
     /// Calls `f(index, point)` for every stored point within `r` of `c`.
-    pub fn for_each_within(&self, c: &Point2<f64>, r: f64, mut f: impl FnMut(usize, &IPoint)) {
+    pub(crate) fn for_each_within(
+        &self,
+        c: &Point2<f64>,
+        r: f64,
+        mut f: impl FnMut(usize, &IPoint),
+    ) {
         if !(c.x.is_finite() && c.y.is_finite() && r.is_finite()) {
             return;
         }
@@ -155,7 +160,7 @@ impl PointMap {
     }
 
     /// The stored point nearest to `c` within `r`, with its distance.
-    pub fn nearest_within(&self, c: &Point2<f64>, r: f64) -> Option<(usize, f64)> {
+    pub(crate) fn nearest_within(&self, c: &Point2<f64>, r: f64) -> Option<(usize, f64)> {
         let mut best: Option<(usize, f64)> = None;
         self.for_each_within(c, r, |i, p| {
             let d2 = (p.x - c.x).powi(2) + (p.y - c.y).powi(2);
@@ -168,7 +173,13 @@ impl PointMap {
 
     /// The merging rule for one scan point `q` whose surface runs along the unit
     /// vector `tangent`: true when `q` is new information (see the module docs).
-    pub fn is_new(&self, q: &IPoint, tangent: &Vector2<f64>, d_th: f64, min_spacing: f64) -> bool {
+    pub(crate) fn is_new(
+        &self,
+        q: &IPoint,
+        tangent: &Vector2<f64>,
+        d_th: f64,
+        min_spacing: f64,
+    ) -> bool {
         let c = q.xy();
         let Some((pi, _)) = self.nearest_within(&c, d_th) else {
             return true;

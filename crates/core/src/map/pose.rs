@@ -18,14 +18,14 @@ pub fn increment_between(from: &Pose, to: &Pose) -> Pose {
 }
 
 /// True when every component of the pose is a finite number.
-pub fn pose_is_finite(p: &Pose) -> bool {
+pub(crate) fn pose_is_finite(p: &Pose) -> bool {
     p.translation.vector.iter().all(|v| v.is_finite())
         && p.rotation.re.is_finite()
         && p.rotation.im.is_finite()
 }
 
 /// Translation length and absolute rotation (wrapped) of a pose taken as a motion.
-pub fn motion_size(p: &Pose) -> (f64, f64) {
+pub(crate) fn motion_size(p: &Pose) -> (f64, f64) {
     (
         p.translation.vector.norm(),
         wrap_angle(p.rotation.angle()).abs(),

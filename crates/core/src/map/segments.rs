@@ -16,7 +16,7 @@ use crate::geom::Segment;
 /// new data is added, so the line can still follow small drift.
 const MAX_SEGMENT_WEIGHT: f64 = 4000.0;
 /// Most curves the map keeps (oldest replaced first beyond this).
-pub const MAX_CURVES: usize = 256;
+pub(crate) const MAX_CURVES: usize = 256;
 
 /// One wall segment of the map.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,7 +26,7 @@ pub struct MapSegment {
     /// RMS distance of the supporting points to the line (m).
     pub residual: f64,
     /// Number of scans that contributed.
-    pub observations: u32,
+    pub(crate) observations: u32,
     /// Running moments of the supporting points.
     pub moments: Moments,
     /// The current line fit.
@@ -127,7 +127,7 @@ pub struct SegmentMap {
 }
 
 impl SegmentMap {
-    /// An empty map with room for `segments` segments and [`MAX_CURVES`] curves.
+    /// An empty map with room for `segments` segments and `MAX_CURVES` curves.
     pub fn with_capacity(segments: usize) -> Self {
         Self {
             segments: Vec::with_capacity(segments),
@@ -147,7 +147,7 @@ impl SegmentMap {
     }
 
     /// The curves.
-    pub fn curves(&self) -> &[Curve] {
+    pub(crate) fn curves(&self) -> &[Curve] {
         &self.curves
     }
 
@@ -176,7 +176,7 @@ impl SegmentMap {
 
     /// Merges one scan line: it grows the matching segment, or starts a new one.
     /// A grown segment that now reaches another one absorbs it.
-    pub fn merge_line(&mut self, l: &ScanLine, p: &MapParams) {
+    pub(crate) fn merge_line(&mut self, l: &ScanLine, p: &MapParams) {
         let (at, dt, gt) = (
             p.segment_merge_angle,
             p.segment_merge_distance,
@@ -211,7 +211,7 @@ impl SegmentMap {
 
     /// Adds a curve, replacing a stored curve it overlaps for most of its length
     /// when the new one is longer; beyond [`MAX_CURVES`] the oldest is replaced.
-    pub fn merge_curve(&mut self, c: &Curve, tol: f64) {
+    pub(crate) fn merge_curve(&mut self, c: &Curve, tol: f64) {
         if c.vertices.len() < 2 {
             return;
         }
@@ -245,7 +245,7 @@ impl SegmentMap {
     /// `max_angle_sigma` (1 σ, rad) or better. Candidates come from `index`
     /// (rebuilt here, buffers reused), so the cost is about linear in the
     /// number of segments.
-    pub fn snapped_into(
+    pub(crate) fn snapped_into(
         &self,
         tol: f64,
         min_observations: u32,
@@ -300,7 +300,7 @@ impl SegmentMap {
 /// segment) pairs, cells of side at least 4 × the snapping reach, each segment
 /// entered at samples every half cell along it.
 #[derive(Clone, Debug, Default)]
-pub struct SnapIndex {
+pub(crate) struct SnapIndex {
     entries: Vec<(u64, u32)>,
     cell: f64,
 }

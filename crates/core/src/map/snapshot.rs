@@ -30,9 +30,9 @@ pub struct PointMapSnapshot {
     /// takes (`decomp` reads `&snapshot.walls`).
     pub walls: Vec<Segment>,
     /// Curved surfaces as polylines.
-    pub curves: Vec<Curve>,
+    pub(crate) curves: Vec<Curve>,
     /// The explored-area grid: unknown / free / occupied. Its free cells next
-    /// to unknown ones are the explored boundary ([`Grid::frontier_into`]).
+    /// to unknown ones are the explored boundary.
     pub grid: Grid,
     /// The robot's (sensor's) pose after the last merged scan.
     pub pose: Pose,

@@ -40,7 +40,7 @@ impl View {
 }
 
 /// A viridis-like colour for intensity `v` in 0..1 (clamped).
-pub fn intensity_colour(v: f64) -> String {
+pub(crate) fn intensity_colour(v: f64) -> String {
     const STOPS: [(f64, f64, f64); 5] = [
         (68.0, 1.0, 84.0),
         (59.0, 82.0, 139.0),

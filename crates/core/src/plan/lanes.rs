@@ -24,7 +24,7 @@ pub enum Axis {
 
 impl Axis {
     /// The axis closest to the direction `angle` (rad).
-    pub fn from_angle(angle: f64) -> Self {
+    pub(crate) fn from_angle(angle: f64) -> Self {
         let a = angle.rem_euclid(std::f64::consts::PI);
         if (std::f64::consts::FRAC_PI_4..3.0 * std::f64::consts::FRAC_PI_4).contains(&a) {
             Axis::Y
@@ -42,7 +42,7 @@ pub struct Lane {
     /// End (m).
     pub b: Point2<f64>,
     /// True for a fix-up lane (floor the evenly spaced lanes missed).
-    pub fixup: bool,
+    pub(crate) fixup: bool,
 }
 
 impl Lane {
@@ -67,14 +67,14 @@ pub struct LaneInput<'a> {
     /// Grid geometry.
     pub frame: Frame,
     /// Cells where the robot centre may drive in this region.
-    pub admissible: &'a [bool],
+    pub(crate) admissible: &'a [bool],
     /// Cells where the robot centre may drive at all (any region): a lane
     /// whose position lies in this region may pass beside it over these.
-    pub drivable: &'a [bool],
+    pub(crate) drivable: &'a [bool],
     /// Uncovered floor cells this region must reach.
     pub targets: &'a [bool],
     /// Bounding box (x0, y0, x1, y1) inclusive of admissible and target cells.
-    pub bbox: (usize, usize, usize, usize),
+    pub(crate) bbox: (usize, usize, usize, usize),
     /// Lane direction.
     pub axis: Axis,
     /// Largest distance between neighbouring lanes (m).
@@ -89,18 +89,18 @@ pub struct LaneInput<'a> {
     /// May the lanes leave the lattice where the region is walled in across
     /// (see [`lanes`])? False for leftover patches, whose floor lies between
     /// lanes already driven on the lattice.
-    pub fit_walls: bool,
+    pub(crate) fit_walls: bool,
     /// Fewest uncovered floor cells a fix-up lane must reach: a fix-up
     /// for less costs more in detour (two joins) than it covers.
-    pub min_fixup_cells: usize,
+    pub(crate) min_fixup_cells: usize,
     /// Fewest uncovered floor cells any other lane piece must newly reach
     /// (a stub of a lattice lane into a corner, for a few cells, costs two
     /// joins over swept floor); 0 or 1 keeps every piece.
-    pub min_lane_cells: usize,
+    pub(crate) min_lane_cells: usize,
 }
 
 /// The lattice lane position (m across) nearest to `v_m`.
-pub fn lattice_position(phase: f64, spacing: f64, v_m: f64) -> f64 {
+pub(crate) fn lattice_position(phase: f64, spacing: f64, v_m: f64) -> f64 {
     phase + ((v_m - phase) / spacing).round() * spacing
 }
 
@@ -350,7 +350,7 @@ impl Sweep<'_> {
 /// another region directly beside it across) shares no lane with a
 /// neighbour, so its lanes may leave the lattice: they are also spread
 /// evenly from wall to wall, and that set is kept when it is cheaper (see
-/// [`lane_cost`]) — in a strip between two walls the lattice plus the lanes
+/// `lane_cost`) — in a strip between two walls the lattice plus the lanes
 /// hugging both walls can take one lane more than the strip needs.
 pub fn lanes(input: &LaneInput) -> Vec<Lane> {
     let f = &input.frame;
@@ -444,7 +444,7 @@ pub fn lanes(input: &LaneInput) -> Vec<Lane> {
 
 /// What a set of lanes costs to drive, for choosing between two sets: the
 /// lanes' length plus one lane spacing for each lane (a U-turn's connection).
-pub fn lane_cost(lanes: &[Lane], spacing: f64) -> f64 {
+pub(crate) fn lane_cost(lanes: &[Lane], spacing: f64) -> f64 {
     lanes.iter().map(|l| l.length() + spacing).sum()
 }
 
@@ -566,7 +566,7 @@ impl Sweep<'_> {
 /// One way to drive a region's lanes: the lanes in order and the length
 /// driven inside the region (lanes plus connections, straight-line).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Variant {
+pub(crate) struct Variant {
     /// Lanes in driving order.
     pub lanes: Vec<Lane>,
     /// Length of lanes and connections (m).
@@ -597,7 +597,7 @@ impl Variant {
 /// to where they lengthen the connections least and by driving stretches
 /// backwards, keeping the joins at most `keep` long (pass
 /// [`turn_join`] of the lane spacing). Up to four variants.
-pub fn variants(lanes: &[Lane], keep: f64) -> Vec<Variant> {
+pub(crate) fn variants(lanes: &[Lane], keep: f64) -> Vec<Variant> {
     if lanes.is_empty() {
         return Vec::new();
     }
@@ -663,7 +663,7 @@ pub fn variants(lanes: &[Lane], keep: f64) -> Vec<Variant> {
 
 /// Longest connection between neighbouring lanes (m) that [`lanes`] counts
 /// on to sweep the floor between their ends (twice the lane spacing).
-pub fn turn_join(spacing: f64) -> f64 {
+pub(crate) fn turn_join(spacing: f64) -> f64 {
     2.0 * spacing
 }
 
@@ -770,7 +770,7 @@ fn improve_order(seq: &mut Vec<Lane>, keep: f64) {
     }
 }
 
-/// The variant (see [`variants`]) with the least `start_cost(entry) +
+/// The variant (see `variants`) with the least `start_cost(entry) +
 /// length`, and that cost; empty when no entry has a finite cost.
 pub fn order(
     lanes: &[Lane],

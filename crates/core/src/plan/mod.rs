@@ -109,7 +109,7 @@ pub struct PlanParams {
     pub leftover_ratio: f64,
     /// Planner updates a surface cell at the edge of furniture keeps
     /// blocking after the map lets it go (see
-    /// [`cspace::CSpace::set_surface_hold`]); 0 = as the map says. In the
+    /// `cspace::CSpace::set_surface_hold`); 0 = as the map says. In the
     /// closed loop on office_f:0 (×5, 4 and 6 runs) 100 took the tasks
     /// planned from 33-55 to 15-20 a run and the overlap from 39.9 to
     /// 34.2 % (coverage 98.96 against 99.04 %). The hold ends the first

@@ -14,7 +14,7 @@ pub fn walled_room() -> Grid {
 
 /// A room of `w` × `h` cells of 0.05 m, seen whole: one-cell walls all
 /// round, and occupied wherever `inside(x, y)` holds.
-pub fn room_with(w: usize, h: usize, inside: impl Fn(usize, usize) -> bool) -> Grid {
+pub(crate) fn room_with(w: usize, h: usize, inside: impl Fn(usize, usize) -> bool) -> Grid {
     let mut g = Grid::new(Point2::new(0.0, 0.0), 0.05, w, h);
     for y in 0..h {
         for x in 0..w {

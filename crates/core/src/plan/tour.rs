@@ -43,7 +43,7 @@ pub struct TourCosts<'a> {
 }
 
 /// One lane of the tour: its index and whether it is driven from `b` to `a`.
-pub type Leg = (usize, bool);
+pub(crate) type Leg = (usize, bool);
 
 fn entry(t: Leg) -> usize {
     2 * t.0 + usize::from(t.1)
@@ -109,7 +109,8 @@ impl Costs {
 }
 
 /// Travel cost of the open tour `t` (lanes' own lengths not included).
-pub fn tour_cost(t: &[Leg], costs: &TourCosts) -> f64 {
+#[cfg(test)]
+pub(crate) fn tour_cost(t: &[Leg], costs: &TourCosts) -> f64 {
     let c = Costs::new(costs);
     travel(t, &c)
 }

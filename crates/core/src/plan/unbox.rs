@@ -5,7 +5,7 @@
 //! between furniture just wide enough for the body (a gap between two chair
 //! groups, seen from one side) then splits the traversable space: the robot
 //! ends a lane on one side and finds everything else out of reach, although
-//! its body fits through. [`way_out`] finds the shortest move, over cells
+//! its body fits through. `way_out` finds the shortest move, over cells
 //! where the bare body (radius, no margin) covers seen-free floor only, to
 //! the nearest traversable cell of another part of the space that still has
 //! work (as judged by the caller), preferring traversable cells on the way.
@@ -138,7 +138,7 @@ fn shorten(cs: &CSpace, cells: &[usize]) -> Vec<Point2<f64>> {
 /// `max_tight` metres of the way off the traversable space (steps there
 /// count `TIGHT_STEP_COST` times in the choice of the way). `None` when
 /// there is no such place.
-pub fn way_out(
+pub(crate) fn way_out(
     cs: &CSpace,
     robot: usize,
     reachable: &[bool],
@@ -203,7 +203,7 @@ pub fn way_out(
 /// The traversable cells the robot at `robot` can get to when it may take
 /// passages where only the bare body fits (of any length): what it could
 /// reach with ways out, for the report of unreachable floor.
-pub fn reachable_with_ways_out(cs: &CSpace, robot: usize) -> Vec<bool> {
+pub(crate) fn reachable_with_ways_out(cs: &CSpace, robot: usize) -> Vec<bool> {
     let mut seen = bare_body_reach(cs, robot);
     for (s, t) in seen.iter_mut().zip(&cs.traversable) {
         *s &= *t;
@@ -213,7 +213,7 @@ pub fn reachable_with_ways_out(cs: &CSpace, robot: usize) -> Vec<bool> {
 
 /// Every place the bare body's centre can get to from `robot`, with no
 /// safety margin: the reachable floor as the ground truth counts it.
-pub fn bare_body_reach(cs: &CSpace, robot: usize) -> Vec<bool> {
+pub(crate) fn bare_body_reach(cs: &CSpace, robot: usize) -> Vec<bool> {
     let n = cs.frame.len();
     let mut seen = vec![false; n];
     if robot >= n {

@@ -3,7 +3,7 @@
 //! (t1, t2, true relative pose), the estimated relative pose inv(P(t1))·P(t2)
 //! is compared component-wise with the true one (angle wrapped).
 //!
-//! Relations are looked up by exact scan timestamp (within [`STAMP_TOLERANCE`]).
+//! Relations are looked up by exact scan timestamp (within `STAMP_TOLERANCE`).
 //!
 //! [`truth_noise`]: how noisy a log's hand-made relations are, from relation
 //! triangles; [`breakdown`]: where the short relations' error comes from.
@@ -174,7 +174,7 @@ pub fn format_trajectory(poses: &[Stamped]) -> String {
     s
 }
 
-/// The pose at timestamp `t` (within [`STAMP_TOLERANCE`]) of a sorted trajectory.
+/// The pose at timestamp `t` (within `STAMP_TOLERANCE`) of a sorted trajectory.
 pub fn lookup(traj: &[Stamped], t: f64) -> Option<Pose> {
     let i = traj.partition_point(|p| p.t < t);
     let mut best: Option<(f64, Pose)> = None;

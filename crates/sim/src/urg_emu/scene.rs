@@ -318,7 +318,7 @@ impl ReplayScan {
         Err(ReplayError::NoScan)
     }
 
-    /// [`ReplayScan::from_reply_stream`] of a capture file's read side.
+    /// `ReplayScan::from_reply_stream` of a capture file's read side.
     pub fn from_capture_file(path: &std::path::Path) -> Result<Self, ReplayError> {
         let file = std::fs::read(path).map_err(|source| ReplayError::Io {
             path: path.display().to_string(),

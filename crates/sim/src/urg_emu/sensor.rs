@@ -19,7 +19,7 @@
 //! the time-stamped captures show:
 //! * every other command (VV, PP, II, BM, CR, QT, RS, SS, HS, TM0, MD/MS,
 //!   RB, errors) is handled at the firmware's command tick, once per
-//!   revolution, [`ModelSpec::tick_lead`] before a revolution starts. In the
+//!   revolution, `ModelSpec::tick_lead` before a revolution starts. In the
 //!   URG-04LX capture the host sends each command right after the previous
 //!   reply, so each reply comes 98-100 ms after its command; the first VV,
 //!   sent mid-revolution, was answered after 10 ms. Lines that arrived
@@ -75,7 +75,7 @@ pub struct SentScan {
 /// What the emulator did, for tests and the CLI's summary.
 #[derive(Clone, Debug, Default)]
 pub struct EmuLog {
-    /// Scans sent (the last [`LOG_CAPACITY`]).
+    /// Scans sent (the last `LOG_CAPACITY`).
     pub sent: VecDeque<SentScan>,
     /// Command lines received, in order (the last 1000).
     pub commands: VecDeque<String>,

@@ -16,7 +16,7 @@ impl CSpace {
     /// cells is not held: on a wall, ranges ending in the first floor cell
     /// now and then are noise, and holding such cells cuts the lane that
     /// hugs the wall into pieces.
-    pub fn set_surface_hold(&mut self, rebuilds: u32) {
+    pub(crate) fn set_surface_hold(&mut self, rebuilds: u32) {
         self.hold = rebuilds;
     }
 
@@ -25,7 +25,7 @@ impl CSpace {
     /// cells. The hold steadies the plan while the robot works; when
     /// nothing is left to do, floor beside such a cell is not to be lost to
     /// it.
-    pub fn release_held(&mut self) -> Vec<usize> {
+    pub(crate) fn release_held(&mut self) -> Vec<usize> {
         let w = self.frame.w;
         let mut released: Option<Rect> = None;
         let mut cells = Vec::new();

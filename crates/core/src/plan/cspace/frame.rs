@@ -19,7 +19,7 @@ impl Frame {
     /// Linear indices of the up to 8 cells around cell `i` that lie inside
     /// the frame (the grid's `NEIGHBOURS_8` order).
     #[inline]
-    pub fn neighbours8(&self, i: usize) -> impl Iterator<Item = usize> {
+    pub(crate) fn neighbours8(&self, i: usize) -> impl Iterator<Item = usize> {
         crate::grid::neighbours8_of(i, self.w, self.h)
     }
 
@@ -42,7 +42,7 @@ impl Frame {
 
     /// Linear index of the cell containing `p`, if inside.
     #[inline]
-    pub fn index_of(&self, p: &Point2<f64>) -> Option<usize> {
+    pub(crate) fn index_of(&self, p: &Point2<f64>) -> Option<usize> {
         let fx = (p.x - self.origin.x) / self.res;
         let fy = (p.y - self.origin.y) / self.res;
         if !(fx.is_finite() && fy.is_finite()) || fx < 0.0 || fy < 0.0 {

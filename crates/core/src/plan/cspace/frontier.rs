@@ -13,7 +13,7 @@ impl CSpace {
     /// no reachable place sees this way (the far side of a table in a
     /// corner, seen only past its edge) is not worth a drive: it would stay
     /// unexplored.
-    pub fn sees_unknown_beside(&self, from: usize, fi: usize) -> bool {
+    pub(crate) fn sees_unknown_beside(&self, from: usize, fi: usize) -> bool {
         let w = self.frame.w;
         let (fx, fy) = ((from % w) as f64, (from / w) as f64);
         [fi - 1, fi + 1, fi - w, fi + w]

@@ -22,11 +22,11 @@ pub use frame::{disk, Frame};
 use search::Entry;
 
 /// Cell state as the planner stores it.
-pub const UNKNOWN: u8 = 0;
+pub(crate) const UNKNOWN: u8 = 0;
 /// Seen free.
 pub const FREE: u8 = 1;
 /// Seen occupied.
-pub const OCCUPIED: u8 = 2;
+pub(crate) const OCCUPIED: u8 = 2;
 
 /// Length of a straight run of occupied cells (odd, cells) beside a surface
 /// cell that makes it a face cell, which the surface hold does not keep
@@ -38,12 +38,12 @@ const WALL_FACE_CELLS: usize = 5;
 pub struct CSpace {
     /// Geometry.
     pub frame: Frame,
-    /// Per-cell [`UNKNOWN`]/[`FREE`]/[`OCCUPIED`].
+    /// Per-cell `UNKNOWN`/[`FREE`]/`OCCUPIED`.
     pub state: Vec<u8>,
-    /// Free cells a beam has ended in (see [`Grid::was_hit`]): not frontier.
+    /// Free cells a beam has ended in (see `Grid::was_hit`): not frontier.
     pub surface: Vec<bool>,
-    /// Free cells that hold a surface (see [`Grid::holds_surface`]), or
-    /// held one within the last [`CSpace::set_surface_hold`] rebuilds: the
+    /// Free cells that hold a surface (see `Grid::holds_surface`), or
+    /// held one within the last `CSpace::set_surface_hold` rebuilds: the
     /// robot keeps its clearance from them as from obstacle cells.
     pub held: Vec<bool>,
     /// Rebuilds a surface keeps blocking after the grid lets it go.
@@ -57,8 +57,8 @@ pub struct CSpace {
     pub traversable: Vec<bool>,
     /// Where the robot body touches no seen obstacle (clearance of the bare
     /// robot radius, no margin): a path leaving it is blocked.
-    pub collision_free: Vec<bool>,
-    /// Travel distance from the last [`CSpace::distances_from`] source (m; ∞ unreachable).
+    pub(crate) collision_free: Vec<bool>,
+    /// Travel distance from the last `CSpace::distances_from` source (m; ∞ unreachable).
     pub dist: Vec<f64>,
     prev: Vec<u32>,
     /// Extra cost factor per cell (0 = none): travel over a cell costs
@@ -84,7 +84,7 @@ pub struct CSpace {
 /// What a cell within the clearance of the robot centre is (see
 /// [`CSpace::blocker`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BlockerKind {
+pub(crate) enum BlockerKind {
     /// A cell seen occupied.
     Obstacle,
     /// A free cell holding a surface (a wall seen in mid-cell).
@@ -110,7 +110,7 @@ impl BlockerKind {
 /// The nearest thing within the robot centre's clearance (see
 /// [`CSpace::blocker`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Blocker {
+pub(crate) struct Blocker {
     /// What it is.
     pub kind: BlockerKind,
     /// Its cell's centre (m).
@@ -232,7 +232,7 @@ impl CSpace {
     /// floor within the clearance of `p`'s cell, the nearest to `p` (by the
     /// distance to the edge of its square); else the grid's border; `None`
     /// when `p` is off the grid or its cell is not blocked.
-    pub fn blocker(&self, p: &Point2<f64>) -> Option<Blocker> {
+    pub(crate) fn blocker(&self, p: &Point2<f64>) -> Option<Blocker> {
         let f = self.frame;
         let i = f.index_of(p)?;
         let (w, h) = (f.w as i64, f.h as i64);
@@ -288,7 +288,7 @@ impl CSpace {
     /// under it. Weaker than [`CSpace::traversable`] (no safety margin, no
     /// clearance from the grid border), for short moves through a passage
     /// just wide enough for the body.
-    pub fn body_clear(&self, i: usize) -> bool {
+    pub(crate) fn body_clear(&self, i: usize) -> bool {
         let (w, h) = (self.frame.w as i64, self.frame.h as i64);
         let open = |j: usize| self.state[j] == FREE && !self.held[j];
         if i >= self.frame.len() || !open(i) {

@@ -107,7 +107,7 @@ impl CSpace {
     /// `i`, at least 0): paths and travel costs then prefer cheap cells, e.g.
     /// floor the tool has not swept yet. Reset on a change of the grid's
     /// geometry.
-    pub fn set_extra_cost(&mut self, f: impl Fn(usize) -> f64) {
+    pub(crate) fn set_extra_cost(&mut self, f: impl Fn(usize) -> f64) {
         for (i, e) in self.extra.iter_mut().enumerate() {
             *e = f(i).max(0.0) as f32;
         }
@@ -116,7 +116,7 @@ impl CSpace {
     /// Dijkstra travel distances (8-connected, m) over traversable cells from
     /// `source` (which may itself be non-traversable: the robot may start in
     /// an inflation zone). Fills [`CSpace::dist`].
-    pub fn distances_from(&mut self, source: usize) {
+    pub(crate) fn distances_from(&mut self, source: usize) {
         self.dist.iter_mut().for_each(|d| *d = f64::INFINITY);
         self.prev.iter_mut().for_each(|p| *p = u32::MAX);
         self.heap.clear();
@@ -147,7 +147,7 @@ impl CSpace {
     /// whose way stays in their two regions, an upper bound otherwise;
     /// about the cost of one whole-grid search. [`CSpace::dist`] is left as
     /// it was.
-    pub fn travel_linked(&mut self, cells: &[usize], out: &mut Vec<f64>) {
+    pub(crate) fn travel_linked(&mut self, cells: &[usize], out: &mut Vec<f64>) {
         let n = self.frame.len();
         let k = cells.len();
         out.clear();
@@ -252,7 +252,7 @@ impl CSpace {
 
     /// The cell path from the last Dijkstra source to `goal`, as cell centres,
     /// shortened by line of sight; `None` when `goal` is unreachable.
-    pub fn path_to(&self, goal: usize) -> Option<Vec<Point2<f64>>> {
+    pub(crate) fn path_to(&self, goal: usize) -> Option<Vec<Point2<f64>>> {
         if goal >= self.dist.len() || !self.dist[goal].is_finite() {
             return None;
         }
@@ -268,7 +268,7 @@ impl CSpace {
 
     /// A* path (cell centres, shortened) between two cells over traversable
     /// cells, `None` when there is none. Does not touch [`CSpace::dist`].
-    pub fn astar(&self, from: usize, to: usize) -> Option<Vec<Point2<f64>>> {
+    pub(crate) fn astar(&self, from: usize, to: usize) -> Option<Vec<Point2<f64>>> {
         let n = self.frame.len();
         if from >= n || to >= n || !self.traversable[to] {
             return None;
@@ -320,7 +320,7 @@ impl CSpace {
     /// Whether at least `n` traversable cells are connected to cell
     /// `start` (moving as the path search does): a flood fill that stops
     /// once it has found `n`, so a large part costs no more than a small one.
-    pub fn traversable_part_holds(&self, start: usize, n: usize) -> bool {
+    pub(crate) fn traversable_part_holds(&self, start: usize, n: usize) -> bool {
         if start >= self.frame.len() || !self.traversable[start] {
             return false;
         }

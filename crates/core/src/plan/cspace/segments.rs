@@ -8,7 +8,8 @@ use super::{square_gap, CSpace, OCCUPIED};
 impl CSpace {
     /// Whether the straight segment `a`–`b` keeps the robot body off every
     /// seen obstacle (sampled every quarter cell).
-    pub fn segment_safe(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
+    #[cfg(test)]
+    pub(crate) fn segment_safe(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
         self.first_unsafe(a, b).is_none()
     }
 
@@ -19,7 +20,7 @@ impl CSpace {
     /// centre) is measured again where it is: up to half a cell from the
     /// centre, a path may pass a surface seen since it was planned by a
     /// few millimetres more than the robot radius, and is not blocked.
-    pub fn first_unsafe(&self, a: &Point2<f64>, b: &Point2<f64>) -> Option<Point2<f64>> {
+    pub(crate) fn first_unsafe(&self, a: &Point2<f64>, b: &Point2<f64>) -> Option<Point2<f64>> {
         self.samples(a, b).find(|p| match self.frame.index_of(p) {
             Some(i) => !self.collision_free[i] && self.body_touches(p, i),
             None => true,
@@ -52,7 +53,7 @@ impl CSpace {
 
     /// Whether the straight segment `a`–`b` stays on traversable cells
     /// (sampled every quarter cell).
-    pub fn segment_clear(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
+    pub(crate) fn segment_clear(&self, a: &Point2<f64>, b: &Point2<f64>) -> bool {
         self.samples(a, b)
             .all(|p| self.frame.index_of(&p).is_some_and(|i| self.traversable[i]))
     }

@@ -41,7 +41,7 @@ pub(crate) struct RegionMap {
 
 impl RegionMap {
     /// Fits the per-cell maps to a grid of `n` cells.
-    pub(crate) fn fit(&mut self, n: usize) {
+    pub fn fit(&mut self, n: usize) {
         self.reachable = vec![false; n];
         self.targets = vec![false; n];
         self.owner = vec![u32::MAX; n];

@@ -22,7 +22,7 @@ pub(crate) struct Scratch {
 
 impl Scratch {
     /// Fits the per-cell buffers to a grid of `n` cells.
-    pub(crate) fn fit(&mut self, n: usize) {
+    pub fn fit(&mut self, n: usize) {
         self.near_reached = vec![false; n];
         self.near_counted = vec![false; n];
         self.admissible = vec![false; n];

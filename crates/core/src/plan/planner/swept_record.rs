@@ -55,7 +55,7 @@ impl SweptRecord {
 
     /// Starts the record afresh on a grid of `n` cells of `res` (m): the
     /// geometry changed, the cells no longer mean the same floor.
-    pub(crate) fn fit(&mut self, n: usize, res: f64) {
+    pub fn fit(&mut self, n: usize, res: f64) {
         self.covered = vec![false; n];
         self.passes = vec![0; n];
         self.last_under = vec![0; n];

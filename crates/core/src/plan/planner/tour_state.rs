@@ -29,7 +29,7 @@ pub(crate) struct TourState {
 impl TourState {
     /// Fits the record of the last decision to a grid of `n` cells: nothing
     /// counts as new floor until the next decision.
-    pub(crate) fn fit(&mut self, n: usize) {
+    pub fn fit(&mut self, n: usize) {
         self.decided = vec![true; n];
     }
 

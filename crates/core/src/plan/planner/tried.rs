@@ -60,7 +60,7 @@ pub(crate) struct ReachAndTries {
 impl ReachAndTries {
     /// Starts the per-cell records afresh on a grid of `n` cells (the counts
     /// of rounds and waits are the run's, and stay).
-    pub(crate) fn fit(&mut self, n: usize) {
+    pub fn fit(&mut self, n: usize) {
         self.abandoned = vec![false; n];
         self.declined = vec![false; n];
         self.given_up = vec![false; n];
