@@ -198,7 +198,12 @@ pub(crate) fn centre_free(raster: &FreeRaster, radius: f64) -> Vec<bool> {
 }
 
 /// Cells of `mask` 8-connected to `start` (empty when `start` is not in `mask`).
-pub(crate) fn connected_from(mask: &[bool], w: usize, h: usize, start: (usize, usize)) -> Vec<bool> {
+pub(crate) fn connected_from(
+    mask: &[bool],
+    w: usize,
+    h: usize,
+    start: (usize, usize),
+) -> Vec<bool> {
     let mut out = vec![false; w * h];
     let s = start.1 * w + start.0;
     if start.0 >= w || start.1 >= h || !mask[s] {

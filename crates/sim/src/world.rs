@@ -360,7 +360,12 @@ impl World {
     /// Builds a world from a free-space raster: every boundary between a free
     /// and a non-free cell becomes a wall (collinear cell edges merged), with
     /// the given reflectivity. Used for the floor-plan PNGs.
-    pub(crate) fn from_raster(name: &str, raster: FreeRaster, reflectivity: f64, start: Pose) -> World {
+    pub(crate) fn from_raster(
+        name: &str,
+        raster: FreeRaster,
+        reflectivity: f64,
+        start: Pose,
+    ) -> World {
         let (w, h, r) = (raster.width, raster.height, raster.resolution);
         let o = raster.origin;
         let at = |x: i64, y: i64| raster.free_at(x, y);

@@ -138,7 +138,6 @@ impl LoopbackTruth {
         s.sim.pose()
     }
 
-
     /// The device core's counters (what it accepted and rejected).
     pub(crate) fn device_stats(&self) -> crate::base_emu::DeviceStats {
         lock(&self.state).device.stats()
