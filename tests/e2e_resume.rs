@@ -40,10 +40,14 @@ start 0.5 0.5 0.0\n";
 
 /// Simulated seconds per wall second.
 const SPEED: f64 = 10.0;
-/// Checkpoint period (wall s): one simulated second at [`SPEED`].
-const CHECKPOINT_WALL: f64 = 0.1;
-/// Heartbeat and supervision period (wall s): 0.2 s simulated.
-const HEARTBEAT_WALL: f64 = 0.02;
+/// Checkpoint period (simulated s: the daemon times it on its injected
+/// clock): 0.1 s wall at [`SPEED`].
+const CHECKPOINT_PERIOD: f64 = 1.0;
+/// Heartbeat period (simulated s).
+const HEARTBEAT_PERIOD: f64 = 0.2;
+/// Supervision period (wall s: the supervisor's own tick, which the
+/// watchdog counts in): one heartbeat period at [`SPEED`].
+const SUPERVISE_WALL: f64 = HEARTBEAT_PERIOD / SPEED;
 /// Ground-truth coverage at which the daemon is killed.
 const KILL_AT: f64 = 0.40;
 /// Set to run the same world without the kill: the uninterrupted baseline
@@ -185,9 +189,9 @@ fn crash_and_resume(name: &str, restart: Restart) {
     cfg.motor.kind = BaseKind::Roboclaw;
     cfg.motor.deadman = cfg.motor.deadman.max(DEADMAN_WALL * SPEED);
     let sim_clock = format!("{SPEED},{epoch}");
-    cfg.pipeline.checkpoint_period = CHECKPOINT_WALL;
-    cfg.pipeline.heartbeat_period = HEARTBEAT_WALL;
-    cfg.pipeline.supervise_period = HEARTBEAT_WALL;
+    cfg.pipeline.checkpoint_period = CHECKPOINT_PERIOD;
+    cfg.pipeline.heartbeat_period = HEARTBEAT_PERIOD;
+    cfg.pipeline.supervise_period = SUPERVISE_WALL;
     std::fs::write(dir.join("robot.toml"), toml::to_string(&cfg).unwrap()).unwrap();
 
     let store = CheckpointStore::new(&dir.join("state"));

@@ -30,16 +30,20 @@ fn steady_state_command_and_poll_do_not_allocate() {
             emu.path().unwrap(),
         ))));
         let mut base: Box<dyn DiffDriveBase> =
-            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock.clone());
         let mut cycle = |watch: bool, i: u32| {
             let w = 0.05 + 0.001 * (i % 50) as f64;
+            let now = clock.now();
             set_counting(watch);
-            base.set_wheels(WheelSpeeds {
-                left: w,
-                right: w * 0.9,
-            })
+            base.set_wheels(
+                WheelSpeeds {
+                    left: w,
+                    right: w * 0.9,
+                },
+                now,
+            )
             .unwrap();
-            let fb = base.poll().unwrap();
+            let fb = base.poll(now).unwrap();
             set_counting(false);
             fb
         };

@@ -21,15 +21,18 @@ fn missing_device_is_reported_not_fatal() {
     for kind in [BaseKind::Roboclaw, BaseKind::Create2] {
         let mut b = driver(kind, "/nonexistent/sweepline-base");
         for _ in 0..3 {
-            let fb = b.poll().expect("poll never fails for a missing device");
+            let fb = b.poll(0.0).expect("poll never fails for a missing device");
             assert!(!fb.link_up);
             assert!(fb.odometry.is_none());
         }
         // Commands are accepted (and held) while the link is down.
-        b.set_wheels(WheelSpeeds {
-            left: 0.1,
-            right: 0.1,
-        })
+        b.set_wheels(
+            WheelSpeeds {
+                left: 0.1,
+                right: 0.1,
+            },
+            0.0,
+        )
         .unwrap();
         let e = b.stop().unwrap_err();
         assert!(matches!(e, MotorError::NotConnected { .. }), "{e:?}");
@@ -47,7 +50,9 @@ fn non_finite_wheel_commands_are_refused() {
             (0.0, f64::INFINITY),
             (f64::NEG_INFINITY, f64::NAN),
         ] {
-            let e = b.set_wheels(WheelSpeeds { left: l, right: r }).unwrap_err();
+            let e = b
+                .set_wheels(WheelSpeeds { left: l, right: r }, 0.0)
+                .unwrap_err();
             assert!(matches!(e, MotorError::BadCommand { .. }), "{e:?}");
             assert!(e.to_string().contains("not a finite number"), "{e}");
         }

@@ -57,15 +57,16 @@ fn noise_never_panics_nor_fakes_a_link() {
         let cfg = Config::default();
         let opener = Box::new(Once(Mutex::new(Some(host))));
         let mut base: Box<dyn DiffDriveBase> =
-            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock.clone());
         let mut travel = 0.0;
+        let ahead = WheelSpeeds {
+            left: 0.1,
+            right: 0.1,
+        };
         for _ in 0..40 {
-            base.set_wheels(WheelSpeeds {
-                left: 0.1,
-                right: 0.1,
-            })
-            .unwrap();
-            let fb = base.poll().unwrap();
+            let now = clock.now();
+            base.set_wheels(ahead, now).unwrap();
+            let fb = base.poll(now).unwrap();
             if let Some(o) = fb.odometry {
                 travel += o.delta.translation.vector.norm();
             }

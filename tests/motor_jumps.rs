@@ -148,10 +148,11 @@ impl Rig {
     /// One 20 ms control period: a command, a poll.
     fn period(&mut self) {
         self.clock.advance(0.02);
+        let now = self.clock.now();
         let _ = self
             .driver
-            .set_wheels(WheelSpeeds::from_body(SPEED, 0.0, 0.235));
-        let fb = self.driver.poll().expect("poll");
+            .set_wheels(WheelSpeeds::from_body(SPEED, 0.0, 0.235), now);
+        let fb = self.driver.poll(now).expect("poll");
         if let Some(o) = fb.odometry {
             self.travel.0 += o.left;
             self.travel.1 += o.right;

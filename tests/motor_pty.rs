@@ -105,7 +105,7 @@ fn rig_on(
     // Wait for the link to come up (how long depends on the machine's load).
     let t0 = r.clock.now();
     loop {
-        let fb = r.base.poll().unwrap();
+        let fb = r.base.poll(r.clock.now()).unwrap();
         r.events.extend(fb.events.iter().copied());
         if fb.link_up {
             break;
@@ -124,9 +124,9 @@ impl Rig {
         while self.clock.now() - t0 < secs {
             let tick = self.clock.now();
             if let Some(c) = cmd {
-                self.base.set_wheels(c).unwrap();
+                self.base.set_wheels(c, tick).unwrap();
             }
-            let fb = self.base.poll().unwrap();
+            let fb = self.base.poll(tick).unwrap();
             if let Some(o) = fb.odometry {
                 self.odom *= o.delta;
             }
@@ -565,8 +565,9 @@ fn create2_stream_pause_is_not_a_lost_link_and_resume_restores_odometry() {
     let mut d = Create2Driver::new(&cfg.motor, &cfg.robot, opener, clock.clone());
     let mut events = Vec::new();
     let step = |d: &mut Create2Driver, cmd: WheelSpeeds, ev: &mut Vec<SafetyEvent>| {
-        d.set_wheels(cmd).unwrap();
-        let fb = d.poll().unwrap();
+        let now = clock.now();
+        d.set_wheels(cmd, now).unwrap();
+        let fb = d.poll(now).unwrap();
         ev.extend(fb.events.iter().copied());
         clock.sleep(0.05);
         fb
@@ -598,7 +599,7 @@ fn create2_stream_pause_is_not_a_lost_link_and_resume_restores_odometry() {
         !events.iter().any(|e| matches!(e, SafetyEvent::LinkLost)),
         "{events:?}"
     );
-    assert!(d.resume_stream());
+    assert!(d.resume_stream(clock.now()));
     let mut odometry = 0;
     for _ in 0..100 {
         odometry += usize::from(step(&mut d, FWD, &mut events).odometry.is_some());
@@ -659,8 +660,9 @@ fn roboclaw_at_another_address_never_counts_as_up() {
     ))));
     let mut d = RoboClawDriver::new(&motor, &cfg.robot, opener, clock.clone());
     for _ in 0..5 {
-        d.set_wheels(FWD).unwrap();
-        assert!(!d.poll().unwrap().link_up);
+        let now = clock.now();
+        d.set_wheels(FWD, now).unwrap();
+        assert!(!d.poll(now).unwrap().link_up);
         clock.sleep(0.2);
     }
     assert!(d.health().timeouts > 0, "{:?}", d.health());

@@ -19,6 +19,11 @@ use sweepline::pipeline::{
 use sweepline::report::budget::{histogram_file, REPORT_FILE};
 use sweepline::report::{write_budget_report, RunFolderHooks};
 
+/// The injected clock of these runs: real time.
+fn wall_clock() -> sweepline::clock::SharedClock {
+    std::sync::Arc::new(sweepline::clock::MonotonicClock::new())
+}
+
 #[derive(Clone, Copy)]
 struct Msg {
     t0: Stamp,
@@ -163,7 +168,7 @@ fn a_real_time_run_writes_metrics_and_a_budget_report() {
     let p = four_stage_pipeline(&params, scans, 8);
     let (dir, keep) = out_dir();
     let _ = std::fs::remove_dir_all(&dir);
-    let sup = Supervisor::new(&params);
+    let sup = Supervisor::new(&params, wall_clock());
     let mut hooks = RunFolderHooks::new(Coverage(0), &dir, &params);
     let out = sup.run(p, &mut hooks);
     assert_eq!(out.reason, StopReason::AllStagesDone);
@@ -272,7 +277,7 @@ fn under_load_every_scan_is_delivered_or_counted_and_overruns_match_latencies() 
     // ~1 ms of work at full quality against the 2 ms budget: under load some
     // items overrun and the stage degrades.
     let p = four_stage_pipeline(&params, scans, 160);
-    let out = Supervisor::new(&params).run(p, &mut Coverage(0));
+    let out = Supervisor::new(&params, wall_clock()).run(p, &mut Coverage(0));
     drop(hogs);
     let snap = out.snapshot;
     assert_eq!(out.reason, StopReason::AllStagesDone);
@@ -331,7 +336,7 @@ fn soak() {
     let p = four_stage_pipeline(&params, scans, 8);
     let (dir, _) = out_dir();
     let mut hooks = RunFolderHooks::new(Coverage(0), &dir, &params);
-    let out = Supervisor::new(&params).run(p, &mut hooks);
+    let out = Supervisor::new(&params, wall_clock()).run(p, &mut hooks);
     let snap = out.snapshot;
     let q = sweepline::pipeline::metrics::Quantiles::of(&snap.end_to_end());
     eprintln!(

@@ -16,6 +16,11 @@ use sweepline::pipeline::{
     StageFault, Tx,
 };
 
+/// The injected clock of these runs: real time.
+fn wall_clock() -> sweepline::clock::SharedClock {
+    std::sync::Arc::new(sweepline::clock::MonotonicClock::new())
+}
+
 fn params() -> PipelineParams {
     PipelineParams {
         poll_timeout: 0.01,
@@ -443,7 +448,7 @@ fn fatal_fault_stops_the_run_with_failure() {
             },
         )
         .unwrap();
-        let sup = Supervisor::new(p.params());
+        let sup = Supervisor::new(p.params(), wall_clock());
         let out = sup.run(p, &mut NoHooks);
         assert_eq!(out.reason, StopReason::StageFailed("scanner".into()));
         assert!(out.reason.is_failure());
@@ -503,7 +508,7 @@ fn the_stage_that_failed_first_is_the_reason() {
         let (tx, rx) = crossbeam_channel::bounded(1);
         p.spawn("scanner", Consequence { rx }).unwrap();
         p.spawn("map", Cause { _tx: tx }).unwrap();
-        let out = Supervisor::new(p.params()).run(p, &mut NoHooks);
+        let out = Supervisor::new(p.params(), wall_clock()).run(p, &mut NoHooks);
         assert_eq!(out.reason, StopReason::StageFailed("map".into()));
     }
 }
@@ -558,7 +563,7 @@ impl Stage for Finisher {
 #[test]
 fn stop_request_runs_the_hooks_in_order() {
     let mut p = Pipeline::new(&params());
-    let sup = Supervisor::new(p.params());
+    let sup = Supervisor::new(p.params(), wall_clock());
     let count = Arc::new(AtomicU64::new(0));
     p.spawn(
         "plan",

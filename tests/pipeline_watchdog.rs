@@ -16,6 +16,11 @@ use sweepline::pipeline::signals::SignalForwarder;
 use sweepline::pipeline::supervisor::{Hooks, StopReason, Supervisor};
 use sweepline::pipeline::{Pipeline, PipelineParams, Poll, Stage, StageCtx, StageFault};
 
+/// The injected clock of these runs: real time.
+fn wall_clock() -> sweepline::clock::SharedClock {
+    std::sync::Arc::new(sweepline::clock::MonotonicClock::new())
+}
+
 /// Ticks every 10 ms; stalls inside `process` for as long as it is told.
 struct Stallable {
     stall_ms: Arc<AtomicU64>,
@@ -119,7 +124,7 @@ fn watchdog_is_withheld_while_a_stage_stalls() {
         },
     )
     .unwrap();
-    let sup = Supervisor::new(&params);
+    let sup = Supervisor::new(&params, wall_clock());
     assert_eq!(sup.watchdog(), Some(Duration::from_millis(200)));
     let control = sup.control();
     let signals = SignalForwarder::install(sup.control()).unwrap();

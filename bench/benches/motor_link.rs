@@ -24,20 +24,21 @@ fn cycle(c: &mut Criterion) {
             emu.path().expect("pty path"),
         ))));
         let mut base: Box<dyn DiffDriveBase> =
-            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock);
+            base_driver(kind, &cfg.motor, &cfg.robot, opener, clock.clone());
         for _ in 0..50 {
-            let _ = base.poll();
+            let _ = base.poll(clock.now());
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
         let name = format!("{kind:?}_set_wheels_and_poll_over_pty").to_lowercase();
+        let ahead = WheelSpeeds {
+            left: 0.1,
+            right: 0.1,
+        };
         c.bench_function(&name, |b| {
             b.iter(|| {
-                base.set_wheels(WheelSpeeds {
-                    left: 0.1,
-                    right: 0.1,
-                })
-                .expect("finite");
-                base.poll().expect("poll")
+                let now = clock.now();
+                base.set_wheels(ahead, now).expect("finite");
+                base.poll(now).expect("poll")
             })
         });
         drop(base);

@@ -13,7 +13,6 @@ use crate::clock::SharedClock;
 use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointStore, RunFinished, RunProgress, WrittenAt,
 };
-use crate::pipeline::clock::Stamp;
 use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::periodic::Every;
 use crate::pipeline::supervisor::{Hooks, StopReason};
@@ -43,7 +42,9 @@ pub struct DaemonHooks {
 impl DaemonHooks {
     /// Hooks checkpointing into `state_dir` (none: no checkpoints) every
     /// `period` seconds and noting a heartbeat there every `heartbeat`
-    /// seconds, continuing the progress of `resumed` if given.
+    /// seconds, both of `clock` (the daemon's injected clock, as the stages
+    /// run on: robot time, also in a time-scaled simulation), continuing the
+    /// progress of `resumed` if given.
     pub fn new(
         shared: Arc<Shared>,
         clock: SharedClock,
@@ -63,9 +64,9 @@ impl DaemonHooks {
             shared,
             clock,
             store: state_dir.map(CheckpointStore::new),
-            every: Every::new(period, Stamp::now()),
+            every: Every::new(period),
             heartbeat: state_dir.map(super::resume::heartbeat_store),
-            beat: Every::new(heartbeat, Stamp::now()),
+            beat: Every::new(heartbeat),
             sequence: base.sequence,
             base,
             checkpoint_errors: 0,
@@ -229,7 +230,7 @@ impl Hooks for DaemonHooks {
         )
     }
 
-    fn tick(&mut self, _pipeline: &Pipeline, now: Stamp) {
+    fn tick(&mut self, _pipeline: &Pipeline, now: f64) {
         if self.every.due(now) {
             self.checkpoint();
         }

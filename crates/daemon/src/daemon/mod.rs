@@ -191,7 +191,7 @@ impl Daemon {
         // checkpoint (while the configuration is unchanged).
         let refitted = setup.resume.as_ref().and_then(|r| r.mount);
         let mount = resume::resumed_mount(robot.scanner_mount(), refitted.as_ref());
-        let supervisor = Supervisor::new(&cfg.pipeline);
+        let supervisor = Supervisor::new(&cfg.pipeline, clock.clone());
         let mut pipeline = Pipeline::new(&cfg.pipeline);
         let shared = Arc::new(Shared::default());
 

@@ -53,7 +53,8 @@
 //! p.register_edge(&tx);
 //! p.spawn("localise", Source { left: 100, out: tx })?;
 //! p.spawn("plan", Sink { input: rx })?;
-//! let out = Supervisor::new(&params).run(p, &mut NoHooks);
+//! let clock = std::sync::Arc::new(sweepline_io::clock::MonotonicClock::new());
+//! let out = Supervisor::new(&params, clock).run(p, &mut NoHooks);
 //! let e = &out.snapshot.edges[0];
 //! assert_eq!(e.received + e.dropped, 100); // newest-wins: taken or counted
 //! # Ok::<(), sweepline_daemon::pipeline::PipelineError>(())

@@ -90,7 +90,8 @@ pub struct PipelineParams {
     /// Watchdog petting period when systemd gives none (`WATCHDOG_USEC`
     /// unset): 0 disables petting then (s).
     pub watchdog_period: f64,
-    /// How often the supervisor checks heartbeats and sends `STATUS=` (s).
+    /// How often the supervisor checks heartbeats and sends `STATUS=` (wall
+    /// s: the watchdog counts in wall time).
     pub supervise_period: f64,
     /// Longest shutdown waits for a stage to finish its current item before
     /// leaving it behind (s); keep it below the unit's `TimeoutStopSec=`.
@@ -107,12 +108,14 @@ pub struct PipelineParams {
     pub late_after: f64,
     /// Capacity of the scan queue between scanner and localise (messages).
     pub scan_queue: usize,
-    /// How often a checkpoint is written during a run (s).
+    /// How often a checkpoint is written during a run (s of the daemon's
+    /// injected clock, as the stages run on).
     pub checkpoint_period: f64,
-    /// How often the metrics file of the run folder is rewritten (s).
+    /// How often the metrics file of the run folder is rewritten (s of the
+    /// daemon's injected clock).
     pub metrics_period: f64,
     /// How often the daemon notes its progress in `heartbeat.swc` of the
-    /// state folder (s): unsynced and cheap, it tells a resumed daemon how
+    /// state folder (s of the daemon's injected clock): unsynced and cheap, it tells a resumed daemon how
     /// far the crashed one had got after its last checkpoint.
     pub heartbeat_period: f64,
     /// Speed of the daemon's clock against the wall clock: 1 on a robot.

@@ -5,6 +5,12 @@
 //! an ordered shutdown: `STOPPING=1`, the daemon's `before_stop` hook (stop
 //! the wheels, stop the scanner stream), the pipeline joined, then the
 //! `after_stop` hook (final checkpoint, metrics) with the final snapshot.
+//!
+//! Two clocks meet on this thread, each for its own purpose: the watchdog,
+//! the stall check and `STATUS=` run on `CLOCK_MONOTONIC` ([`Stamp`]),
+//! because systemd and the OS count in wall time; the hooks' periods
+//! (checkpoints, heartbeats, metrics files) run on the daemon's injected
+//! clock, read once per tick and handed to [`Hooks::tick`] as a value.
 
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -17,6 +23,7 @@ use super::notify::{watchdog_period, Notifier};
 use super::signals::signal_name;
 use super::stage::RunState;
 use super::Pipeline;
+use crate::clock::SharedClock;
 
 /// How often `STATUS=` is refreshed.
 const STATUS_EVERY: Duration = Duration::from_secs(1);
@@ -90,9 +97,10 @@ pub trait Hooks {
         String::new()
     }
 
-    /// Called every supervisor period with the live pipeline (write periodic
-    /// checkpoints and metrics here).
-    fn tick(&mut self, _pipeline: &Pipeline, _now: Stamp) {}
+    /// Called every supervisor period with the live pipeline and the time
+    /// `now` on the daemon's injected clock (s): write periodic checkpoints
+    /// and metrics here, timed by `now`.
+    fn tick(&mut self, _pipeline: &Pipeline, _now: f64) {}
 
     /// Shutdown, first step, with every stage still running: stop the wheels,
     /// stop the scanner stream.
@@ -131,13 +139,15 @@ pub struct Supervisor {
     notifier: Notifier,
     period: Duration,
     watchdog: Option<Duration>,
+    clock: SharedClock,
 }
 
 impl Supervisor {
     /// A supervisor checking every `pipeline.supervise_period`, petting the
     /// watchdog at half the period systemd asks for (`WATCHDOG_USEC`), or at
-    /// half `pipeline.watchdog_period` when systemd gives none.
-    pub fn new(params: &super::PipelineParams) -> Self {
+    /// half `pipeline.watchdog_period` when systemd gives none. `clock` is
+    /// the daemon's injected clock, which times the hooks' periods.
+    pub fn new(params: &super::PipelineParams, clock: SharedClock) -> Self {
         let (tx, events) = unbounded();
         let watchdog = watchdog_period(params.watchdog_period);
         let mut period = Duration::from_secs_f64(params.supervise_period);
@@ -150,6 +160,7 @@ impl Supervisor {
             notifier: Notifier::new(),
             period,
             watchdog,
+            clock,
         }
     }
 
@@ -246,7 +257,7 @@ impl Supervisor {
             counters
                 .notify_errors
                 .store(self.notifier.errors(), Ordering::Relaxed);
-            hooks.tick(&pipeline, now);
+            hooks.tick(&pipeline, self.clock.now());
         };
         log::info!("shutting down: {reason}");
         self.notifier.stopping();

@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 
 use super::budget::write_budget_report;
 use crate::pipeline::checkpoint::{ResumeEntry, ResumeLog};
-use crate::pipeline::clock::Stamp;
 use crate::pipeline::metrics::{MetricsSnapshot, METRICS_FILE};
 use crate::pipeline::periodic::Every;
 use crate::pipeline::supervisor::{Hooks, StopReason};
@@ -27,12 +26,13 @@ pub struct RunFolderHooks<H> {
 
 impl<H: Hooks> RunFolderHooks<H> {
     /// Wraps `inner`, writing into `dir` (created at the first write) every
-    /// `params.metrics_period`.
+    /// `params.metrics_period` seconds of the daemon's clock (the `now` the
+    /// supervisor passes to [`Hooks::tick`]), counted from the first tick.
     pub fn new(inner: H, dir: &Path, params: &PipelineParams) -> Self {
         Self {
             inner,
             dir: dir.to_path_buf(),
-            every: Every::new(params.metrics_period, Stamp::now()),
+            every: Every::new(params.metrics_period),
             writes: 0,
             errors: 0,
             report: None,
@@ -92,7 +92,7 @@ impl<H: Hooks> Hooks for RunFolderHooks<H> {
         self.inner.status()
     }
 
-    fn tick(&mut self, pipeline: &Pipeline, now: Stamp) {
+    fn tick(&mut self, pipeline: &Pipeline, now: f64) {
         self.inner.tick(pipeline, now);
         if self.every.due(now) {
             self.write(&pipeline.snapshot());

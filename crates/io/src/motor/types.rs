@@ -128,16 +128,26 @@ impl BaseFeedback {
 }
 
 /// A differential-drive base: wheel velocity set-points in, encoder odometry and
-/// safety events out. Time comes from the driver's injected
-/// [`crate::clock::Clock`]; timestamps are seconds on that clock.
+/// safety events out.
+///
+/// Time is passed in: the caller (the motor stage's thread, which owns the
+/// daemon's one clock) reads its [`crate::clock::Clock`] once and hands
+/// `now` (s) to every call that decides by time (the dead-man, link
+/// timeouts, reconnect and probe intervals). A driver keeps the clock only
+/// to turn its reply timeout into a wall-clock OS wait and to stamp what
+/// arrives from a blocking read (odometry is stamped when the counters
+/// were read, which a `now` taken before the read cannot say). Timestamps
+/// are seconds on that same clock.
 pub trait DiffDriveBase: Send {
-    /// Sets the wheel velocities (m/s). This also feeds the dead-man timer;
-    /// safety latches (bumper, wheel drop) may override the command with a stop.
-    fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError>;
+    /// Sets the wheel velocities (m/s) at clock time `now` (s). This also
+    /// feeds the dead-man timer; safety latches (bumper, wheel drop) may
+    /// override the command with a stop.
+    fn set_wheels(&mut self, cmd: WheelSpeeds, now: f64) -> Result<(), MotorError>;
 
-    /// Runs one I/O cycle: reads encoders and sensors, enforces the dead-man,
-    /// detects a silent or garbled link and re-establishes it.
-    fn poll(&mut self) -> Result<BaseFeedback, MotorError>;
+    /// Runs one I/O cycle at clock time `now` (s): reads encoders and
+    /// sensors, enforces the dead-man, detects a silent or garbled link and
+    /// re-establishes it.
+    fn poll(&mut self, now: f64) -> Result<BaseFeedback, MotorError>;
 
     /// Stops the wheels now (best effort) and leaves the base safe, e.g. on
     /// shutdown.

@@ -9,6 +9,11 @@
 //!    path to come back, re-open with exponential back-off;
 //!
 //! EINTR is retried everywhere; shutdown sends QT (and TM2 if needed).
+//!
+//! The reader thread is the driver's own thread edge: it holds the injected
+//! clock for its back-off pauses, the resync interval and the session's
+//! blocking reads (see [`UrgSession`]). Nothing outside the thread calls
+//! into it: the scanner stage only takes scans off the channel.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};

@@ -4,6 +4,13 @@
 //! [`crate::scip::Decoder`]; any valid scan that arrives, whatever the session
 //! is waiting for (a QT echo, a TM reply), is decoded and handed to the sink,
 //! so recovery never throws good scans away.
+//!
+//! The session blocks in its reads, so it reads the injected clock itself,
+//! for three things only: a reply or scan deadline turned into the read's
+//! wall-clock timeout, the arrival time that stamps a reply or a scan, and
+//! the TM round trips of the clock sync. Each is a measurement of the link
+//! that a `now` handed in before the read could not give. It runs on the
+//! driver's reader thread, whose loop is that thread's edge.
 
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};

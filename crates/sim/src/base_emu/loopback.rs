@@ -209,10 +209,11 @@ mod tests {
             } else {
                 WheelSpeeds::STOP
             };
+            let now = clock.now();
             if i < 160 {
-                base.set_wheels(w).unwrap();
+                base.set_wheels(w, now).unwrap();
             }
-            let fb = base.poll().unwrap();
+            let fb = base.poll(now).unwrap();
             if let Some(o) = fb.odometry {
                 acc *= o.delta;
                 odom.push(acc);
@@ -240,13 +241,14 @@ mod tests {
             let (mut base, _truth) = loopback_base(e, &cfg.robot, clock.clone());
             let mut prev: Option<f64> = None;
             let mut n = 0;
+            let ahead = WheelSpeeds {
+                left: 0.1,
+                right: 0.1,
+            };
             for _ in 0..60 {
-                base.set_wheels(WheelSpeeds {
-                    left: 0.1,
-                    right: 0.1,
-                })
-                .unwrap();
-                let fb = base.poll().unwrap();
+                let now = clock.now();
+                base.set_wheels(ahead, now).unwrap();
+                let fb = base.poll(now).unwrap();
                 if let Some(o) = fb.odometry {
                     assert!(o.t1 > o.t0, "{kind:?}: {o:?}");
                     assert!(o.t1 <= clock.now() + 1e-12, "{kind:?}: stamp in the future");

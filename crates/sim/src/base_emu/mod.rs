@@ -23,8 +23,9 @@
 //! let mut base = motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
 //! let mut track = OdometryTrack::new();
 //! for _ in 0..20 {
-//!     base.set_wheels(WheelSpeeds::from_body(0.1, 0.0, cfg.robot.wheel_base))?;
-//!     let fb = base.poll()?;
+//!     let now = clock.now(); // one reading per cycle, passed to the driver
+//!     base.set_wheels(WheelSpeeds::from_body(0.1, 0.0, cfg.robot.wheel_base), now)?;
+//!     let fb = base.poll(now)?;
 //!     if let Some(o) = fb.odometry {
 //!         track.push(&o); // the localiser asks track.pose_at(scan_time)
 //!     }

@@ -254,7 +254,7 @@ impl Stage for ControlStage {
         }
         match self
             .fixes
-            .recv_timeout(wall_until(&self.clock, self.next_tick, timeout))
+            .recv_timeout(wall_until(&self.clock, now, self.next_tick, timeout))
         {
             Recv::Msg(f) => Poll::Work(ControlWork::Fix(f)),
             Recv::Empty => Poll::Idle,

@@ -34,7 +34,8 @@ fn gone(shared: &Shared, what: &str) -> Result<(), StageFault> {
     }
 }
 
-/// Wall time until clock time `at`, at most `cap`.
-fn wall_until(clock: &SharedClock, at: f64, cap: Duration) -> Duration {
-    clock.to_wall((at - clock.now()).max(0.0)).min(cap)
+/// Wall time from clock time `now` until clock time `at`, at most `cap`:
+/// the OS wait for a deadline on the injected clock.
+fn wall_until(clock: &SharedClock, now: f64, at: f64, cap: Duration) -> Duration {
+    clock.to_wall((at - now).max(0.0)).min(cap)
 }

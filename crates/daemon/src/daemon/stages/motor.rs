@@ -1,4 +1,7 @@
 //! The motor stage: the wheel-base driver, odometry and safety events.
+//!
+//! The stage's thread owns the clock: `wait` and `process` each read it
+//! once and pass that `now` to the driver and to what decides by time.
 
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -126,8 +129,10 @@ impl MotorStage {
         );
     }
 
-    fn poll(&mut self) -> Result<(), StageFault> {
-        let fb = self.base.poll();
+    /// Polls the base at clock time `now` (s): odometry into the shared log,
+    /// safety events into contact marks.
+    fn poll(&mut self, now: f64) -> Result<(), StageFault> {
+        let fb = self.base.poll(now);
         self.shared.set_base_health(self.base.health());
         let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
         if let Some(o) = fb.odometry {
@@ -151,14 +156,14 @@ impl MotorStage {
                         self.shared.bumper_closed.store(true, Ordering::Relaxed);
                     }
                     let sides = self.base.bumper_sides().then_some(*sides);
-                    let wheels = self.motion.interrupted(self.clock.now(), self.last_wheels);
+                    let wheels = self.motion.interrupted(now, self.last_wheels);
                     match self.held.closed(localised, sides, wheels) {
                         Some((sides, wheels)) => self.mark(&format!("{e:?}"), &here, sides, wheels),
                         None => log::warn!(
                             "safety: {e:?} before the first matched scan: the contact is marked once the pose is known"
                         ),
                     }
-                    self.shared.note_bump(self.clock.now());
+                    self.shared.note_bump(now);
                     self.shared.safety_events.fetch_add(1, Ordering::Relaxed);
                 }
                 SafetyEvent::BumperReleased => {
@@ -179,13 +184,14 @@ impl Stage for MotorStage {
     type Work = MotorWork;
 
     fn wait(&mut self, timeout: Duration) -> Poll<MotorWork> {
-        if self.clock.now() >= self.next_poll {
-            self.next_poll = (self.next_poll + self.period).max(self.clock.now());
+        let now = self.clock.now();
+        if now >= self.next_poll {
+            self.next_poll = (self.next_poll + self.period).max(now);
             return Poll::Work(MotorWork::Poll);
         }
         match self
             .rx
-            .recv_timeout(wall_until(&self.clock, self.next_poll, timeout))
+            .recv_timeout(wall_until(&self.clock, now, self.next_poll, timeout))
         {
             Recv::Msg(c) => Poll::Work(MotorWork::Cmd(c)),
             Recv::Empty => Poll::Idle,
@@ -194,6 +200,7 @@ impl Stage for MotorStage {
     }
 
     fn process(&mut self, work: MotorWork, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
+        let now = self.clock.now();
         match work {
             MotorWork::Cmd(c) => {
                 let wheels = if self.shared.halt.load(Ordering::Relaxed) {
@@ -202,13 +209,13 @@ impl Stage for MotorStage {
                     c.wheels
                 };
                 self.last_wheels = wheels;
-                let r = self.base.set_wheels(wheels);
+                let r = self.base.set_wheels(wheels, now);
                 if let Some(t0) = c.t0 {
                     ctx.end_to_end(t0);
                 }
                 r.map_err(|e| StageFault::Transient(e.to_string()))
             }
-            MotorWork::Poll => self.poll(),
+            MotorWork::Poll => self.poll(now),
         }
     }
 

@@ -114,8 +114,9 @@ impl Stage for PlanStage {
             return Poll::Idle;
         }
         let due = self.last + self.min_interval;
-        if self.clock.now() < due {
-            std::thread::sleep(wall_until(&self.clock, due, timeout));
+        let now = self.clock.now();
+        if now < due {
+            std::thread::sleep(wall_until(&self.clock, now, due, timeout));
             return Poll::Idle;
         }
         match self.rx.recv_timeout(timeout) {
@@ -129,7 +130,10 @@ impl Stage for PlanStage {
     }
 
     fn process(&mut self, snap: MapSnapshot, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
-        self.last = self.clock.now() + self.min_interval * f64::from(ctx.degrade());
+        // The one clock reading of this update: everything below that
+        // decides by time is given this `now`.
+        let now = self.clock.now();
+        self.last = now + self.min_interval * f64::from(ctx.degrade());
         while let Recv::Msg(p) = self.poses.try_recv() {
             self.planner.record_pose(&p);
         }
@@ -142,7 +146,7 @@ impl Stage for PlanStage {
             self.bump_handled = bump;
             self.planner.interrupt();
         } else if bump > self.bump_handled {
-            if self.clock.now() - bump < self.contact_settle {
+            if now - bump < self.contact_settle {
                 // A bump whose contact is not in this snapshot yet: wait
                 // for the one that has it rather than plan without it.
                 return Ok(());
@@ -150,9 +154,7 @@ impl Stage for PlanStage {
             // A repeat of a marked contact: nothing new to plan around.
             self.bump_handled = bump;
         }
-        if snap.retired < self.probe.sent
-            && self.clock.now() - self.probe.sent_at < self.contact_settle
-        {
+        if snap.retired < self.probe.sent && now - self.probe.sent_at < self.contact_settle {
             // A mark was taken out: plan on the map without it.
             return Ok(());
         }
@@ -164,7 +166,7 @@ impl Stage for PlanStage {
             Some(0)
         };
         let here = self.shared.with_status(|s| s.pose);
-        self.planner.set_time(self.clock.now());
+        self.planner.set_time(now);
         let status = self
             .planner
             .update(&grid, decomp, &here, progress)
@@ -226,13 +228,9 @@ impl Stage for PlanStage {
         };
         match status {
             _ if just_done
-                && self.probe.walled_floor(
-                    &mut self.planner,
-                    &self.shared,
-                    self.clock.now(),
-                    &grid,
-                    &here,
-                ) => {}
+                && self
+                    .probe
+                    .walled_floor(&mut self.planner, &self.shared, now, &grid, &here) => {}
             PlanStatus::Done(r) => {
                 let stats = self.planner.stats();
                 self.shared.with_status(|s| {

@@ -40,6 +40,15 @@ pub const STREAM_IDS: [u8; 5] = [
 ];
 
 /// A Create 2 (or Roomba 600-series) over its Open Interface.
+///
+/// Time comes in as `now` with every call: the dead-man, the link timeout
+/// (no frame since `link_timeout` before `now`), the probe interval and
+/// reconnecting decide on it. The driver keeps its clock for two things
+/// only: turning its short read timeout into the wall-clock wait of the
+/// blocking serial read (once, when built), and stamping each sensor frame
+/// when its bytes arrive. Those stamps are measurements: a poll reads for
+/// as long as bytes keep coming, after the caller's `now`, and a frame's
+/// odometry belongs to when it came, not to when the poll began.
 pub struct Create2Driver {
     link: Link,
     clock: SharedClock,
@@ -55,6 +64,7 @@ pub struct Create2Driver {
     health: LinkHealth,
     up: bool,
     ever_up: bool,
+    /// When the newest frame arrived (or the link was (re)started).
     last_frame: f64,
     next_probe: f64,
     mode_warned: bool,
@@ -171,11 +181,11 @@ impl Create2Driver {
             && self.send(&OiCommand::StreamEnable(false))
     }
 
-    /// Resumes the sensor stream (opcode 150, 1); the link timeout restarts and
-    /// the next frame is the new odometry baseline.
-    pub fn resume_stream(&mut self) -> bool {
+    /// Resumes the sensor stream (opcode 150, 1) at clock time `now` (s); the
+    /// link timeout restarts and the next frame is the new odometry baseline.
+    pub fn resume_stream(&mut self, now: f64) -> bool {
         self.paused = false;
-        self.last_frame = self.clock.now();
+        self.last_frame = self.last_frame.max(now);
         self.parser.reset();
         self.odo.rebase();
         self.send(&OiCommand::StreamEnable(true))
@@ -191,9 +201,10 @@ impl Create2Driver {
         self.send_drive(&OiCommand::drive_direct(w.left, w.right));
     }
 
-    fn on_frame(&mut self, f: SensorFrame, now: f64) {
+    /// Takes in one sensor frame that arrived at clock time `at` (s).
+    fn on_frame(&mut self, f: SensorFrame, at: f64) {
         self.health.received += 1;
-        self.last_frame = now;
+        self.last_frame = at;
         if let Some(m) = f.oi_mode.and_then(OiMode::from_byte) {
             self.reported = Some(m);
         }
@@ -246,7 +257,7 @@ impl Create2Driver {
             self.battery = Some(mv as f64 / 1000.0);
         }
         if let (Some(l), Some(r)) = (f.left_encoder, f.right_encoder) {
-            match self.odo.update(l as u32, r as u32, now) {
+            match self.odo.update(l as u32, r as u32, at) {
                 Ok(Some(d)) => {
                     self.acc = Some(match self.acc {
                         None => d,
@@ -270,8 +281,8 @@ impl Create2Driver {
 }
 
 impl DiffDriveBase for Create2Driver {
-    fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError> {
-        self.cmd.accept(cmd, self.clock.now())?;
+    fn set_wheels(&mut self, cmd: WheelSpeeds, now: f64) -> Result<(), MotorError> {
+        self.cmd.accept(cmd, now)?;
         if self.paused {
             self.cmd.requested = WheelSpeeds::STOP;
         } else if self.up {
@@ -280,8 +291,7 @@ impl DiffDriveBase for Create2Driver {
         Ok(())
     }
 
-    fn poll(&mut self) -> Result<BaseFeedback, MotorError> {
-        let now = self.clock.now();
+    fn poll(&mut self, now: f64) -> Result<BaseFeedback, MotorError> {
         if self.cmd.check_deadman(now, &mut self.health) {
             self.send_wheels();
         }
@@ -304,7 +314,8 @@ impl DiffDriveBase for Create2Driver {
                         Err(_) => health.checksum_errors += 1,
                     });
                     // Frames read together were sent one stream period apart:
-                    // the last one is the newest.
+                    // the last one is the newest, arrived now (measured: the
+                    // read blocked since the caller's `now`).
                     let t = self.clock.now();
                     let n_frames = frames.len();
                     for (i, f) in frames.into_iter().enumerate() {
@@ -322,10 +333,9 @@ impl DiffDriveBase for Create2Driver {
             }
         }
         self.health.discarded_bytes = self.parser.discarded;
-        let now = self.clock.now();
         if self.paused {
             // Deliberate silence: no supervision to do, and nothing may move.
-            self.last_frame = now;
+            self.last_frame = self.last_frame.max(now);
         } else if self.up && (now - self.last_frame > self.link_timeout || !self.link.is_open()) {
             self.up = false;
             self.health.link_losses += 1;

@@ -37,6 +37,17 @@ enum TxError {
 }
 
 /// A RoboClaw driven over packet serial.
+///
+/// Time comes in as `now` with every [`DiffDriveBase`] call: the dead-man,
+/// the link timeout (measured from the `now` of the last call a reply came
+/// in) and the probe interval decide on it. The driver keeps its clock for
+/// two things only: turning the reply timeout into the wall-clock wait of
+/// the blocking serial read (once, when built), and timing the encoder
+/// read's round trip, whose midpoint stamps the odometry. That stamp is a
+/// measurement: the counters are latched while the read blocks, after the
+/// caller's `now`, by a time no caller can know (the set-point's exchange
+/// and any retries come first); stamping with `now` would date every
+/// reading early by that much.
 pub struct RoboClawDriver {
     link: Link,
     clock: SharedClock,
@@ -53,6 +64,7 @@ pub struct RoboClawDriver {
     health: LinkHealth,
     up: bool,
     ever_up: bool,
+    /// The `now` of the last call in which a reply came in.
     last_ok: f64,
     fail_streak: u32,
     silent_warned: bool,
@@ -136,7 +148,6 @@ impl RoboClawDriver {
             match self.read_reply(cmd) {
                 Ok(r) => {
                     self.health.received += 1;
-                    self.last_ok = self.clock.now();
                     self.fail_streak = 0;
                     return Ok(r);
                 }
@@ -257,7 +268,7 @@ impl RoboClawDriver {
         if ok {
             self.silent_warned = false;
             self.up = true;
-            self.last_ok = self.clock.now();
+            self.last_ok = now;
             if self.ever_up {
                 log::info!("wheel base {}: link restored", self.link.describe());
                 self.cmd.push(SafetyEvent::LinkRestored);
@@ -333,6 +344,14 @@ impl RoboClawDriver {
         (closed, odometry)
     }
 
+    /// Notes `now` as the time of the last reply when one came in since the
+    /// link's reply count read `received`.
+    fn note_replies(&mut self, received: u64, now: f64) {
+        if self.health.received > received {
+            self.last_ok = now;
+        }
+    }
+
     fn apply_bumper(&mut self, s: Sides) {
         if self.cmd.set_bumper(s, &mut self.health) {
             let w = self.cmd.effective();
@@ -342,25 +361,28 @@ impl RoboClawDriver {
 }
 
 impl DiffDriveBase for RoboClawDriver {
-    fn set_wheels(&mut self, cmd: WheelSpeeds) -> Result<(), MotorError> {
-        self.cmd.accept(cmd, self.clock.now())?;
+    fn set_wheels(&mut self, cmd: WheelSpeeds, now: f64) -> Result<(), MotorError> {
+        self.cmd.accept(cmd, now)?;
         if self.up {
             let w = self.cmd.effective();
-            if self.send_speeds(w) == Err(TxError::Closed) {
+            let received = self.health.received;
+            let sent = self.send_speeds(w);
+            self.note_replies(received, now);
+            if sent == Err(TxError::Closed) {
                 self.declare_lost("device went away");
             }
         }
         Ok(())
     }
 
-    fn poll(&mut self) -> Result<BaseFeedback, MotorError> {
-        let now = self.clock.now();
+    fn poll(&mut self, now: f64) -> Result<BaseFeedback, MotorError> {
         self.cmd.check_deadman(now, &mut self.health);
         let mut odometry: Option<Odometry> = None;
         if !self.up {
             self.try_restore(now);
         }
         if self.up {
+            let received = self.health.received;
             let w = self.cmd.effective();
             let sent = self.send_speeds(w);
             let mut closed = sent == Err(TxError::Closed);
@@ -373,9 +395,10 @@ impl DiffDriveBase for RoboClawDriver {
                 odometry = o;
             }
             self.polls += 1;
+            self.note_replies(received, now);
             if closed {
                 self.declare_lost("device went away");
-            } else if self.fail_streak >= 2 && self.clock.now() - self.last_ok > self.link_timeout {
+            } else if self.fail_streak >= 2 && now - self.last_ok > self.link_timeout {
                 // Both conditions: a slow poll under a time-scaled clock is not
                 // a dead link; two failed requests in a row past the timeout are.
                 self.declare_lost("no valid reply");
