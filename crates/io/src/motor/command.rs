@@ -10,7 +10,7 @@ use crate::motor::{
 
 /// Requested wheel speeds, dead-man, safety gate and pending safety events.
 #[derive(Clone, Debug)]
-pub struct WheelCommand {
+pub(crate) struct WheelCommand {
     /// The last accepted set-point (clamped), before the dead-man and gate.
     pub requested: WheelSpeeds,
     /// Stops the wheels when commands stop arriving.
@@ -57,7 +57,7 @@ impl WheelCommand {
 
     /// The set-point that may be sent now: stop while the dead-man is tripped,
     /// else the request as the safety gate lets it through.
-    pub fn effective(&self) -> WheelSpeeds {
+    pub(crate) fn effective(&self) -> WheelSpeeds {
         if self.deadman.tripped() {
             WheelSpeeds::STOP
         } else {
@@ -67,7 +67,7 @@ impl WheelCommand {
 
     /// Checks the dead-man at `now`; when it just ran out, counts and logs the
     /// stop, queues [`SafetyEvent::DeadMan`] and returns `true`.
-    pub fn check_deadman(&mut self, now: f64, health: &mut LinkHealth) -> bool {
+    pub(crate) fn check_deadman(&mut self, now: f64, health: &mut LinkHealth) -> bool {
         if !self.deadman.check(now) {
             return false;
         }
@@ -80,7 +80,7 @@ impl WheelCommand {
     /// Updates the bumper state; on a newly closed bumper counts and logs the
     /// safety stop and returns `true` (the driver must send
     /// [`WheelCommand::effective`] now). Any change is queued as an event.
-    pub fn set_bumper(&mut self, s: Sides, health: &mut LinkHealth) -> bool {
+    pub(crate) fn set_bumper(&mut self, s: Sides, health: &mut LinkHealth) -> bool {
         let Some(e) = self.gate.set_bumper(s) else {
             return false;
         };
@@ -95,7 +95,7 @@ impl WheelCommand {
 
     /// Updates the wheel-drop state, as [`WheelCommand::set_bumper`] does the
     /// bumper's.
-    pub fn set_wheel_drop(&mut self, s: Sides, health: &mut LinkHealth) -> bool {
+    pub(crate) fn set_wheel_drop(&mut self, s: Sides, health: &mut LinkHealth) -> bool {
         let Some(e) = self.gate.set_wheel_drop(s) else {
             return false;
         };
@@ -121,7 +121,7 @@ impl WheelCommand {
     }
 
     /// The feedback of one poll, carrying (and clearing) the queued events.
-    pub fn feedback(
+    pub(crate) fn feedback(
         &mut self,
         odometry: Option<Odometry>,
         link_up: bool,

@@ -78,13 +78,13 @@ impl Link {
     }
 
     /// Whether the port is open.
-    pub fn is_open(&self) -> bool {
+    pub(crate) fn is_open(&self) -> bool {
         self.port.is_some()
     }
 
     /// `Ok` when the port is open, else [`crate::motor::MotorError::NotConnected`]
     /// naming the device.
-    pub fn require_open(&self) -> Result<(), crate::motor::MotorError> {
+    pub(crate) fn require_open(&self) -> Result<(), crate::motor::MotorError> {
         if self.is_open() {
             Ok(())
         } else {
@@ -96,7 +96,7 @@ impl Link {
 
     /// Opens the port if it is closed and an attempt is due at `now`; true
     /// when it was opened by this call.
-    pub fn ensure_open(&mut self, now: f64) -> bool {
+    pub(crate) fn ensure_open(&mut self, now: f64) -> bool {
         if self.port.is_some() || now < self.next_attempt {
             return false;
         }

@@ -68,7 +68,7 @@ pub struct OdometryGlitch {
 /// Slack on the plausible wheel speed (reading jitter, acceleration).
 const SPEED_MARGIN: f64 = 1.5;
 /// Default latency allowance (s): a few control periods of reading jitter.
-pub const DEFAULT_LATENCY: f64 = 0.05;
+pub(crate) const DEFAULT_LATENCY: f64 = 0.05;
 
 /// One reading of both counters and when they were latched.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -82,7 +82,7 @@ struct Reading {
     earliest: f64,
 }
 
-/// What [`Odometer::update_within`] made of a reading.
+/// What `Odometer::update_within` made of a reading.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Accepted {
     /// The first reading: the baseline, no increment.
@@ -154,7 +154,7 @@ impl Odometer {
     /// The same odometer with a latency allowance of `seconds` (the link's
     /// reply timeout and reading jitter; non-finite or negative: the default)
     /// added to the time the counters may have been apart.
-    pub fn with_latency(mut self, seconds: f64) -> Self {
+    pub(crate) fn with_latency(mut self, seconds: f64) -> Self {
         self.latency = if seconds.is_finite() && seconds >= 0.0 {
             seconds
         } else {
@@ -165,7 +165,7 @@ impl Odometer {
 
     /// Forgets the previous reading: the next one becomes the new baseline
     /// (after a reconnect, when counters may have been reset).
-    pub fn rebase(&mut self) {
+    pub(crate) fn rebase(&mut self) {
         self.last = None;
         self.suspect = None;
     }
@@ -184,7 +184,7 @@ impl Odometer {
 
     /// Feeds one reading stamped `stamp`, whose counters were latched some
     /// time within `latched` (request sent, answer received; s).
-    pub fn update_within(
+    pub(crate) fn update_within(
         &mut self,
         left: u32,
         right: u32,
@@ -262,7 +262,7 @@ impl Odometer {
 }
 
 /// Capacity of an [`OdometryTrack`] (poses kept); at 20 Hz about 12 s.
-pub const TRACK_LEN: usize = 256;
+pub(crate) const TRACK_LEN: usize = 256;
 
 /// The integrated odometry pose over the last few seconds, to look up where
 /// the base was (by odometry) at a scan's timestamp: the localiser's prior.

@@ -125,7 +125,7 @@ impl Default for RoboClawParams {
 #[serde(deny_unknown_fields, default)]
 pub struct Create2Params {
     /// Run in Full mode (no robot-side cliff/wheel-drop reflexes) instead of Safe.
-    pub full_mode: bool,
+    pub(crate) full_mode: bool,
     /// Encoder counts per wheel revolution (508.8 on the Create 2).
     pub counts_per_rev: f64,
 }
@@ -170,7 +170,7 @@ impl MotorParams {
     }
 
     /// The RoboClaw serial-timeout byte (100 ms units).
-    pub fn roboclaw_timeout_tenths(&self) -> u8 {
+    pub(crate) fn roboclaw_timeout_tenths(&self) -> u8 {
         (self.roboclaw.serial_timeout * 10.0)
             .round()
             .clamp(1.0, 255.0) as u8

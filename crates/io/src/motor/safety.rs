@@ -42,7 +42,7 @@ impl DeadMan {
     }
 
     /// Whether the wheels must be held stopped.
-    pub fn tripped(&self) -> bool {
+    pub(crate) fn tripped(&self) -> bool {
         self.tripped
     }
 }
@@ -50,7 +50,7 @@ impl DeadMan {
 /// Bumper and wheel-drop latch: while a bumper is closed only reversing (no
 /// wheel forward) is let through; while a wheel is dropped nothing moves.
 #[derive(Clone, Debug, Default)]
-pub struct SafetyGate {
+pub(crate) struct SafetyGate {
     bumper: Sides,
     drop: Sides,
 }
@@ -62,7 +62,7 @@ impl SafetyGate {
     }
 
     /// Updates the bumper state; returns the event on a change.
-    pub fn set_bumper(&mut self, s: Sides) -> Option<SafetyEvent> {
+    pub(crate) fn set_bumper(&mut self, s: Sides) -> Option<SafetyEvent> {
         let was = self.bumper;
         self.bumper = s;
         match (was.any(), s.any()) {
@@ -73,7 +73,7 @@ impl SafetyGate {
     }
 
     /// Updates the wheel-drop state; returns the event on a change.
-    pub fn set_wheel_drop(&mut self, s: Sides) -> Option<SafetyEvent> {
+    pub(crate) fn set_wheel_drop(&mut self, s: Sides) -> Option<SafetyEvent> {
         let was = self.drop;
         self.drop = s;
         match (was.any(), s.any()) {

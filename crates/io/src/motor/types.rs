@@ -120,13 +120,6 @@ pub struct BaseFeedback {
     pub battery: Option<f64>,
 }
 
-impl BaseFeedback {
-    /// Records an event (the rare ninth event in one poll is dropped).
-    pub fn push_event(&mut self, e: SafetyEvent) {
-        let _ = self.events.push(e);
-    }
-}
-
 /// A differential-drive base: wheel velocity set-points in, encoder odometry and
 /// safety events out.
 ///

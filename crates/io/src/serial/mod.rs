@@ -27,7 +27,7 @@ pub use tcp::TcpConnector;
 ///
 /// `read` returns `ErrorKind::TimedOut` (or `WouldBlock`) when no byte
 /// arrived within the read timeout; any other error, or `Ok(0)`, means the
-/// link is broken (see [`is_link_gone`]).
+/// link is broken (see `is_link_gone`).
 pub trait Port: Read + Write + Send {
     /// Sets how long one `read` waits for the first byte.
     fn set_read_timeout(&mut self, timeout: Duration) -> io::Result<()>;
@@ -51,7 +51,7 @@ pub trait Connector: Send {
 /// Classifies a read/write error: true when the device is gone (hang-up,
 /// EIO, ENODEV, broken pipe, EOF) and the port must be closed and re-opened;
 /// false for timeouts and interruptions, after which the same port is usable.
-pub fn is_link_gone(e: &io::Error) -> bool {
+pub(crate) fn is_link_gone(e: &io::Error) -> bool {
     !matches!(
         e.kind(),
         io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted

@@ -8,7 +8,7 @@ use std::time::Duration;
 use super::{Connector, Port};
 
 /// An open TCP link.
-pub struct TcpPort {
+pub(crate) struct TcpPort {
     stream: TcpStream,
     name: String,
 }

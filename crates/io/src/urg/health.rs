@@ -30,13 +30,13 @@ pub struct UrgHealth {
     /// Reboots (RB RB) sent as the last resort.
     pub reboots: AtomicU64,
     /// Scans dropped because the consumer was slow (newest wins).
-    pub queue_overflows: AtomicU64,
+    pub(crate) queue_overflows: AtomicU64,
     /// Last non-OK status code from the sensor, as two ASCII bytes (0 = none).
     pub last_status: AtomicU64,
     /// Whether the port is open and streaming.
     pub streaming: AtomicBool,
     /// Sensor-minus-host clock offset (s), f64 bits.
-    pub clock_offset: AtomicU64,
+    pub(crate) clock_offset: AtomicU64,
     /// Sensor clock rate error relative to the host (ppm), f64 bits.
     pub clock_drift_ppm: AtomicU64,
 }
@@ -48,13 +48,13 @@ impl UrgHealth {
     }
 
     /// Records a non-OK status code (two ASCII characters).
-    pub fn set_status(&self, code: [u8; 2]) {
+    pub(crate) fn set_status(&self, code: [u8; 2]) {
         self.last_status
             .store(u64::from(code[0]) << 8 | u64::from(code[1]), Relaxed);
     }
 
     /// Records the current clock model.
-    pub fn set_clock(&self, offset: f64, drift_ppm: f64) {
+    pub(crate) fn set_clock(&self, offset: f64, drift_ppm: f64) {
         self.clock_offset.store(offset.to_bits(), Relaxed);
         self.clock_drift_ppm.store(drift_ppm.to_bits(), Relaxed);
     }
@@ -109,13 +109,13 @@ pub struct HealthSnapshot {
     /// Reboots (RB RB).
     pub reboots: u64,
     /// Scans dropped for a slow consumer.
-    pub queue_overflows: u64,
+    pub(crate) queue_overflows: u64,
     /// Last non-OK status code.
     pub last_status: Option<[u8; 2]>,
     /// Port open and streaming.
     pub streaming: bool,
     /// Sensor-minus-host clock offset (s).
-    pub clock_offset: f64,
+    pub(crate) clock_offset: f64,
     /// Sensor clock rate error (ppm).
     pub clock_drift_ppm: f64,
 }

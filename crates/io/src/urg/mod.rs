@@ -11,7 +11,7 @@
 //!   into a bounded newest-wins channel.
 //! * [`fill`]: a SCIP scan reply as the daemon's `LaserScan`.
 //! * [`health`]: lock-free counters for the rest of the daemon.
-//! * [`timesync`]: clock offset/drift estimation, dropped-scan detection.
+//! * `timesync`: clock offset/drift estimation, dropped-scan detection.
 //! * [`picture`]: an SVG of one scan (for `sweepline probe --svg`).
 
 pub mod driver;
@@ -19,7 +19,7 @@ pub mod fill;
 pub mod health;
 pub mod picture;
 pub mod session;
-pub mod timesync;
+pub(crate) mod timesync;
 
 pub use crate::clock::{Clock, ManualClock, MonotonicClock, ScaledClock};
 pub use driver::{UrgDriver, UrgScan};
@@ -146,7 +146,7 @@ impl UrgParams {
 }
 
 /// What a two-character status code means in a scan stream or any reply.
-pub fn status_meaning(code: [u8; 2]) -> &'static str {
+pub(crate) fn status_meaning(code: [u8; 2]) -> &'static str {
     crate::scip::StatusCode(code).meaning(crate::scip::CommandKind::Md)
 }
 

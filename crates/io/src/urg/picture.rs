@@ -15,7 +15,7 @@ use crate::scip::Reading;
 const SCALE: f64 = 80.0;
 
 /// Draws `scan` into an SVG document `size_m` metres across.
-pub fn scan_svg(scan: &UrgScan, size_m: f64, title: &str) -> Document {
+pub(crate) fn scan_svg(scan: &UrgScan, size_m: f64, title: &str) -> Document {
     let half = size_m / 2.0;
     let px = |m: f64| (m + half) * SCALE;
     let py = |m: f64| (half - m) * SCALE;
@@ -120,7 +120,7 @@ pub fn scan_svg(scan: &UrgScan, size_m: f64, title: &str) -> Document {
     doc
 }
 
-/// Writes [`scan_svg`] to `path`.
+/// Writes `scan_svg` to `path`.
 pub fn write_scan_svg(
     scan: &UrgScan,
     size_m: f64,

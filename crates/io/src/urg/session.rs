@@ -98,7 +98,7 @@ pub enum UrgError {
 
 impl UrgError {
     /// Whether the device is gone and must be re-opened (rung 3 of the ladder).
-    pub fn link_gone(&self) -> bool {
+    pub(crate) fn link_gone(&self) -> bool {
         matches!(self, UrgError::Io { .. })
     }
 }
@@ -237,7 +237,7 @@ impl UrgSession {
     }
 
     /// Host time of the last clock sync (s).
-    pub fn last_sync(&self) -> f64 {
+    pub(crate) fn last_sync(&self) -> f64 {
         self.last_sync
     }
 
@@ -246,18 +246,13 @@ impl UrgSession {
         self.core.streaming.is_some()
     }
 
-    /// Replaces where scans go.
-    pub fn set_sink(&mut self, sink: Box<dyn FnMut(&UrgScan) + Send>) {
-        self.core.sink = sink;
-    }
-
     /// Sensor clock epoch: increases after RS (the clock restarted at 0).
     pub fn epoch(&self) -> u32 {
         self.core.epoch
     }
 
     /// Sets the first epoch (the driver keeps counting over re-opens).
-    pub fn set_epoch(&mut self, epoch: u32) {
+    pub(crate) fn set_epoch(&mut self, epoch: u32) {
         self.core.epoch = epoch;
     }
 
@@ -552,7 +547,7 @@ impl UrgSession {
 
     /// TM0, `time_sync_samples` × TM1 (tagged, so a late reply is never
     /// matched to a later request), TM2; fits the clock model.
-    pub fn sync_clock(&mut self) -> Result<Option<ClockModel>, UrgError> {
+    pub(crate) fn sync_clock(&mut self) -> Result<Option<ClockModel>, UrgError> {
         let n = self.core.params.time_sync_samples.min(64) as usize;
         if n == 0 {
             return Ok(None);
@@ -613,7 +608,7 @@ impl UrgSession {
     }
 
     /// The stream request the parameters ask for, given the sensor.
-    pub fn stream_request(&self) -> Option<StreamRequest> {
+    pub(crate) fn stream_request(&self) -> Option<StreamRequest> {
         let info = self.core.info.as_ref()?;
         let p = &info.params;
         let fam = p.family();
@@ -649,7 +644,7 @@ impl UrgSession {
     }
 
     /// Starts a stream of `req` (count 0 = until QT).
-    pub fn start_request(&mut self, req: StreamRequest) -> Result<(), UrgError> {
+    pub(crate) fn start_request(&mut self, req: StreamRequest) -> Result<(), UrgError> {
         let mut line = Vec::with_capacity(24);
         let _ = TaggedCommand::new(Command::Stream(req)).encode_line(&mut line);
         let kind = TaggedCommand::new(Command::Stream(req)).command.kind();
@@ -664,7 +659,7 @@ impl UrgSession {
     }
 
     /// Expected time between two delivered scans (s).
-    pub fn scan_interval(&self) -> f64 {
+    pub(crate) fn scan_interval(&self) -> f64 {
         let period = self
             .core
             .info
@@ -697,7 +692,7 @@ impl UrgSession {
 
     /// Stops the stream: QT, draining (and still delivering) the scans in
     /// flight until the QT echo.
-    pub fn stop_stream(&mut self) -> Result<(), UrgError> {
+    pub(crate) fn stop_stream(&mut self) -> Result<(), UrgError> {
         self.core.streaming = None;
         self.core.health.streaming.store(false, Ordering::Relaxed);
         match self.simple(b"QT", CommandKind::Qt) {
@@ -711,7 +706,7 @@ impl UrgSession {
     }
 
     /// Rung 1 of the recovery ladder: QT, drain, restart the stream.
-    pub fn restart_stream(&mut self) -> Result<(), UrgError> {
+    pub(crate) fn restart_stream(&mut self) -> Result<(), UrgError> {
         let req = self.core.streaming.or_else(|| self.stream_request());
         self.stop_stream()?;
         match req {

@@ -20,11 +20,11 @@ use heapless::Deque;
 
 /// One TM1 round trip.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TimeSample {
+pub(crate) struct TimeSample {
     /// Host clock when the request was written (s).
-    pub host_send: f64,
+    pub(crate) host_send: f64,
     /// Host clock when the reply was complete (s).
-    pub host_recv: f64,
+    pub(crate) host_recv: f64,
     /// Sensor clock in the reply (s, unwrapped).
     pub sensor: f64,
 }
@@ -40,9 +40,9 @@ impl TimeSample {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClockModel {
     /// Host time of the reference point (s).
-    pub host0: f64,
+    pub(crate) host0: f64,
     /// Sensor time at the reference point (s).
-    pub sensor0: f64,
+    pub(crate) sensor0: f64,
     /// Sensor seconds per host second (1 = no drift).
     pub rate: f64,
     /// Round-trip time of the best sample (s): the offset's uncertainty bound.
@@ -51,7 +51,7 @@ pub struct ClockModel {
 
 impl ClockModel {
     /// The host time at which the sensor clock read `sensor` (s).
-    pub fn host_of(&self, sensor: f64) -> f64 {
+    pub(crate) fn host_of(&self, sensor: f64) -> f64 {
         self.host0 + (sensor - self.sensor0) / self.rate
     }
     /// Sensor minus host at the reference point (s).
@@ -65,10 +65,10 @@ impl ClockModel {
 }
 
 /// Shortest host span over which a rate is estimated (s); below it b = 1.
-pub const MIN_DRIFT_SPAN: f64 = 5.0;
+pub(crate) const MIN_DRIFT_SPAN: f64 = 5.0;
 /// Largest believable rate error (a crystal is within ~100 ppm; beyond
 /// 1000 ppm the fit is rejected as noise).
-pub const MAX_DRIFT: f64 = 1e-3;
+pub(crate) const MAX_DRIFT: f64 = 1e-3;
 
 /// Fits a clock model through the better half (by round trip) of `samples`
 /// plus earlier anchors. `None` when there are no usable samples.
@@ -127,13 +127,13 @@ pub fn fit(samples: &[TimeSample], anchors: &[TimeSample]) -> Option<ClockModel>
 /// Keeps the best sample of each sync round (up to 8) for drift over a long
 /// baseline.
 #[derive(Debug, Default)]
-pub struct SyncHistory {
+pub(crate) struct SyncHistory {
     anchors: Deque<TimeSample, 8>,
 }
 
 impl SyncHistory {
     /// Adds one round's samples and returns the model fitted with history.
-    pub fn add_round(&mut self, samples: &[TimeSample]) -> Option<ClockModel> {
+    pub(crate) fn add_round(&mut self, samples: &[TimeSample]) -> Option<ClockModel> {
         let model = fit(samples, self.anchors.as_slices().0)?;
         let best = samples
             .iter()
@@ -156,7 +156,7 @@ impl SyncHistory {
 
 /// What a new scan timestamp says about the sequence.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Continuity {
+pub(crate) enum Continuity {
     /// The first scan, or exactly one period after the previous.
     Ok,
     /// This many scans are missing before this one.
@@ -167,7 +167,7 @@ pub enum Continuity {
 
 /// Judges the gap between consecutive unwrapped sensor timestamps (ms)
 /// against the expected scan interval (ms).
-pub fn continuity(prev_ms: Option<u64>, now_ms: u64, interval_ms: f64) -> Continuity {
+pub(crate) fn continuity(prev_ms: Option<u64>, now_ms: u64, interval_ms: f64) -> Continuity {
     let Some(prev) = prev_ms else {
         return Continuity::Ok;
     };

@@ -31,7 +31,7 @@ use crate::robot::RobotParams;
 pub const STREAM_PERIOD: f64 = 0.015;
 
 /// The packets the driver streams.
-pub const STREAM_IDS: [u8; 5] = [
+pub(crate) const STREAM_IDS: [u8; 5] = [
     pkt::BUMPS_WHEEL_DROPS,
     pkt::OI_MODE,
     pkt::LEFT_ENCODER,
