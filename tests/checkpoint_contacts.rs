@@ -11,7 +11,7 @@ use sweepline::daemon::contact::{ContactMark, ContactParams, Known};
 use sweepline::daemon::messages::MapMsg;
 use sweepline::daemon::resume::{heartbeat_store, load};
 use sweepline::daemon::stages::{contact_arcs, MapStage};
-use sweepline::daemon::Shared;
+use sweepline::daemon::{MapStageSnapshot, Shared};
 use sweepline::geom::pose;
 use sweepline::grid::{CellState, Grid};
 use sweepline::motor::{Sides, WheelSpeeds};
@@ -78,18 +78,28 @@ fn scan_through_the_contact() -> MapMsg {
     }
 }
 
-fn map_stage(grid: Grid, contacts: Vec<ContactMark>) -> MapStage {
+/// A map stage restored from `snapshot`, as a resumed run's is.
+fn map_stage(snapshot: MapStageSnapshot) -> MapStage {
     let (_tx, rx) = queue("registered_scans", 8, Overflow::DropOldest);
     let (snap_tx, _snap_rx) = latest("map_snapshots");
-    MapStage::new(
-        grid,
+    let mut stage = MapStage::new(
+        Grid::new(Point2::new(0.0, 0.0), 0.05, 1, 1),
         rx,
         snap_tx,
         Arc::new(Shared::default()),
         5.0,
-        contacts,
         ContactParams::default().same_contact,
-    )
+    );
+    stage.restore(snapshot);
+    stage
+}
+
+/// The map stage's snapshot of `grid` with the contact marks `contacts`.
+fn snapshot(grid: Grid, contacts: &[ContactMark]) -> MapStageSnapshot {
+    MapStageSnapshot {
+        grid: Some(Arc::new(grid)),
+        contacts: (!contacts.is_empty()).then(|| Arc::new(contact_arcs(contacts))),
+    }
 }
 
 fn occupied_at(g: &Grid, p: Point2<f64>) -> bool {
@@ -124,12 +134,23 @@ fn contact_marks_are_restored_and_rays_cannot_clear_them() {
     store.save(&cp).unwrap();
 
     let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
-    assert_eq!(r.contacts, vec![m]);
-    assert_eq!(r.tried, tried, "places where marks were tried");
-    assert!(!occupied_at(&r.grid, m.at), "the saved grid had lost it");
+    let marks: Vec<ContactMark> = r
+        .map
+        .contacts
+        .as_ref()
+        .unwrap()
+        .arcs
+        .iter()
+        .map(|&a| a.into())
+        .collect();
+    assert_eq!(marks, vec![m]);
+    let places = r.plan.contacts_tried.as_ref().map(|t| t.places.clone());
+    assert_eq!(places, Some(tried), "places where marks were tried");
+    let grid = Grid::clone(r.map.grid.as_ref().unwrap());
+    assert!(!occupied_at(&grid, m.at), "the saved grid had lost it");
 
     // The resumed map stage marks it at once and keeps it through rays.
-    let mut stage = map_stage(r.grid.clone(), r.contacts.clone());
+    let mut stage = map_stage(r.map.clone());
     assert!(occupied_at(&stage.grid, m.at));
     for _ in 0..50 {
         stage.merge(scan_through_the_contact());
@@ -139,9 +160,9 @@ fn contact_marks_are_restored_and_rays_cannot_clear_them() {
     assert!(occupied_at(&stage.grid, Point2::new(3.5, 2.0)));
 
     // Without the restored list the same rays clear a mark the grid held.
-    let mut marked = r.grid.clone();
+    let mut marked = grid.clone();
     marked.set_state(marked.cell_of(&m.at).unwrap(), CellState::Occupied);
-    let mut bare = map_stage(marked, Vec::new());
+    let mut bare = map_stage(snapshot(marked, &[]));
     for _ in 0..50 {
         bare.merge(scan_through_the_contact());
     }
@@ -161,8 +182,8 @@ fn a_checkpoint_without_marks_resumes_with_none() {
     cp.put(&free_room()).unwrap();
     store.save(&cp).unwrap();
     let r = load(&store, &heartbeat_store(&dir.0)).expect("resumes");
-    assert!(r.contacts.is_empty());
-    assert!(r.tried.is_empty());
+    assert!(r.map.contacts.is_none());
+    assert!(r.plan.contacts_tried.is_none());
 }
 
 #[test]
@@ -172,7 +193,7 @@ fn a_mark_taken_out_is_unknown_then_cleared_by_rays_and_left_out_of_the_checkpoi
         at: Point2::new(1.0, 3.0),
         ..m
     };
-    let mut stage = map_stage(free_room(), vec![m, other]);
+    let mut stage = map_stage(snapshot(free_room(), &[m, other]));
     assert!(occupied_at(&stage.grid, m.at));
     // A request for a point a centimetre off the mark (within same_contact).
     stage.merge(MapMsg::Retire(m.at + nalgebra::Vector2::new(0.01, 0.0)));
@@ -184,7 +205,9 @@ fn a_mark_taken_out_is_unknown_then_cleared_by_rays_and_left_out_of_the_checkpoi
     );
     assert!(occupied_at(&stage.grid, other.at));
     // What the checkpoint saves (the shared contact list) has only the other.
-    let saved = stage.shared.with_status(|s| s.contacts.clone()).unwrap();
+    let saved = stage.snapshot().contacts.unwrap();
+    let published = stage.shared.with_status(|s| s.map.contacts.clone());
+    assert_eq!(published, Some(saved.clone()));
     assert_eq!(saved.arcs.len(), 1);
     assert_eq!(ContactMark::from(saved.arcs[0]), other);
     // Rays now clear the place: the planner may send the robot through it.

@@ -217,7 +217,7 @@ pub fn run(args: Args) -> CliResult {
     let base = crate::motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
     let start = resume
         .as_ref()
-        .map(|r| r.pose)
+        .map(|r| r.run.pose)
         .unwrap_or_else(Pose::identity);
     let map = MapFrame::centred(
         start.translation.vector.into(),

@@ -847,8 +847,10 @@ fn drive(
     let fix_pairs = fix_pairs(&fixes, &seen, 0.0, 0.2);
     let (pos, head, pmax, pairs) = fix_errors(&fix_pairs);
     let best_offset = best_stamp_shift(&fixes, &seen);
-    let (turn_ratio, travel_fit, offset_fit, refitted_mount) =
-        shared.with_status(|s| (s.turn_ratio, s.travel_fit, s.offset_fit, s.refitted_mount));
+    let (turn_ratio, travel_fit, offset_fit, refitted_mount) = shared.with_status(|s| {
+        let refitted = s.localise.mount.map(|m| m.refitted);
+        (s.turn_ratio, s.travel_fit, s.offset_fit, refitted)
+    });
     let report = SimReport {
         metrics: tracker.metrics(),
         position_rmse: pos,
@@ -880,7 +882,8 @@ fn drive(
         scan_holds: shared.scan_holds.load(std::sync::atomic::Ordering::Relaxed),
         pace: pace.as_ref().map(|p| p.stats()),
         contacts: shared.with_status(|s| {
-            s.contacts
+            s.map
+                .contacts
                 .as_deref()
                 .map(|c| c.arcs.clone())
                 .unwrap_or_default()

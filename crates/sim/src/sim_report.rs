@@ -93,7 +93,7 @@ pub fn write(
     shared: &Shared,
 ) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let (grid, decomp) = shared.with_status(|s| (s.grid.clone(), s.decomposition.clone()));
+    let (grid, decomp) = shared.with_status(|s| (s.map.grid.clone(), s.decomposition.clone()));
     // The map and the cells are in the daemon's frame, the world in its own
     // (they differ when the daemon was told a wrong start heading).
     let to_world = r.map_to_world;

@@ -22,7 +22,7 @@ pub mod tour;
 pub mod unbox;
 
 pub use planner::{
-    lane_geometry, CoveragePlanner, HomeOutcome, Motion, PlanError, PlanStatus, Task,
+    lane_geometry, CoveragePlanner, HomeOutcome, Motion, PlanError, PlanSnapshot, PlanStatus, Task,
 };
 pub use swept::{HomePlace, LatticePhase, PlanReach, PlanTries, SweptFloor, TriedCell};
 

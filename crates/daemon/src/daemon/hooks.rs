@@ -9,6 +9,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use super::shared::Shared;
+use super::snapshot::RunSnapshot;
 use crate::clock::SharedClock;
 use crate::pipeline::checkpoint::{
     Checkpoint, CheckpointStore, RunFinished, RunProgress, WrittenAt,
@@ -87,7 +88,7 @@ impl DaemonHooks {
     pub fn progress(&self) -> RunProgress {
         let (scans, path, covered, grid) = self
             .shared
-            .with_status(|s| (s.scans, s.path_length, s.covered_area, s.grid.clone()));
+            .with_status(|s| (s.scans, s.path_length, s.covered_area, s.map.grid.clone()));
         let free = grid
             .map(|g| g.counts().1 as f64 * g.resolution() * g.resolution())
             .unwrap_or(0.0);
@@ -110,70 +111,24 @@ impl DaemonHooks {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
         let progress = self.progress();
-        let (pose, grid, swept, keyframes, contacts) = self.shared.with_status(|s| {
-            (
-                s.pose,
-                s.grid.clone(),
-                s.swept.clone(),
-                s.keyframes.clone(),
-                s.contacts.clone(),
-            )
-        });
-        let (lattice, home, tries, reach, refitted, tried) = self.shared.with_status(|s| {
-            (
-                s.lattice,
-                s.home,
-                s.tries.clone(),
-                s.reach.clone(),
-                s.refitted_mount,
-                s.contacts_tried.clone(),
-            )
-        });
-        let mut cp = Checkpoint::new();
-        let mut r = cp
-            .put(&progress)
-            .and_then(|()| cp.put(&WrittenAt::now()))
-            .and_then(|()| cp.put(&pose));
-        if let Some(g) = grid {
-            r = r.and_then(|()| cp.put(&*g));
-        }
-        if let Some(s) = swept {
-            r = r.and_then(|()| cp.put(&*s));
-        }
-        if let Some(l) = lattice {
-            r = r.and_then(|()| cp.put(&l));
-        }
-        if let Some(h) = home {
-            r = r.and_then(|()| cp.put(&h));
-        }
-        if self.shared.done.load(Ordering::Relaxed) {
-            let fin = RunFinished {
+        let finished = self.shared.done.load(Ordering::Relaxed);
+        let (pose, map, plan, localise) = self
+            .shared
+            .with_status(|s| (s.pose, s.map.clone(), s.plan.clone(), s.localise.clone()));
+        let run = RunSnapshot {
+            progress,
+            pose,
+            finished: finished.then_some(RunFinished {
                 elapsed: progress.elapsed,
-            };
-            r = r.and_then(|()| cp.put(&fin));
-        }
-        if let Some(t) = tries {
-            r = r.and_then(|()| cp.put(&*t));
-        }
-        if let Some(t) = reach {
-            r = r.and_then(|()| cp.put(&*t));
-        }
-        if let Some(k) = keyframes {
-            r = r.and_then(|()| cp.put(&*k));
-        }
-        if let Some(c) = contacts {
-            r = r.and_then(|()| cp.put(&*c));
-        }
-        if let Some(t) = tried {
-            r = r.and_then(|()| cp.put(&*t));
-        }
-        if let (Some(refitted), Some(robot)) = (refitted, &self.robot) {
-            let rec = crate::pipeline::checkpoint::MountRecord {
-                configured: robot.scanner_mount(),
-                refitted,
-            };
-            r = r.and_then(|()| cp.put(&rec));
-        }
+            }),
+        };
+        let mut cp = Checkpoint::new();
+        let r = run
+            .put(&mut cp)
+            .and_then(|()| cp.put(&WrittenAt::now()))
+            .and_then(|()| map.put(&mut cp))
+            .and_then(|()| plan.put(&mut cp))
+            .and_then(|()| localise.put(&mut cp));
         if let Err(e) = r.and_then(|()| store.save(&cp)) {
             self.checkpoint_errors += 1;
             if self.checkpoint_errors <= 3 {

@@ -16,6 +16,7 @@ pub mod mount_report;
 pub mod params;
 pub mod resume;
 pub mod shared;
+pub mod snapshot;
 pub mod stages;
 
 /// The checks beside the stages (mount, alignment, contact marks,
@@ -35,18 +36,19 @@ use crate::control::PathFollower;
 use crate::decomp::Decomposer;
 use crate::geom::{heading, Pose};
 use crate::grid::Grid;
-use crate::icp::{Tracker, TrackerState};
+use crate::icp::Tracker;
 use crate::motor::DiffDriveBase;
 use crate::pipeline::checkpoint::{ResumeEntry, RunProgress};
 use crate::pipeline::supervisor::{Control, Hooks, Outcome, Supervisor};
 use crate::pipeline::{latest, queue, Overflow, Pipeline};
-use crate::plan::{CoveragePlanner, SweptFloor};
+use crate::plan::{CoveragePlanner, PlanSnapshot};
 use crate::serial::Connector;
 use crate::urg::{UrgDriver, UrgHealth};
 
 pub use hooks::DaemonHooks;
 pub use params::DaemonParams;
 pub use shared::{LiveStatus, Shared};
+pub use snapshot::{LocaliseSnapshot, MapStageSnapshot, PlanStageSnapshot, RunSnapshot};
 
 /// Control period (s): the follower runs at 20 Hz.
 pub const CONTROL_PERIOD: f64 = 0.05;
@@ -105,42 +107,19 @@ impl MapFrame {
     }
 }
 
-/// Where a resumed run picks up.
+/// Where a resumed run picks up: the run's own part and each stage's
+/// snapshot as the checkpoint held them (see [`snapshot`]).
 #[derive(Clone, Debug)]
 pub struct Resume {
-    /// Robot pose at the checkpoint.
-    pub pose: Pose,
-    /// The map at the checkpoint.
-    pub grid: Grid,
-    /// Progress at the checkpoint.
-    pub progress: RunProgress,
-    /// The planner's record of swept floor at the checkpoint (none: the
-    /// floor is covered again).
-    pub swept: Option<SweptFloor>,
-    /// The phase of the planner's lane lattice at the checkpoint (none: it
-    /// is chosen again at the first cover task).
-    pub lattice: Option<crate::plan::LatticePhase>,
-    /// Where the robot started (none: a checkpoint written before the
-    /// record existed; the robot drives back to where it was resumed).
-    pub home: Option<crate::plan::HomePlace>,
-    /// The planner's tries and give-ups at the checkpoint (none: floor it
-    /// failed on gets all its tries again).
-    pub tries: Option<crate::plan::PlanTries>,
-    /// Where the planner's robot could once get to, its waits and further
-    /// rounds at the checkpoint (none: counted afresh).
-    pub reach: Option<crate::plan::PlanReach>,
-    /// The scan tracker's keyframes at the checkpoint (none: a new local
-    /// map is started at the resume pose).
-    pub tracker: Option<TrackerState>,
-    /// The bumper contact marks at the checkpoint, marked again in the map
-    /// so that rays cannot clear them.
-    pub contacts: Vec<contact::ContactMark>,
-    /// Where contact marks were taken out before the checkpoint to try the
-    /// floor behind them: marks near these stay.
-    pub tried: Vec<nalgebra::Point2<f64>>,
-    /// The scanner mount refitted before the checkpoint (none: the run
-    /// drove with the configured one).
-    pub mount: Option<crate::pipeline::checkpoint::MountRecord>,
+    /// Progress and pose at the checkpoint (never finished: a finished run
+    /// is not resumed).
+    pub run: RunSnapshot,
+    /// The map stage's grid (always set) and contact marks.
+    pub map: MapStageSnapshot,
+    /// The planner's records and the places contact marks were tried.
+    pub plan: PlanStageSnapshot,
+    /// The scan tracker's keyframes and the refitted scanner mount.
+    pub localise: LocaliseSnapshot,
     /// What the restart lost, for the run's report.
     pub entry: ResumeEntry,
 }
@@ -182,44 +161,25 @@ pub struct Daemon {
 }
 
 impl Daemon {
-    /// Builds every stage and starts its thread.
+    /// Builds every stage, restores each from its snapshot when the run is
+    /// resumed, and starts its thread.
     pub fn start(setup: DaemonSetup) -> Result<Daemon, DaemonError> {
         let cfg = setup.config;
         let clock = setup.clock;
         let robot = cfg.robot.clone();
-        // A resumed run drives with the mount refitted before its
-        // checkpoint (while the configuration is unchanged).
-        let refitted = setup.resume.as_ref().and_then(|r| r.mount);
-        let mount = resume::resumed_mount(robot.scanner_mount(), refitted.as_ref());
+        let configured_mount = robot.scanner_mount();
+        let resume = setup.resume;
         let supervisor = Supervisor::new(&cfg.pipeline, clock.clone());
         let mut pipeline = Pipeline::new(&cfg.pipeline);
         let shared = Arc::new(Shared::default());
 
-        let (start, grid) = match &setup.resume {
-            Some(r) => (r.pose, r.grid.clone()),
-            None => (setup.start, setup.map.grid()),
-        };
+        // The run's own part: the pose every stage starts from and the path
+        // driven so far (the hooks go on with the other counters).
+        let start = resume.as_ref().map_or(setup.start, |r| r.run.pose);
         shared.with_status(|s| {
             s.pose = start;
-            if let Some(r) = &setup.resume {
-                s.path_length = r.progress.path_length;
-                // Until the planner's first update, the checkpointed record
-                // stands (a checkpoint written meanwhile keeps it).
-                if let Some(sw) = &r.swept {
-                    s.covered_area = sw.area();
-                    s.swept = Some(Arc::new(sw.clone()));
-                }
-                s.grid = Some(Arc::new(r.grid.clone()));
-                s.keyframes = r.tracker.clone().map(Arc::new);
-                s.lattice = r.lattice;
-                s.home = r.home;
-                s.tries = r.tries.clone().map(Arc::new);
-                s.reach = r.reach.clone().map(Arc::new);
-                if !r.contacts.is_empty() {
-                    s.contacts = Some(Arc::new(stages::contact_arcs(&r.contacts)));
-                }
-                // Later checkpoints keep the refitted mount.
-                s.refitted_mount = (mount != robot.scanner_mount()).then_some(mount);
+            if let Some(r) = &resume {
+                s.path_length = r.run.progress.path_length;
             }
         });
 
@@ -238,53 +198,85 @@ impl Daemon {
         pipeline.register_edge(&pose_tx);
         pipeline.register_edge(&cmd_tx);
 
-        let restored = setup.resume.as_ref().and_then(|r| r.tracker.as_ref());
-        let (tracker, refused) = Tracker::restore(
-            cfg.icp.clone(),
-            start * mount,
-            restored.unwrap_or(&TrackerState::default()),
-        )
-        .map_err(|e| DaemonError::Config(e.to_string()))?;
-        match (restored, refused) {
-            (Some(k), None) => log::info!(
-                "resume: scan tracker restored with {} keyframe(s)",
-                k.keyframes.len()
-            ),
-            (Some(_), Some(e)) => {
-                log::warn!("resume: checkpointed keyframes unusable ({e}); new local map")
-            }
-            (None, _) if setup.resume.is_some() => {
-                log::info!("resume: no keyframes checkpointed; new local map")
-            }
-            _ => {}
-        }
+        let tracker = Tracker::new(cfg.icp.clone(), start * configured_mount)
+            .map_err(|e| DaemonError::Config(e.to_string()))?;
         let decomposer = Decomposer::new(&cfg.decomp, robot.radius)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
-        let mut planner = CoveragePlanner::new(&cfg.plan, &robot)
+        let planner = CoveragePlanner::new(&cfg.plan, &robot)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
-        if let Some(swept) = setup.resume.as_ref().and_then(|r| r.swept.clone()) {
-            planner.restore_swept(swept);
-        }
-        if let Some(l) = setup.resume.as_ref().and_then(|r| r.lattice) {
-            planner.restore_lattice(l);
-        }
-        match setup.resume.as_ref().map(|r| r.home) {
-            Some(Some(h)) => planner.restore_home(h),
-            Some(None) if cfg.plan.return_home => log::info!(
-                "resume: the checkpoint holds no start (an older build wrote it); once coverage is done the robot drives back to where it was resumed"
+        let mut plan = stages::PlanStage {
+            decomposer,
+            planner,
+            rx: snap_rx,
+            poses: pose_rx,
+            tx: path_tx,
+            shared: shared.clone(),
+            control: supervisor.control(),
+            clock: clock.clone(),
+            min_interval: cfg.daemon.plan_interval,
+            last: f64::NEG_INFINITY,
+            seq: 0,
+            updates: 0,
+            records: PlanSnapshot::default(),
+            contacts_seen: 0,
+            bump_handled: f64::NEG_INFINITY,
+            contact_settle: cfg.daemon.contact.settle,
+            probe: stages::MarkProbe::new(
+                map_tx.clone(),
+                cfg.daemon.contact.retry_walled_floor,
+                cfg.plan.min_lane_area,
+                2.0 * robot.radius,
             ),
-            _ => {}
+        };
+        if let Some(r) = &resume {
+            plan.restore(r.plan.clone(), cfg.plan.return_home);
         }
-        if let Some(r) = setup.resume.as_ref().and_then(|r| r.reach.clone()) {
-            planner.restore_reach(r);
-        }
-        if let Some(t) = setup.resume.as_ref().and_then(|r| r.tries.clone()) {
-            planner.restore_tries(t);
-        }
-        planner.record_pose(&start);
+        plan.planner.record_pose(&start);
         let follower = PathFollower::new(&cfg.control, &robot)
             .map_err(|e| DaemonError::Config(e.to_string()))?
             .with_command_horizon(cfg.motor.deadman);
+        let mut map = stages::MapStage::new(
+            setup.map.grid(),
+            map_rx,
+            snap_tx,
+            shared.clone(),
+            MAP_MAX_RANGE,
+            cfg.daemon.contact.same_contact,
+        );
+        if let Some(r) = &resume {
+            map.restore(r.map.clone());
+        }
+        let mut localise = stages::LocaliseStage {
+            tracker,
+            rx: scan_rx,
+            to_control: fix_tx,
+            to_map: map_tx.clone(),
+            shared: shared.clone(),
+            mount: configured_mount,
+            configured_mount,
+            mount_refitted: false,
+            wheel_base: robot.wheel_base,
+            wheel_radius: robot.wheel_radius,
+            fit_mount: cfg.daemon.fit_scanner_mount,
+            check_min_information: cfg.icp.degeneracy_threshold * stages::CHECK_INFORMATION_FACTOR,
+            deskew: cfg.daemon.deskew_scans,
+            points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
+            relocalise_on: None,
+            publish_keyframes: setup.state_dir.is_some(),
+            keyframes: None,
+            last_stamp: None,
+            unmatched_run: 0,
+            align: cfg.daemon.align_to_walls.then(align::WallAlign::new),
+            turn_check: turn_check::TurnCheck::default(),
+            travel_check: travel_check::TravelCheck::new(heading(&configured_mount)),
+            offset_check: offset_check::OffsetCheck::new(heading(&configured_mount)),
+            offset_fitted: false,
+        };
+        if let Some(r) = &resume {
+            localise
+                .restore(r.localise.clone(), &start, r.map.grid.clone())
+                .map_err(DaemonError::Config)?;
+        }
 
         let driver = UrgDriver::start(setup.scanner, cfg.scanner.clone(), clock.clone())?;
         let urg_health = driver.health();
@@ -295,7 +287,7 @@ impl Daemon {
             stages::MotorStage {
                 base: setup.base,
                 rx: cmd_rx,
-                to_map: map_tx.clone(),
+                to_map: map_tx,
                 shared: shared.clone(),
                 clock: clock.clone(),
                 period: MOTOR_POLL_PERIOD,
@@ -340,88 +332,9 @@ impl Daemon {
                 blind_ahead_told: false,
             },
         )?;
-        pipeline.spawn(
-            "plan",
-            stages::PlanStage {
-                decomposer,
-                planner,
-                rx: snap_rx,
-                poses: pose_rx,
-                tx: path_tx,
-                shared: shared.clone(),
-                control: supervisor.control(),
-                clock: clock.clone(),
-                min_interval: cfg.daemon.plan_interval,
-                last: f64::NEG_INFINITY,
-                seq: 0,
-                updates: 0,
-                tries_published: 0,
-                reach_published: 0,
-                contacts_seen: 0,
-                bump_handled: f64::NEG_INFINITY,
-                contact_settle: cfg.daemon.contact.settle,
-                probe: stages::MarkProbe::new(
-                    map_tx.clone(),
-                    cfg.daemon.contact.retry_walled_floor,
-                    cfg.plan.min_lane_area,
-                    2.0 * robot.radius,
-                    setup
-                        .resume
-                        .as_ref()
-                        .map(|r| r.tried.clone())
-                        .unwrap_or_default(),
-                    &shared,
-                ),
-            },
-        )?;
-        let contacts = setup
-            .resume
-            .as_ref()
-            .map(|r| r.contacts.clone())
-            .unwrap_or_default();
-        if !contacts.is_empty() {
-            log::info!("resume: {} bumper contact mark(s) restored", contacts.len());
-        }
-        pipeline.spawn(
-            "map",
-            stages::MapStage::new(
-                grid,
-                map_rx,
-                snap_tx,
-                shared.clone(),
-                MAP_MAX_RANGE,
-                contacts,
-                cfg.daemon.contact.same_contact,
-            ),
-        )?;
-        pipeline.spawn(
-            "localise",
-            stages::LocaliseStage {
-                tracker,
-                rx: scan_rx,
-                to_control: fix_tx,
-                to_map: map_tx,
-                shared: shared.clone(),
-                mount,
-                wheel_base: robot.wheel_base,
-                wheel_radius: robot.wheel_radius,
-                fit_mount: cfg.daemon.fit_scanner_mount,
-                check_min_information: cfg.icp.degeneracy_threshold
-                    * stages::CHECK_INFORMATION_FACTOR,
-                deskew: cfg.daemon.deskew_scans,
-                points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
-                relocalise_on: setup.resume.as_ref().map(|r| Arc::new(r.grid.clone())),
-                publish_keyframes: setup.state_dir.is_some(),
-                last_stamp: None,
-                unmatched_run: 0,
-                align: (setup.resume.is_none() && cfg.daemon.align_to_walls)
-                    .then(align::WallAlign::new),
-                turn_check: turn_check::TurnCheck::default(),
-                travel_check: travel_check::TravelCheck::new(heading(&mount)),
-                offset_check: offset_check::OffsetCheck::new(heading(&mount)),
-                offset_fitted: resume::offset_was_fitted(&robot.scanner_mount(), &mount),
-            },
-        )?;
+        pipeline.spawn("plan", plan)?;
+        pipeline.spawn("map", map)?;
+        pipeline.spawn("localise", localise)?;
         pipeline.spawn(
             "scanner",
             stages::ScannerStage {
@@ -437,8 +350,8 @@ impl Daemon {
             shared,
             urg_health,
             clock,
-            resume_entry: setup.resume.as_ref().map(|r| r.entry.clone()),
-            resume: setup.resume.map(|r| r.progress),
+            resume_entry: resume.as_ref().map(|r| r.entry.clone()),
+            resume: resume.map(|r| r.run.progress),
             state_dir: setup.state_dir,
             checkpoint_period: cfg.pipeline.checkpoint_period,
             heartbeat_period: cfg.pipeline.heartbeat_period,

@@ -1,14 +1,15 @@
 //! Resuming a run: loads the newest intact checkpoint of the state folder
-//! (map, pose, progress, the planner's swept floor, the tracker's keyframes,
-//! the bumper contact marks and the places they were tried) and the crashed daemon's
-//! last heartbeat, and says what the restart lost ([`ResumeEntry`]).
+//! (the run's progress and pose, and each stage's snapshot: see
+//! [`super::snapshot`]) and the crashed daemon's last heartbeat, and says
+//! what the restart lost ([`ResumeEntry`]).
 
+use super::snapshot::{LocaliseSnapshot, MapStageSnapshot, PlanStageSnapshot, RunSnapshot};
 use super::Resume;
 use crate::geom::{heading, pose_error, Pose};
 use crate::grid::Grid;
 use crate::pipeline::checkpoint::{
-    Checkpoint, CheckpointError, CheckpointStore, ContactArcs, MountRecord, ProgressMark,
-    ResumeEntry, RunFinished, RunProgress, Section, TriedPlaces, WrittenAt,
+    Checkpoint, CheckpointError, CheckpointStore, MountRecord, ProgressMark, ResumeEntry,
+    RunFinished, RunProgress, WrittenAt,
 };
 
 /// File name of the heartbeat in the state folder: the run's progress and
@@ -113,60 +114,16 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
             entry.restart
         ),
     }
-    let swept = optional(cp, "swept-floor record unreadable, covering again");
-    let lattice = optional(cp, "lane lattice record unreadable, choosing it again");
-    let home = optional(
-        cp,
-        "start record unreadable, the robot drives back to where it was resumed",
-    );
-    let tries = optional(
-        cp,
-        "planner tries record unreadable, floor given up gets its tries again",
-    );
-    let reach = optional(
-        cp,
-        "planner record of places once within reach unreadable, floor walled off before the restart is not waited for",
-    );
-    let tracker = optional(cp, "tracker keyframes unreadable, starting a new local map");
-    let contacts = optional::<ContactArcs>(
-        cp,
-        "bumper contact marks unreadable, only the map's copy of them is left",
-    )
-    .map(|c| c.arcs.iter().map(|&a| a.into()).collect())
-    .unwrap_or_default();
-    let tried = optional::<TriedPlaces>(
-        cp,
-        "places where contact marks were tried unreadable, a mark may be tried once more",
-    )
-    .map(|t| t.places)
-    .unwrap_or_default();
-    let mount = optional(
-        cp,
-        "refitted scanner mount unreadable, the checks fit it again",
-    );
     Some(Resume {
-        pose,
-        grid,
-        progress,
-        swept,
-        lattice,
-        home,
-        tries,
-        reach,
-        tracker,
-        contacts,
-        tried,
-        mount,
+        map: MapStageSnapshot::read(cp, grid),
+        plan: PlanStageSnapshot::read(cp),
+        localise: LocaliseSnapshot::read(cp),
+        run: RunSnapshot {
+            progress,
+            pose,
+            finished: None,
+        },
         entry,
-    })
-}
-
-/// Section `S` of `cp`, or `None` when it is missing or unreadable (logged
-/// as `unreadable`, then the error): the run resumes without it.
-fn optional<S: Section>(cp: &Checkpoint, unreadable: &str) -> Option<S> {
-    cp.get::<S>().unwrap_or_else(|e| {
-        log::warn!("{unreadable}: {e}");
-        None
     })
 }
 
@@ -209,6 +166,7 @@ pub fn offset_was_fitted(configured: &Pose, driving: &Pose) -> bool {
 mod tests {
     use super::*;
     use crate::geom::pose;
+    use crate::pipeline::checkpoint::Section;
     use crate::plan::HomePlace;
 
     /// A `run.finished` payload whose run time is not a number.
@@ -256,7 +214,7 @@ mod tests {
             store.save(&cp).unwrap();
             let r = load(&store, &beat).unwrap_or_else(|| panic!("{case}: not resumed"));
             let want = (case == "with").then_some(home);
-            assert_eq!(r.home, want, "{case}");
+            assert_eq!(r.plan.planner.home, want, "{case}");
             // The same run finished: the next start is a new run.
             let mut fin = cp.clone();
             fin.put(&RunFinished { elapsed: 700.0 }).unwrap();

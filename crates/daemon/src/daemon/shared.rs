@@ -175,33 +175,20 @@ pub struct LiveStatus {
     pub path_length: f64,
     /// What the planner is doing, in words.
     pub task: String,
-    /// The newest map snapshot.
-    pub grid: Option<std::sync::Arc<crate::grid::Grid>>,
     /// The newest decomposition.
     pub decomposition: Option<std::sync::Arc<crate::decomp::Decomposition>>,
-    /// The planner's newest record of swept floor (checkpointed).
-    pub swept: Option<std::sync::Arc<crate::plan::SweptFloor>>,
-    /// The phase of the planner's lane lattice (checkpointed).
-    pub lattice: Option<crate::plan::LatticePhase>,
-    /// The planner's tries and give-ups (checkpointed).
-    pub tries: Option<std::sync::Arc<crate::plan::PlanTries>>,
-    /// Where the planner's robot could once get to, its waits and further
-    /// rounds (checkpointed).
-    pub reach: Option<std::sync::Arc<crate::plan::PlanReach>>,
-    /// Where the robot started, which it drives back to once coverage is
-    /// done (checkpointed).
-    pub home: Option<crate::plan::HomePlace>,
     /// How the drive back to the start ended (set when coverage finishes).
     pub home_outcome: Option<crate::plan::HomeOutcome>,
-    /// The scan tracker's keyframes as of its newest one (checkpointed;
-    /// published only when checkpoints are written).
-    pub keyframes: Option<std::sync::Arc<crate::icp::TrackerState>>,
-    /// The bumper contact marks (checkpointed: rays may clear them from a
-    /// restored grid, a resumed run marks them again).
-    pub contacts: Option<std::sync::Arc<crate::pipeline::checkpoint::ContactArcs>>,
-    /// Where contact marks were taken out to try the floor behind them
-    /// (checkpointed: a resumed run does not try one place again).
-    pub contacts_tried: Option<std::sync::Arc<crate::pipeline::checkpoint::TriedPlaces>>,
+    /// The map stage's snapshot: the newest grid (the map the planner
+    /// works on) and the bumper contact marks (checkpointed).
+    pub map: crate::daemon::MapStageSnapshot,
+    /// The plan stage's snapshot: the planner's records and the places
+    /// contact marks were tried (checkpointed).
+    pub plan: crate::daemon::PlanStageSnapshot,
+    /// The localise stage's snapshot: the scan tracker's keyframes as of
+    /// its newest one (published only when checkpoints are written) and
+    /// the scanner mount the checks refitted, if they did (checkpointed).
+    pub localise: crate::daemon::LocaliseSnapshot,
     /// Rotation (rad) the start heading was turned by to lay the map frame
     /// along the walls (see [`super::align`]); `None` until decided, and
     /// for a resumed run.
@@ -215,9 +202,6 @@ pub struct LiveStatus {
     /// The scanner offset fitted from the first half turn in place (see
     /// [`super::offset_check`]); `None` until then.
     pub offset_fit: Option<super::offset_check::OffsetFit>,
-    /// The scanner mount the daemon drives with, when the offset or the
-    /// travel check refitted it; `None`: as configured.
-    pub refitted_mount: Option<Pose>,
     /// The newest path's motions (what the robot does towards each
     /// waypoint), with its sequence number and the planner's task count:
     /// with [`Progress`], what the robot is doing now, for the simulator's
@@ -250,22 +234,15 @@ impl Default for LiveStatus {
             fallbacks: 0,
             path_length: 0.0,
             task: "starting".into(),
-            grid: None,
             decomposition: None,
-            swept: None,
-            lattice: None,
-            tries: None,
-            reach: None,
-            home: None,
             home_outcome: None,
-            keyframes: None,
-            contacts: None,
-            contacts_tried: None,
+            map: Default::default(),
+            plan: Default::default(),
+            localise: Default::default(),
             frame_turn: None,
             turn_ratio: None,
             travel_fit: None,
             offset_fit: None,
-            refitted_mount: None,
             path_motions: None,
             plan_stats: crate::plan::planner::PlanStats::default(),
         }

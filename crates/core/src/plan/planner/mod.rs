@@ -44,7 +44,7 @@
 //! the path through a task's lanes, `explore` the exploration goals, ways
 //! out and what is given up, `escape` the way out of an inflation zone,
 //! `end` the leftovers declined and the report at the end, and `records`
-//! what a restart needs.
+//! what a restart needs (one [`PlanSnapshot`] out, one restore in).
 
 use nalgebra::Point2;
 
@@ -81,6 +81,7 @@ use current::CurrentTask;
 use home::HomeState;
 pub use home::{HomeOutcome, HOME_NEAR, HOME_REACH, MAX_HOME_PLANS};
 use order::tour_start;
+pub use records::PlanSnapshot;
 use region_map::RegionMap;
 use scratch::Scratch;
 use stalls::Stalls;

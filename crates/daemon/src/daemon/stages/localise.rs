@@ -11,13 +11,15 @@ use crate::daemon::offset_check::{
     OffsetFit, OFFSET_FIT_MAX, OFFSET_STOP_UNFITTED, OFFSET_TOLERANCE,
 };
 use crate::daemon::shared::Shared;
+use crate::daemon::snapshot::LocaliseSnapshot;
 use crate::daemon::travel_check::{
     TravelFit, SCALE_WARN, YAW_FIT_MAX, YAW_STOP_UNFITTED, YAW_TOLERANCE,
 };
 use crate::daemon::turn_check::{fitting_wheel_base, TurnVerdict, SCALE_WARN as TURN_SCALE_WARN};
 use crate::geom::{heading, IPoint, Pose};
 use crate::grid::Grid;
-use crate::icp::{Outcome, Tracker};
+use crate::icp::{Outcome, Tracker, TrackerState};
+use crate::pipeline::checkpoint::MountRecord;
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
 use crate::scan::LaserScan;
 
@@ -39,6 +41,12 @@ pub struct LocaliseStage {
     /// one, refitted by the offset and travel checks (see
     /// [`crate::daemon::offset_check`], [`crate::daemon::travel_check`]).
     pub mount: Pose,
+    /// The mount `[robot]` configures: a refitted [`Self::mount`] is
+    /// checkpointed with it, and resumed only while it is unchanged.
+    pub(crate) configured_mount: Pose,
+    /// [`Self::mount`] was refitted by a check (in this run, or before the
+    /// checkpoint it resumed from).
+    pub(crate) mount_refitted: bool,
     /// Distance between the wheels (m, `robot.wheel_base`), for the
     /// turn check's warning.
     pub wheel_base: f64,
@@ -63,6 +71,10 @@ pub struct LocaliseStage {
     /// Whether to publish the tracker's keyframes for checkpoints (each
     /// time one is added).
     pub publish_keyframes: bool,
+    /// The tracker's keyframes as of its newest one, for the snapshot
+    /// (kept rather than taken at each snapshot: a copy of every keyframe);
+    /// those restored until then.
+    pub(crate) keyframes: Option<Arc<TrackerState>>,
     /// Stamp of the previous scan localised (s).
     pub last_stamp: Option<f64>,
     /// Scans in a row whose match was not accepted (the pose followed the
@@ -89,9 +101,73 @@ impl LocaliseStage {
     /// odometry jumps with the mount: the motion prior starts over.
     fn refit_mount(&mut self, mount: Pose, scanner: &Pose) -> Pose {
         self.mount = mount;
+        self.mount_refitted = true;
         self.tracker.set_pose(*scanner);
-        self.shared.with_status(|s| s.refitted_mount = Some(mount));
+        self.publish();
         scanner * mount.inverse()
+    }
+
+    /// What a restart needs of this stage: the keyframes as of the newest
+    /// one and the refitted mount, if any.
+    pub fn snapshot(&self) -> LocaliseSnapshot {
+        LocaliseSnapshot {
+            keyframes: self.keyframes.clone(),
+            mount: self.mount_refitted.then_some(MountRecord {
+                configured: self.configured_mount,
+                refitted: self.mount,
+            }),
+        }
+    }
+
+    /// Hands [`Self::snapshot`] to the checkpoint (through the live status).
+    fn publish(&self) {
+        let snapshot = self.snapshot();
+        self.shared.with_status(|s| s.localise = snapshot);
+    }
+
+    /// Picks up a resumed run, the robot at `pose` on the restored `map`:
+    /// drives with the mount refitted before the checkpoint while the
+    /// configured one is unchanged (see [`crate::daemon::resume::resumed_mount`]),
+    /// tracks against the restored keyframes, and lays the first scan onto
+    /// `map` before tracking (the frame is the crashed run's: no turn to
+    /// the walls). The error: the tracker's settings are refused.
+    pub fn restore(
+        &mut self,
+        snapshot: LocaliseSnapshot,
+        pose: &Pose,
+        map: Option<Arc<Grid>>,
+    ) -> Result<(), String> {
+        use crate::daemon::resume::{offset_was_fitted, resumed_mount};
+        let mount = resumed_mount(self.configured_mount, snapshot.mount.as_ref());
+        let restored = snapshot.keyframes.as_deref();
+        let (tracker, refused) = Tracker::restore(
+            self.tracker.params().clone(),
+            *pose * mount,
+            restored.unwrap_or(&TrackerState::default()),
+        )
+        .map_err(|e| e.to_string())?;
+        match (restored, refused) {
+            (Some(k), None) => log::info!(
+                "resume: scan tracker restored with {} keyframe(s)",
+                k.keyframes.len()
+            ),
+            (Some(_), Some(e)) => {
+                log::warn!("resume: checkpointed keyframes unusable ({e}); new local map")
+            }
+            (None, _) => log::info!("resume: no keyframes checkpointed; new local map"),
+        }
+        self.tracker = tracker;
+        self.mount = mount;
+        self.mount_refitted = mount != self.configured_mount;
+        self.travel_check = crate::daemon::travel_check::TravelCheck::new(heading(&mount));
+        self.offset_check = crate::daemon::offset_check::OffsetCheck::new(heading(&mount));
+        self.offset_fitted = offset_was_fitted(&self.configured_mount, &mount);
+        self.relocalise_on = map;
+        self.align = None;
+        // Until the tracker's next keyframe, the checkpointed ones stand.
+        self.keyframes = snapshot.keyframes;
+        self.publish();
+        Ok(())
     }
 }
 
@@ -373,8 +449,8 @@ impl LocaliseStage {
         }
         self.tracker.finish_keyframe();
         if step.keyframe && self.publish_keyframes {
-            let kf = Arc::new(self.tracker.state());
-            self.shared.with_status(|s| s.keyframes = Some(kf));
+            self.keyframes = Some(Arc::new(self.tracker.state()));
+            self.publish();
         }
         Ok(())
     }

@@ -11,6 +11,7 @@ use super::gone;
 use crate::daemon::contact::ContactMark;
 use crate::daemon::messages::{MapMsg, MapSnapshot};
 use crate::daemon::shared::Shared;
+use crate::daemon::snapshot::MapStageSnapshot;
 use crate::grid::Grid;
 use crate::pipeline::checkpoint::{ContactArc, ContactArcs};
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
@@ -37,6 +38,12 @@ pub struct MapStage {
     pub same_contact: f64,
     /// Requests to take a mark out handled (see [`MapSnapshot::retired`]).
     pub retired: u64,
+    /// The grid as last handed to the planner (none before the first
+    /// scan of a fresh run), for the snapshot.
+    published: Option<Arc<Grid>>,
+    /// [`Self::contacts`] as the checkpoint stores them, rebuilt when they
+    /// change (none before the first), for the snapshot.
+    arcs: Option<Arc<ContactArcs>>,
 }
 
 /// The checkpoint section of contact `marks`.
@@ -47,34 +54,75 @@ pub fn contact_arcs(marks: &[ContactMark]) -> ContactArcs {
 }
 
 impl MapStage {
-    /// A map stage on `grid` with the contact marks `contacts` (restored
-    /// from a checkpoint) marked in it at once.
+    /// A map stage starting on `grid` without contact marks (see
+    /// [`Self::restore`] for a resumed run).
     pub fn new(
         grid: Grid,
         rx: Rx<MapMsg>,
         tx: Tx<MapSnapshot>,
         shared: Arc<Shared>,
         max_range: f64,
-        contacts: Vec<ContactMark>,
         same_contact: f64,
     ) -> Self {
-        let mut s = Self {
+        Self {
             grid,
             rx,
             tx,
             shared,
             max_range,
-            contacts,
+            contacts: Vec::new(),
             new_contacts: 0,
             same_contact,
             retired: 0,
-        };
-        if !s.contacts.is_empty() {
-            let arcs = Arc::new(contact_arcs(&s.contacts));
-            s.shared.with_status(|st| st.contacts = Some(arcs));
+            published: None,
+            arcs: None,
         }
-        s.mark_contacts();
-        s
+    }
+
+    /// What a restart needs of this stage: the grid as last handed to the
+    /// planner and the contact marks.
+    pub fn snapshot(&self) -> MapStageSnapshot {
+        MapStageSnapshot {
+            grid: self.published.clone(),
+            contacts: self.arcs.clone(),
+        }
+    }
+
+    /// Hands [`Self::snapshot`] to the checkpoint and to the stages that
+    /// read the map or the marks (through the live status).
+    fn publish(&self) {
+        let snapshot = self.snapshot();
+        self.shared.with_status(|s| s.map = snapshot);
+    }
+
+    /// Picks up a resumed run: the restored grid, with the restored
+    /// contact marks marked in it at once (the checkpointed grid may have
+    /// lost them to later rays).
+    pub fn restore(&mut self, snapshot: MapStageSnapshot) {
+        if let Some(g) = &snapshot.grid {
+            self.grid = Grid::clone(g);
+        }
+        self.contacts = snapshot
+            .contacts
+            .as_deref()
+            .map(|c| c.arcs.iter().map(|&a| a.into()).collect())
+            .unwrap_or_default();
+        if !self.contacts.is_empty() {
+            log::info!(
+                "resume: {} bumper contact mark(s) restored",
+                self.contacts.len()
+            );
+        }
+        self.published = snapshot.grid;
+        self.arcs = snapshot.contacts;
+        self.publish();
+        self.mark_contacts();
+    }
+
+    /// The contact marks changed: the snapshot gets the new list.
+    fn contacts_changed(&mut self) {
+        self.arcs = Some(Arc::new(contact_arcs(&self.contacts)));
+        self.publish();
     }
 
     /// Merges a registered scan or a bumper contact into the grid; the
@@ -102,8 +150,7 @@ impl MapStage {
                 {
                     self.contacts.push(mark);
                     self.new_contacts += 1;
-                    let arcs = Arc::new(contact_arcs(&self.contacts));
-                    self.shared.with_status(|s| s.contacts = Some(arcs));
+                    self.contacts_changed();
                 }
             }
             MapMsg::Retire(at) => {
@@ -120,8 +167,7 @@ impl MapStage {
                     for c in &gone {
                         set_arc(&mut self.grid, c, crate::grid::CellState::Unknown);
                     }
-                    let arcs = Arc::new(contact_arcs(&self.contacts));
-                    self.shared.with_status(|s| s.contacts = Some(arcs));
+                    self.contacts_changed();
                     log::info!(
                         "map: contact mark at ({:.2}, {:.2}) m taken out; {} mark(s) left",
                         at.x,
@@ -162,7 +208,8 @@ impl Stage for MapStage {
     fn process(&mut self, msg: MapMsg, ctx: &mut StageCtx<'_>) -> Result<(), StageFault> {
         self.merge(msg);
         let snap = Arc::new(self.grid.clone());
-        self.shared.with_status(|s| s.grid = Some(snap.clone()));
+        self.published = Some(snap.clone());
+        self.publish();
         let msg = MapSnapshot {
             grid: snap,
             contacts: self.new_contacts,

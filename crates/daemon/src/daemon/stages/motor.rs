@@ -70,7 +70,7 @@ impl MotorStage {
     fn mark(&mut self, what: &str, at: &Pose, sides: Option<Sides>, wheels: WheelSpeeds) {
         let (known, grid) = self
             .shared
-            .with_status(|s| (s.contacts.clone(), s.grid.clone()));
+            .with_status(|s| (s.map.contacts.clone(), s.map.grid.clone()));
         let explained = known.as_deref().and_then(|k| {
             k.arcs
                 .iter()

@@ -12,32 +12,14 @@ use crate::clock::SharedClock;
 use crate::daemon::contact::ContactMark;
 use crate::daemon::messages::{MapMsg, MapSnapshot, PathMsg};
 use crate::daemon::shared::Shared;
+use crate::daemon::snapshot::PlanStageSnapshot;
 use crate::decomp::Decomposer;
 use crate::geom::Pose;
 use crate::grid::Grid;
 use crate::pipeline::checkpoint::TriedPlaces;
 use crate::pipeline::supervisor::Control;
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
-use crate::plan::{CoveragePlanner, PlanStatus, Task};
-
-/// A planner record to publish: `get`'s, when its `generation` differs
-/// from the one `published` last (which it then becomes); `None` when
-/// unchanged, so the record (a scan of the whole grid) is copied out only
-/// when it changed.
-fn changed<T>(
-    generation: u64,
-    published: &mut u64,
-    get: impl FnOnce() -> Option<T>,
-) -> Option<Arc<T>> {
-    if generation == *published {
-        return None;
-    }
-    let record = get().map(Arc::new);
-    if record.is_some() {
-        *published = generation;
-    }
-    record
-}
+use crate::plan::{CoveragePlanner, PlanSnapshot, PlanStatus, Task};
 
 /// The plan stage: online cell decomposition and the coverage planner on
 /// each new map snapshot, rate-limited (more so when degraded); tells the
@@ -67,12 +49,9 @@ pub struct PlanStage {
     pub seq: u64,
     /// Updates so far.
     pub updates: u64,
-    /// The planner's tries generation last published (see
-    /// [`CoveragePlanner::tries_generation`]).
-    pub tries_published: u64,
-    /// The planner's reach generation last published (see
-    /// [`CoveragePlanner::reach_generation`]).
-    pub reach_published: u64,
+    /// The planner's snapshot as of its last update (the one restored
+    /// before the first): the next one reuses what did not change.
+    pub(crate) records: PlanSnapshot,
     /// New bumper contacts the planner has been told of.
     pub contacts_seen: u64,
     /// Clock time of the last bump whose contact the planner has seen.
@@ -174,44 +153,21 @@ impl Stage for PlanStage {
         self.updates += 1;
         let res = self.planner.cspace().frame.res;
         let covered = self.planner.covered().iter().filter(|c| **c).count() as f64 * res * res;
-        let snapshot = (self.updates % 5 == 1).then(|| Arc::new(decomp.clone()));
+        let decomposition = (self.updates % 5 == 1).then(|| Arc::new(decomp.clone()));
+        // The decomposition coverage finished on, for the pictures.
+        let last_decomposition =
+            matches!(status, PlanStatus::Done(_)).then(|| Arc::new(decomp.clone()));
         let task = match status {
             PlanStatus::Working { task, .. } => task.to_string(),
             PlanStatus::Done(_) => crate::plan::Task::Done.to_string(),
         };
-        let swept = self.planner.swept().map(Arc::new);
-        let lattice = self.planner.lattice();
-        let home = self.planner.home();
-        let planner = &self.planner;
-        let tries = changed(
-            planner.tries_generation(),
-            &mut self.tries_published,
-            || planner.tries(),
-        );
-        let reach = changed(
-            planner.reach_generation(),
-            &mut self.reach_published,
-            || planner.reach(),
-        );
+        self.records = self.planner.snapshot(&self.records);
+        let snapshot = self.snapshot();
         self.shared.with_status(|s| {
-            if tries.is_some() {
-                s.tries = tries;
-            }
-            if reach.is_some() {
-                s.reach = reach;
-            }
+            s.plan = snapshot;
             s.covered_area = covered;
-            if swept.is_some() {
-                s.swept = swept;
-            }
-            if lattice != crate::plan::LatticePhase::default() {
-                s.lattice = Some(lattice);
-            }
-            if home.is_some() {
-                s.home = home;
-            }
             s.task = task;
-            if let Some(d) = snapshot {
+            if let Some(d) = decomposition {
                 s.decomposition = Some(d);
             }
         });
@@ -227,14 +183,11 @@ impl Stage for PlanStage {
             _ => false,
         };
         match status {
-            _ if just_done
-                && self
-                    .probe
-                    .walled_floor(&mut self.planner, &self.shared, now, &grid, &here) => {}
+            _ if just_done && self.retry_walled_floor(now, &grid, &here) => {}
             PlanStatus::Done(r) => {
                 let stats = self.planner.stats();
                 self.shared.with_status(|s| {
-                    s.decomposition = Some(Arc::new(decomp.clone()));
+                    s.decomposition = last_decomposition;
                     s.plan_stats = stats;
                 });
                 self.shared.done.store(true, Ordering::Relaxed);
@@ -281,53 +234,102 @@ impl Stage for PlanStage {
     }
 }
 
-impl MarkProbe {
-    /// A probe sending its requests on `to_map`, with the places `tried`
-    /// before a restart (published at once for the next checkpoint).
-    pub fn new(
-        to_map: Tx<MapMsg>,
-        on: bool,
-        least: f64,
-        spacing: f64,
-        tried: Vec<Point2<f64>>,
-        shared: &Shared,
-    ) -> Self {
-        if !tried.is_empty() {
+impl PlanStage {
+    /// What a restart needs of this stage: the planner's records and the
+    /// places contact marks were tried.
+    pub fn snapshot(&self) -> PlanStageSnapshot {
+        PlanStageSnapshot {
+            planner: self.records.clone(),
+            contacts_tried: self.probe.tried(),
+        }
+    }
+
+    /// Hands [`Self::snapshot`] to the checkpoint (through the live status).
+    fn publish(&self) {
+        let snapshot = self.snapshot();
+        self.shared.with_status(|s| s.plan = snapshot);
+    }
+
+    /// Picks up a resumed run: the planner's records (they stand in the
+    /// snapshot until its first update) and the places contact marks were
+    /// tried. `return_home`: the robot drives back to its start once
+    /// coverage is done (`plan.return_home`), so a checkpoint without the
+    /// start is worth a line in the log.
+    pub fn restore(&mut self, snapshot: PlanStageSnapshot, return_home: bool) {
+        self.planner.restore(&snapshot.planner);
+        if snapshot.planner.home.is_none() && return_home {
             log::info!(
-                "resume: {} place(s) where contact marks were tried restored; marks near them stay",
-                tried.len()
+                "resume: the checkpoint holds no start (an older build wrote it); once coverage is done the robot drives back to where it was resumed"
             );
         }
-        let probe = Self {
+        self.probe.restore(snapshot.contacts_tried.as_deref());
+        // Until the planner's first update, the checkpointed record stands.
+        if let Some(sw) = &snapshot.planner.swept {
+            let area = sw.area();
+            self.shared.with_status(|s| s.covered_area = area);
+        }
+        self.records = snapshot.planner;
+        self.publish();
+    }
+
+    /// At the end of coverage: takes out the contact mark walling off the
+    /// most floor, if any (see [`MarkProbe::walled_floor`]); true when it
+    /// did and coverage goes on.
+    fn retry_walled_floor(&mut self, now: f64, grid: &Grid, here: &Pose) -> bool {
+        let Some(at) = self
+            .probe
+            .walled_floor(&self.planner, &self.shared, grid, here)
+        else {
+            return false;
+        };
+        // Tried before the request goes: a checkpoint between the two keeps
+        // the mark and the place, and the resumed run leaves the mark.
+        self.publish();
+        self.probe.take_out(at, &mut self.planner, now)
+    }
+}
+
+impl MarkProbe {
+    /// A probe sending its requests on `to_map` (see [`Self::restore`] for
+    /// a resumed run).
+    pub fn new(to_map: Tx<MapMsg>, on: bool, least: f64, spacing: f64) -> Self {
+        Self {
             to_map,
             on,
             least,
             spacing,
-            probed: tried,
+            probed: Vec::new(),
             sent: 0,
             sent_at: f64::NEG_INFINITY,
-        };
-        probe.publish(shared);
-        probe
-    }
-
-    /// Hands the tried places to the checkpoint (none yet: nothing).
-    fn publish(&self, shared: &Shared) {
-        if self.probed.is_empty() {
-            return;
         }
-        let tried = Arc::new(TriedPlaces {
-            places: self.probed.clone(),
-        });
-        shared.with_status(|s| s.contacts_tried = Some(tried));
     }
 
-    /// At the end of coverage (the `planner` is done): takes out the
-    /// bumper contact mark that walls off the most unswept floor, if that is
-    /// at least `least` and no mark was taken out near it before; reopens
-    /// the planner and returns true (coverage goes on). A one-bit bumper cannot tell where on its arc it
-    /// closed; its mark is a guess that can stand in open floor and shut a
-    /// passage the robot fits through. Tried again, the floor is swept, or
+    /// Picks up the places `tried` before a restart: marks near them stay.
+    pub fn restore(&mut self, tried: Option<&TriedPlaces>) {
+        self.probed = tried.map(|t| t.places.clone()).unwrap_or_default();
+        if !self.probed.is_empty() {
+            log::info!(
+                "resume: {} place(s) where contact marks were tried restored; marks near them stay",
+                self.probed.len()
+            );
+        }
+    }
+
+    /// The places tried, as the checkpoint stores them (none yet: none).
+    pub fn tried(&self) -> Option<Arc<TriedPlaces>> {
+        (!self.probed.is_empty()).then(|| {
+            Arc::new(TriedPlaces {
+                places: self.probed.clone(),
+            })
+        })
+    }
+
+    /// At the end of coverage (the `planner` is done): the bumper contact
+    /// mark that walls off the most unswept floor, if that is at least
+    /// `least` and no mark was taken out near it before, recorded as tried
+    /// (see [`Self::take_out`] for the rest). A one-bit bumper cannot tell
+    /// where on its arc it closed; its mark is a guess that can stand in
+    /// open floor and shut a passage the robot fits through. Tried again, the floor is swept, or
     /// the bumper closes again and marks the obstacle from a new bearing
     /// (that mark stays). Marks on an unseen obstacle wall off floor too
     /// (the obstacle's own, free in the map): one mark per end of coverage,
@@ -335,18 +337,15 @@ impl MarkProbe {
     /// tried before, so an obstacle costs at most one more bump.
     pub fn walled_floor(
         &mut self,
-        planner: &mut CoveragePlanner,
+        planner: &CoveragePlanner,
         shared: &Shared,
-        now: f64,
         grid: &Grid,
         here: &Pose,
-    ) -> bool {
+    ) -> Option<Point2<f64>> {
         if !self.on {
-            return false;
+            return None;
         }
-        let Some(arcs) = shared.with_status(|s| s.contacts.clone()) else {
-            return false;
-        };
+        let arcs = shared.with_status(|s| s.map.contacts.clone())?;
         let robot: Point2<f64> = here.translation.vector.into();
         let mut best: Option<(Point2<f64>, f64)> = None;
         for m in arcs.arcs.iter().map(|&a| ContactMark::from(a)) {
@@ -368,19 +367,21 @@ impl MarkProbe {
                 best = Some((m.at, area));
             }
         }
-        let Some((at, area)) = best else {
-            return false;
-        };
+        let (at, area) = best?;
         log::warn!(
             "plan: the contact mark at ({:.2}, {:.2}) m walls off {:.3} m² of unswept floor; a bumper's mark is a guess at where it closed, so it is taken out and that floor tried once more",
             at.x,
             at.y,
             area
         );
-        // Tried before the request goes: a checkpoint between the two keeps
-        // the mark and the place, and the resumed run leaves the mark.
         self.probed.push(at);
-        self.publish(shared);
+        Some(at)
+    }
+
+    /// Takes the mark at `at` (chosen by [`Self::walled_floor`]) out of the
+    /// map and reopens the `planner` around it; true when the request went
+    /// (coverage goes on).
+    pub fn take_out(&mut self, at: Point2<f64>, planner: &mut CoveragePlanner, now: f64) -> bool {
         if self.to_map.send(MapMsg::Retire(at)).is_err() {
             return false;
         }
@@ -424,7 +425,7 @@ mod tests {
             half_length: 0.02,
         };
         let arcs = Arc::new(ContactArcs { arcs: vec![arc] });
-        shared.with_status(|s| s.contacts = Some(arcs));
+        shared.with_status(|s| s.map.contacts = Some(arcs));
         (g, p, shared, at)
     }
 
@@ -433,23 +434,26 @@ mod tests {
         let (g, mut p, shared, at) = passage_shut_by_a_mark();
         let here = crate::geom::pose(0.4, 0.4, 0.0);
         let (tx, rx) = queue("map_msgs", 8, Overflow::DropOldest);
-        let mut probe = MarkProbe::new(tx.clone(), true, 0.05, 0.34, Vec::new(), &shared);
-        assert!(shared.with_status(|s| s.contacts_tried.is_none()));
-        assert!(probe.walled_floor(&mut p, &shared, 1.0, &g, &here));
-        assert!(matches!(rx.try_recv(), Recv::Msg(MapMsg::Retire(q)) if q == at));
-        // The place is handed to the checkpoint, and not tried again.
-        let saved = shared.with_status(|s| s.contacts_tried.clone()).unwrap();
+        let mut probe = MarkProbe::new(tx.clone(), true, 0.05, 0.34);
+        assert!(probe.tried().is_none());
+        let chosen = probe.walled_floor(&p, &shared, &g, &here);
+        assert_eq!(chosen, Some(at));
+        // The place is recorded for the checkpoint before the request goes.
+        let saved = probe.tried().unwrap();
         assert_eq!(saved.places, vec![at]);
-        assert!(!probe.walled_floor(&mut p, &shared, 2.0, &g, &here));
+        assert!(probe.take_out(at, &mut p, 1.0));
+        assert!(matches!(rx.try_recv(), Recv::Msg(MapMsg::Retire(q)) if q == at));
+        // Not tried again.
+        assert_eq!(probe.walled_floor(&p, &shared, &g, &here), None);
         assert_eq!(probe.sent, 1);
 
         // A resumed run with the checkpoint's places leaves the mark, and
         // its next checkpoint still holds them.
-        let (g, mut p, shared, _) = passage_shut_by_a_mark();
-        let mut resumed = MarkProbe::new(tx, true, 0.05, 0.34, saved.places.clone(), &shared);
-        let kept = shared.with_status(|s| s.contacts_tried.clone()).unwrap();
-        assert_eq!(kept.places, vec![at]);
-        assert!(!resumed.walled_floor(&mut p, &shared, 1.0, &g, &here));
+        let (g, p, shared, _) = passage_shut_by_a_mark();
+        let mut resumed = MarkProbe::new(tx, true, 0.05, 0.34);
+        resumed.restore(Some(&saved));
+        assert_eq!(resumed.tried().unwrap().places, vec![at]);
+        assert_eq!(resumed.walled_floor(&p, &shared, &g, &here), None);
         assert_eq!(resumed.sent, 0);
         assert!(matches!(rx.try_recv(), Recv::Empty));
     }
