@@ -38,7 +38,7 @@ use crate::plan::PlanSnapshot;
 /// finished its coverage.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunSnapshot {
-    /// Progress counters (sections `progress`).
+    /// Progress counters (section `progress`).
     pub progress: RunProgress,
     /// The robot's pose (section `pose`).
     pub pose: Pose,
