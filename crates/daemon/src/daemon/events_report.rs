@@ -9,10 +9,10 @@ use super::shared::Shared;
 use crate::plan::HomeOutcome;
 
 /// Name of the file in the run folder.
-pub const EVENTS_FILE: &str = "events.toml";
+pub(crate) const EVENTS_FILE: &str = "events.toml";
 
 /// The `events.toml` text for the counters in `shared`.
-pub fn events_toml(shared: &Shared) -> String {
+pub(crate) fn events_toml(shared: &Shared) -> String {
     let n = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
     let base = shared.base_health();
     format!(

@@ -31,9 +31,9 @@ pub struct DaemonHooks {
     base: RunProgress,
     sequence: u64,
     /// Checkpoints that could not be written.
-    pub checkpoint_errors: u64,
+    pub(crate) checkpoint_errors: u64,
     /// Heartbeats that could not be written.
-    pub heartbeat_errors: u64,
+    pub(crate) heartbeat_errors: u64,
     /// Kind of the planner's task last logged.
     task_kind: String,
     /// The robot as configured, for the run folder's `mount.toml`.
@@ -79,7 +79,7 @@ impl DaemonHooks {
 
     /// Writes the run folder's `mount.toml` (what the mount and wheel
     /// checks measured) for a robot configured as `robot`.
-    pub fn with_robot(mut self, robot: crate::robot::RobotParams) -> Self {
+    pub(crate) fn with_robot(mut self, robot: crate::robot::RobotParams) -> Self {
         self.robot = Some(robot);
         self
     }

@@ -29,10 +29,10 @@ pub struct ScanMsg {
     /// stood still.
     ///
     /// [`ScanOdometry::current`]: crate::daemon::shared::ScanOdometry::current
-    pub odom_current: bool,
+    pub(crate) odom_current: bool,
     /// Time between two scans when none is lost (s; 0 when unknown).
     pub interval: f64,
-    /// The robot's odometry motion over [`MOTION_WINDOW`] ending at the
+    /// The robot's odometry motion over `MOTION_WINDOW` ending at the
     /// scan's last beam (or the newest odometry reading before it): its
     /// velocity while the scanner swept the beams, for deskewing.
     pub motion: Pose,
@@ -43,7 +43,7 @@ pub struct ScanMsg {
 /// Over how long (s) the scanner stage measures the odometry's motion
 /// ([`ScanMsg::motion`]): one scan period of the URG-04LX, longer than its
 /// sweep, short enough that the velocity has hardly changed.
-pub const MOTION_WINDOW: f64 = 0.1;
+pub(crate) const MOTION_WINDOW: f64 = 0.1;
 
 /// localise → control: the robot's pose at a scan's time.
 #[derive(Clone, Copy, Debug)]

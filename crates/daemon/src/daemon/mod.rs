@@ -9,10 +9,10 @@
 //! run` hands it `/dev/...` paths and the monotonic clock, `sweepline sim`
 //! hands it pty paths and a scaled clock; nothing in here knows which.
 
-pub mod events_report;
+pub(crate) mod events_report;
 pub mod hooks;
 pub mod messages;
-pub mod mount_report;
+pub(crate) mod mount_report;
 pub mod params;
 pub mod resume;
 pub mod shared;
@@ -51,17 +51,17 @@ pub use shared::{LiveStatus, Shared};
 pub use snapshot::{LocaliseSnapshot, MapStageSnapshot, PlanStageSnapshot, RunSnapshot};
 
 /// Control period (s): the follower runs at 20 Hz.
-pub const CONTROL_PERIOD: f64 = 0.05;
+pub(crate) const CONTROL_PERIOD: f64 = 0.05;
 /// Encoder polling period (s).
-pub const MOTOR_POLL_PERIOD: f64 = 0.02;
+pub(crate) const MOTOR_POLL_PERIOD: f64 = 0.02;
 /// Time the robot reverses after a bumper contact (s).
-pub const BUMP_BACKOFF: f64 = 1.0;
+pub(crate) const BUMP_BACKOFF: f64 = 1.0;
 /// Longest time it keeps reversing while the bumper stays closed (s): a
 /// contact far to the side is not freed by the first 5 cm straight back, and
 /// the bumper gate lets the wheels do nothing but reverse until it is.
-pub const BUMP_BACKOFF_MAX: f64 = 6.0;
+pub(crate) const BUMP_BACKOFF_MAX: f64 = 6.0;
 /// Longest range merged into the map (m).
-pub const MAP_MAX_RANGE: f64 = 5.0;
+pub(crate) const MAP_MAX_RANGE: f64 = 5.0;
 
 /// Why the daemon could not start.
 #[derive(Debug, thiserror::Error)]

@@ -10,11 +10,11 @@ use super::shared::LiveStatus;
 use crate::robot::RobotParams;
 
 /// Name of the file in the run folder.
-pub const MOUNT_FILE: &str = "mount.toml";
+pub(crate) const MOUNT_FILE: &str = "mount.toml";
 
 /// The `mount.toml` text for a run configured with `robot` whose checks
 /// left `status`; `None` when no check measured anything.
-pub fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
+pub(crate) fn mount_toml(robot: &RobotParams, status: &LiveStatus) -> Option<String> {
     let (offset, travel, turn) = (status.offset_fit, status.travel_fit, status.turn_ratio);
     if offset.is_none() && travel.is_none() && turn.is_none() {
         return None;

@@ -8,20 +8,20 @@ use super::stuck::STUCK_AFTER;
 use crate::param_check::{invalid, ParamError};
 
 /// Longest `daemon.stuck_after` accepted (clock s).
-pub const MAX_STUCK_AFTER: f64 = 3600.0;
+pub(crate) const MAX_STUCK_AFTER: f64 = 3600.0;
 
 /// Default of `daemon.scan_timeout` (clock s): ten scan periods of the
 /// URG-04LX.
-pub const SCAN_TIMEOUT: f64 = 1.0;
+pub(crate) const SCAN_TIMEOUT: f64 = 1.0;
 
 /// Longest `daemon.scan_timeout` accepted (clock s).
-pub const MAX_SCAN_TIMEOUT: f64 = 10.0;
+pub(crate) const MAX_SCAN_TIMEOUT: f64 = 10.0;
 
 /// Default of `daemon.plan_interval` (clock s): five plans a second.
-pub const PLAN_INTERVAL: f64 = 0.2;
+pub(crate) const PLAN_INTERVAL: f64 = 0.2;
 
 /// Longest `daemon.plan_interval` accepted (clock s).
-pub const MAX_PLAN_INTERVAL: f64 = 10.0;
+pub(crate) const MAX_PLAN_INTERVAL: f64 = 10.0;
 
 /// The `[daemon]` table.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]

@@ -132,7 +132,7 @@ pub fn load(store: &CheckpointStore, heartbeat: &CheckpointStore) -> Option<Resu
 /// refitted from, else the configured one (the configuration changed since
 /// the checkpoint, e.g. to the values the run folder's `mount.toml` gave:
 /// it wins).
-pub fn resumed_mount(configured: Pose, record: Option<&MountRecord>) -> Pose {
+pub(crate) fn resumed_mount(configured: Pose, record: Option<&MountRecord>) -> Pose {
     let Some(r) = record else {
         return configured;
     };
@@ -158,7 +158,7 @@ pub fn resumed_mount(configured: Pose, record: Option<&MountRecord>) -> Pose {
 /// check (before a checkpoint) rather than from `[robot]`: a yaw refitted
 /// later then turns that offset back, as it does within one run (an
 /// offset fitted under a wrong yaw is turned by the error).
-pub fn offset_was_fitted(configured: &Pose, driving: &Pose) -> bool {
+pub(crate) fn offset_was_fitted(configured: &Pose, driving: &Pose) -> bool {
     (driving.translation.vector - configured.translation.vector).norm() > 1e-9
 }
 

@@ -71,7 +71,7 @@ impl OdomLog {
     /// at `sweep_end`, read under one lock so that its parts agree (a
     /// reading arriving between two reads could otherwise mark a held pose
     /// as measured).
-    pub fn for_scan(&self, stamp: f64, sweep_end: f64) -> ScanOdometry {
+    pub(crate) fn for_scan(&self, stamp: f64, sweep_end: f64) -> ScanOdometry {
         let q = lock(&self.inner);
         ScanOdometry {
             pose: pose_at(&q, stamp),
@@ -83,7 +83,7 @@ impl OdomLog {
 
 /// The odometry a scan is paired with ([`OdomLog::for_scan`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ScanOdometry {
+pub(crate) struct ScanOdometry {
     /// The odometry pose at the scan's time, interpolated between the two
     /// readings around it (the newest reading when none came after it).
     pub pose: Pose,
@@ -263,10 +263,10 @@ pub struct Shared {
     /// Set on shutdown: control sends only stops from now on.
     pub halt: AtomicBool,
     /// Bumper or wheel-drop latched: clock time (f64 bits) of the last event.
-    pub bumped_at: AtomicU64,
+    pub(crate) bumped_at: AtomicU64,
     /// The bumper is closed now (set on a bumper event, cleared when the
     /// base reports it released): the gate lets the wheels only reverse.
-    pub bumper_closed: AtomicBool,
+    pub(crate) bumper_closed: AtomicBool,
     /// Paths the control stage gave up for lack of headway.
     pub stuck_paths: AtomicU64,
     /// Times the control stage held the wheels for lack of scans.
@@ -325,7 +325,7 @@ impl std::fmt::Debug for ScanObserver {
 
 impl Shared {
     /// Runs `f` on the newest scan's points ahead (the protective field).
-    pub fn with_ahead<T>(
+    pub(crate) fn with_ahead<T>(
         &self,
         f: impl FnOnce(&mut crate::control::guard::ObstaclePoints) -> T,
     ) -> T {
@@ -343,7 +343,7 @@ impl Shared {
     }
 
     /// Sets the follower's progress.
-    pub fn set_progress(&self, p: Progress) {
+    pub(crate) fn set_progress(&self, p: Progress) {
         *lock(&self.progress) = p;
     }
 
@@ -353,12 +353,12 @@ impl Shared {
     }
 
     /// Stores the wheel-base link counters.
-    pub fn set_base_health(&self, h: crate::motor::LinkHealth) {
+    pub(crate) fn set_base_health(&self, h: crate::motor::LinkHealth) {
         *lock(&self.base_health) = h;
     }
 
     /// Records a localised pose (when asked to keep them).
-    pub fn note_fix(&self, stamp: f64, p: Pose) {
+    pub(crate) fn note_fix(&self, stamp: f64, p: Pose) {
         if self.keep_fixes.load(Ordering::Relaxed) {
             lock(&self.fixes).push((stamp, p));
         }
@@ -372,7 +372,7 @@ impl Shared {
     /// The control stage's last pose carried on by the odometry read since
     /// (the control stage may not have run for a while on a loaded host),
     /// and whether it rests on a matched scan.
-    pub fn pose_now(&self) -> (Pose, bool) {
+    pub(crate) fn pose_now(&self) -> (Pose, bool) {
         let (p, t, localised) = self.with_status(|s| (s.pose, s.pose_time, s.localised));
         (
             carried(&p, &self.odom.at(t), &self.odom.latest()),
@@ -381,12 +381,12 @@ impl Shared {
     }
 
     /// Records a bumper or wheel-drop event at clock time `t`.
-    pub fn note_bump(&self, t: f64) {
+    pub(crate) fn note_bump(&self, t: f64) {
         self.bumped_at.store(t.to_bits(), Ordering::Relaxed);
     }
 
     /// Clock time of the last bump (−∞ when none).
-    pub fn last_bump(&self) -> f64 {
+    pub(crate) fn last_bump(&self) -> f64 {
         let b = self.bumped_at.load(Ordering::Relaxed);
         if b == 0 {
             f64::NEG_INFINITY

@@ -8,13 +8,13 @@ use std::path::PathBuf;
 
 /// Throttling counters of a cgroup.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Throttling {
+pub(crate) struct Throttling {
     /// Enforcement periods that elapsed (0 without a quota).
     pub periods: u64,
     /// Periods in which the cgroup ran out of quota.
-    pub throttled: u64,
+    pub(crate) throttled: u64,
     /// Total time the cgroup was held back (µs).
-    pub throttled_us: u64,
+    pub(crate) throttled_us: u64,
 }
 
 impl Throttling {
@@ -30,7 +30,7 @@ impl Throttling {
 
 /// Parses a `cpu.stat` file: v2 (`nr_periods`, `nr_throttled`,
 /// `throttled_usec`) or v1 (`throttled_time` in ns). Unknown lines are ignored.
-pub fn parse_cpu_stat(text: &str) -> Throttling {
+pub(crate) fn parse_cpu_stat(text: &str) -> Throttling {
     let mut t = Throttling::default();
     for line in text.lines() {
         let mut it = line.split_whitespace();
@@ -78,7 +78,7 @@ fn candidates(proc_cgroup: &str) -> Vec<PathBuf> {
 }
 
 /// The throttling counters of this process's cgroup, if readable.
-pub fn read_throttling() -> Option<Throttling> {
+pub(crate) fn read_throttling() -> Option<Throttling> {
     let pc = std::fs::read_to_string("/proc/self/cgroup").ok()?;
     candidates(&pc)
         .into_iter()

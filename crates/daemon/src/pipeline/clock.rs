@@ -17,11 +17,6 @@ impl Stamp {
         Stamp(read_clock(libc::CLOCK_MONOTONIC))
     }
 
-    /// Nanoseconds since boot (the clock's origin).
-    pub fn nanos(self) -> u64 {
-        self.0
-    }
-
     /// Time from `earlier` to `self`, zero if `earlier` is later.
     pub fn since(self, earlier: Stamp) -> Duration {
         Duration::from_nanos(self.0.saturating_sub(earlier.0))

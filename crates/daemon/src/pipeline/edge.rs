@@ -266,7 +266,7 @@ impl<T> Tx<T> {
 
     /// A function returning the current queue depth, for the supervisor. It
     /// holds a receiver clone, so it never keeps the consumer's end open.
-    pub fn depth_probe(&self) -> impl Fn() -> usize + Send + 'static
+    pub(crate) fn depth_probe(&self) -> impl Fn() -> usize + Send + 'static
     where
         T: Send + 'static,
     {
@@ -307,7 +307,7 @@ impl<T> Rx<T> {
 
     /// Takes the newest queued message, dropping (and counting) older ones:
     /// for a consumer that only ever wants the latest state.
-    pub fn try_recv_newest(&self) -> Recv<T> {
+    pub(crate) fn try_recv_newest(&self) -> Recv<T> {
         let mut last = self.try_recv();
         if !matches!(last, Recv::Msg(_)) {
             return last;
@@ -337,11 +337,6 @@ impl<T> Rx<T> {
     /// inputs. Messages taken through it directly are not counted as received.
     pub fn inner(&self) -> &crossbeam_channel::Receiver<T> {
         &self.rx
-    }
-
-    /// Counts a message taken through [`Rx::inner`] as received.
-    pub fn note_received(&self) {
-        self.stats.received.fetch_add(1, Ordering::Relaxed);
     }
 
     /// The edge's counters.

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 /// Highest latency a histogram tracks; longer values saturate at it (a stage
 /// stuck this long is stalled anyway).
-pub const HIGHEST_NS: u64 = 10_000_000_000;
+pub(crate) const HIGHEST_NS: u64 = 10_000_000_000;
 /// Significant decimal digits kept (0.1 % value resolution).
 const SIGFIG: u8 = 3;
 
@@ -105,7 +105,7 @@ impl LatencyHistogram {
     }
 
     /// The recorded values as (value ns, count) pairs, for the metrics file.
-    pub fn to_buckets(&self) -> Buckets {
+    pub(crate) fn to_buckets(&self) -> Buckets {
         Buckets(
             self.0
                 .iter_recorded()
@@ -236,13 +236,13 @@ pub struct SupervisorMetrics {
 /// CPU throttling of the daemon's cgroup during the run (`CPUQuota=`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct ThrottleMetrics {
+pub(crate) struct ThrottleMetrics {
     /// Quota enforcement periods elapsed (0 without a quota).
     pub periods: u64,
     /// Periods that ran out of quota.
-    pub throttled: u64,
+    pub(crate) throttled: u64,
     /// Time held back (s).
-    pub throttled_time: f64,
+    pub(crate) throttled_time: f64,
 }
 
 /// CPU time of the process's threads of one name since the pipeline
@@ -279,7 +279,7 @@ pub struct MetricsSnapshot {
     /// Supervisor counters.
     pub supervisor: SupervisorMetrics,
     /// cgroup CPU throttling, where the cgroup's `cpu.stat` is readable.
-    pub throttling: Option<ThrottleMetrics>,
+    pub(crate) throttling: Option<ThrottleMetrics>,
     /// Seconds of the run's clock per wall-clock second: 1 on a robot, the
     /// simulator's `--speed` in a simulation (0 in files written before it
     /// was recorded: read as 1).
@@ -287,7 +287,7 @@ pub struct MetricsSnapshot {
 }
 
 /// Version written into metrics files by this build.
-pub const METRICS_VERSION: u32 = 1;
+pub(crate) const METRICS_VERSION: u32 = 1;
 
 /// File name of the metrics file inside a run folder.
 pub const METRICS_FILE: &str = "metrics.toml";

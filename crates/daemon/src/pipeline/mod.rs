@@ -60,7 +60,7 @@
 //! # Ok::<(), sweepline_daemon::pipeline::PipelineError>(())
 //! ```
 
-pub mod cgroup;
+pub(crate) mod cgroup;
 pub mod checkpoint;
 pub mod clock;
 pub mod edge;
@@ -113,7 +113,7 @@ pub enum PipelineError {
 /// Counters the supervisor keeps, stored with the pipeline so every snapshot
 /// carries them.
 #[derive(Debug, Default)]
-pub struct SupervisorCounters {
+pub(crate) struct SupervisorCounters {
     /// `WATCHDOG=1` sent.
     pub watchdog_pets: AtomicU64,
     /// Checks that found a stalled stage.
@@ -245,20 +245,15 @@ impl Pipeline {
     }
 
     /// The supervisor's counters.
-    pub fn supervisor_counters(&self) -> &Arc<SupervisorCounters> {
+    pub(crate) fn supervisor_counters(&self) -> &Arc<SupervisorCounters> {
         &self.supervisor
     }
 
     /// Stages whose heartbeat is older than `pipeline.stall_after` or that
     /// are not running, at time `now`.
-    pub fn unhealthy(&self, now: Stamp) -> impl Iterator<Item = &Arc<StageHealth>> {
+    pub(crate) fn unhealthy(&self, now: Stamp) -> impl Iterator<Item = &Arc<StageHealth>> {
         let stall = Duration::from_secs_f64(self.params.stall_after);
         self.stages().filter(move |s| !s.is_fresh(now, stall))
-    }
-
-    /// The shared stop flag: set, every stage loop ends within one poll timeout.
-    pub fn stop_flag(&self) -> Arc<AtomicBool> {
-        Arc::clone(&self.stop)
     }
 
     /// A snapshot of every counter and histogram (histograms as last

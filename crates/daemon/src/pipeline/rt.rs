@@ -7,7 +7,7 @@
 use std::io;
 
 /// Puts the calling thread under `SCHED_FIFO` at `priority` (1..=99).
-pub fn set_fifo(priority: i32) -> io::Result<()> {
+pub(crate) fn set_fifo(priority: i32) -> io::Result<()> {
     let param = libc::sched_param {
         sched_priority: priority,
     };

@@ -45,7 +45,7 @@ impl Drop for SignalForwarder {
 }
 
 /// Name of a signal number for messages.
-pub fn signal_name(sig: i32) -> &'static str {
+pub(crate) fn signal_name(sig: i32) -> &'static str {
     match sig {
         SIGTERM => "SIGTERM",
         SIGINT => "SIGINT",

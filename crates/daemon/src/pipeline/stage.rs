@@ -80,7 +80,7 @@ const PUBLISH_EVERY: Duration = Duration::from_millis(200);
 
 /// Degradation policy and budget of one stage.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StageBudget {
+pub(crate) struct StageBudget {
     /// Longest a work item may take.
     pub budget: Duration,
     /// Consecutive overruns that raise the level by one.
@@ -125,7 +125,7 @@ pub struct StageHealth {
 }
 
 impl StageHealth {
-    pub(crate) fn new(name: &str, budget: Duration) -> Self {
+    pub fn new(name: &str, budget: Duration) -> Self {
         Self {
             name: name.to_string(),
             budget,
@@ -190,13 +190,13 @@ impl StageHealth {
     }
 
     /// When the stage failed; `None` while it has not.
-    pub fn failed_at(&self) -> Option<Stamp> {
+    pub(crate) fn failed_at(&self) -> Option<Stamp> {
         let t = self.failed_at.load(Ordering::Acquire);
         (t != u64::MAX).then_some(Stamp(t))
     }
 
     /// Whether the stage is running and its heartbeat is younger than `stall_after`.
-    pub fn is_fresh(&self, now: Stamp, stall_after: Duration) -> bool {
+    pub(crate) fn is_fresh(&self, now: Stamp, stall_after: Duration) -> bool {
         self.state() == RunState::Running && now.since(self.heartbeat()) <= stall_after
     }
 

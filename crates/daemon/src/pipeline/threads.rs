@@ -10,17 +10,17 @@ use std::collections::BTreeMap;
 /// Name prefixes of the threads of in-process device emulators (the
 /// simulator's RoboClaw and Create 2 bases, its URG-04LX): not part of the
 /// daemon that runs on a robot.
-pub const EMULATOR_PREFIXES: [&str; 2] = ["emu-", "urg-emulator"];
+pub(crate) const EMULATOR_PREFIXES: [&str; 2] = ["emu-", "urg-emulator"];
 
 /// Whether `name` is an in-process device emulator's thread.
-pub fn is_emulator(name: &str) -> bool {
+pub(crate) fn is_emulator(name: &str) -> bool {
     EMULATOR_PREFIXES.iter().any(|p| name.starts_with(p))
 }
 
 /// Name and CPU time (user + system, s) from the text of one
 /// `/proc/<pid>/task/<tid>/stat` file; `ticks` is the kernel's clock ticks
 /// per second. `None` when the text is not such a line.
-pub fn parse_stat(text: &str, ticks: f64) -> Option<(String, f64)> {
+pub(crate) fn parse_stat(text: &str, ticks: f64) -> Option<(String, f64)> {
     // The name (comm) is in parentheses and may itself hold ") ".
     let open = text.find('(')?;
     let close = text.rfind(')')?;
@@ -33,7 +33,7 @@ pub fn parse_stat(text: &str, ticks: f64) -> Option<(String, f64)> {
 }
 
 /// CPU time (s) of each live thread of this process, by thread id.
-pub fn read_threads() -> BTreeMap<u32, (String, f64)> {
+pub(crate) fn read_threads() -> BTreeMap<u32, (String, f64)> {
     let mut out = BTreeMap::new();
     // SAFETY: sysconf only reads a system constant.
     let ticks = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
@@ -55,7 +55,7 @@ pub fn read_threads() -> BTreeMap<u32, (String, f64)> {
 
 /// CPU (s) by thread name since `base` (an earlier [`read_threads`]),
 /// summed over threads of one name, largest first.
-pub fn cpu_by_name(base: &BTreeMap<u32, (String, f64)>) -> Vec<(String, f64)> {
+pub(crate) fn cpu_by_name(base: &BTreeMap<u32, (String, f64)>) -> Vec<(String, f64)> {
     let mut by_name: BTreeMap<String, f64> = BTreeMap::new();
     for (tid, (name, cpu)) in read_threads() {
         let before = base

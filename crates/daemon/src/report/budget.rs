@@ -16,7 +16,7 @@ use crate::pipeline::checkpoint::ResumeLog;
 use crate::pipeline::metrics::{LatencyHistogram, MetricsSnapshot, Quantiles, METRICS_FILE};
 
 /// Target p99 of the end-to-end latency (scan's last byte → wheel command), s.
-pub const END_TO_END_P99_TARGET: f64 = 0.005;
+pub(crate) const END_TO_END_P99_TARGET: f64 = 0.005;
 
 /// File name of the Markdown report.
 pub const REPORT_FILE: &str = "report.md";
@@ -74,7 +74,7 @@ pub fn histogram_file(stage: &str) -> String {
 }
 
 /// The Markdown text of the report.
-pub fn budget_markdown(s: &MetricsSnapshot) -> String {
+pub(crate) fn budget_markdown(s: &MetricsSnapshot) -> String {
     let mut md = String::new();
     let share = s.cpu_share();
     let _ = writeln!(md, "# Latency and CPU budget\n");

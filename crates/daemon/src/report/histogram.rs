@@ -18,7 +18,7 @@ const BOTTOM: f64 = 60.0;
 const BINS_PER_DECADE: f64 = 10.0;
 
 /// A time in engineering units: `850 ns`, `12.3 µs`, `4.56 ms`, `1.20 s`.
-pub fn fmt_duration(secs: f64) -> String {
+pub(crate) fn fmt_duration(secs: f64) -> String {
     let a = secs.abs();
     if a == 0.0 {
         "0".into()
@@ -39,7 +39,7 @@ fn text(x: f64, y: f64, s: &str, size: u32, anchor: &str) -> Text {
 
 /// Histogram of `hist` titled `title`, with a limit (a stage budget, a
 /// target) marked and labelled when given.
-pub fn latency_svg(
+pub(crate) fn latency_svg(
     title: &str,
     hist: &LatencyHistogram,
     limit: Option<(&str, Duration)>,

@@ -102,7 +102,7 @@ fn entry_markdown(md: &mut String, e: &ResumeEntry) {
 }
 
 /// The Markdown section for a run's resumes (`None`: a fresh start).
-pub fn resume_markdown(log: Option<&ResumeLog>) -> String {
+pub(crate) fn resume_markdown(log: Option<&ResumeLog>) -> String {
     let mut md = String::from("## Checkpoint and resume\n\n");
     let Some(log) = log.filter(|l| !l.resume.is_empty()) else {
         md += "Restarts: **0**. The run started fresh (it did not resume from a checkpoint).\n";

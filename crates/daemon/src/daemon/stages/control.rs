@@ -51,9 +51,9 @@ pub struct ControlStage {
     /// Control period (clock s).
     pub period: f64,
     /// Clock time of the next tick.
-    pub next_tick: f64,
+    pub(crate) next_tick: f64,
     /// Clock time of the last command.
-    pub last_cmd: f64,
+    pub(crate) last_cmd: f64,
     /// The newest pose fix.
     pub fix: Option<PoseFix>,
     /// Where the robot started (used before the first fix).
@@ -67,7 +67,7 @@ pub struct ControlStage {
     /// Last pose estimate (for the path length).
     pub last_pose: Option<Pose>,
     /// Clock time of the last bump handled.
-    pub bump_seen: f64,
+    pub(crate) bump_seen: f64,
     /// Headway on the current path.
     pub watch: ProgressWatch,
     /// Clock seconds without a new scan after which the wheels are held.
@@ -77,7 +77,7 @@ pub struct ControlStage {
     /// The protective field's stops.
     pub guard: StopCounter,
     /// Whether the log has said that the scans do not span the way ahead.
-    pub blind_ahead_told: bool,
+    pub(crate) blind_ahead_told: bool,
 }
 
 impl ControlStage {

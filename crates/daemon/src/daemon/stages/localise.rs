@@ -32,9 +32,9 @@ pub struct LocaliseStage {
     /// Scans in.
     pub rx: Rx<ScanMsg>,
     /// Pose fixes to control.
-    pub to_control: Tx<PoseFix>,
+    pub(crate) to_control: Tx<PoseFix>,
     /// Registered scans to the map.
-    pub to_map: Tx<MapMsg>,
+    pub(crate) to_map: Tx<MapMsg>,
     /// Shared state.
     pub shared: Arc<Shared>,
     /// Pose of the scanner in the robot frame: the configured (or resumed)
@@ -55,11 +55,11 @@ pub struct LocaliseStage {
     pub wheel_radius: f64,
     /// Whether offset and yaw errors the checks measure are taken into the
     /// mount for the rest of the run (`daemon.fit_scanner_mount`).
-    pub fit_mount: bool,
+    pub(crate) fit_mount: bool,
     /// Least information a match's weakest direction must hold
     /// ([`crate::icp::Quality::min_eigenvalue`]) for its scan to count in
     /// the offset and yaw checks (see [`pins_the_pose`]).
-    pub check_min_information: f64,
+    pub(crate) check_min_information: f64,
     /// Whether scans are deskewed by the odometry's motion before use
     /// (`daemon.deskew_scans`).
     pub deskew: bool,
@@ -67,10 +67,10 @@ pub struct LocaliseStage {
     pub points: Vec<IPoint>,
     /// The restored map of a resumed run: the first scan is laid onto it
     /// (see [`crate::daemon::relocalise`]) before tracking starts.
-    pub relocalise_on: Option<Arc<Grid>>,
+    pub(crate) relocalise_on: Option<Arc<Grid>>,
     /// Whether to publish the tracker's keyframes for checkpoints (each
     /// time one is added).
-    pub publish_keyframes: bool,
+    pub(crate) publish_keyframes: bool,
     /// The tracker's keyframes as of its newest one, for the snapshot
     /// (kept rather than taken at each snapshot: a copy of every keyframe);
     /// those restored until then.
@@ -79,7 +79,7 @@ pub struct LocaliseStage {
     pub last_stamp: Option<f64>,
     /// Scans in a row whose match was not accepted (the pose followed the
     /// odometry), for the warning that names why.
-    pub unmatched_run: u32,
+    pub(crate) unmatched_run: u32,
     /// At a fresh start, until decided: turns the map frame to the walls
     /// of the first scans before tracking starts (see [`crate::daemon::align`]).
     pub align: Option<crate::daemon::align::WallAlign>,
@@ -92,7 +92,7 @@ pub struct LocaliseStage {
     pub offset_check: crate::daemon::offset_check::OffsetCheck,
     /// The mount's offset was refitted by the offset check (in this run, or
     /// before the checkpoint it resumed from).
-    pub offset_fitted: bool,
+    pub(crate) offset_fitted: bool,
 }
 
 impl LocaliseStage {
@@ -127,7 +127,7 @@ impl LocaliseStage {
 
     /// Picks up a resumed run, the robot at `pose` on the restored `map`:
     /// drives with the mount refitted before the checkpoint while the
-    /// configured one is unchanged (see [`crate::daemon::resume::resumed_mount`]),
+    /// configured one is unchanged (see `crate::daemon::resume::resumed_mount`),
     /// tracks against the restored keyframes, and lays the first scan onto
     /// `map` before tracking (the frame is the crashed run's: no turn to
     /// the walls). The error: the tracker's settings are refused.
@@ -457,7 +457,7 @@ impl LocaliseStage {
 }
 
 /// Moves the beams of `scan` to where the scanner was at its stamp, for a
-/// robot that moved by `motion` over a [`MOTION_WINDOW`] (its odometry
+/// robot that moved by `motion` over a `MOTION_WINDOW` (its odometry
 /// over the window ending with the sweep, [`ScanMsg::motion`]) at a steady
 /// velocity, with the scanner at `mount` on it.
 pub fn deskew(scan: &mut LaserScan, motion: &Pose, mount: &Pose) {

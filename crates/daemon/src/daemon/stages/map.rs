@@ -33,7 +33,7 @@ pub struct MapStage {
     /// even when later rays pass over them.
     pub contacts: Vec<ContactMark>,
     /// Contacts that were new (not a repeat of a marked one).
-    pub new_contacts: u64,
+    pub(crate) new_contacts: u64,
     /// A contact this close to a marked one is a repeat of it (m).
     pub same_contact: f64,
     /// Requests to take a mark out handled (see [`MapSnapshot::retired`]).

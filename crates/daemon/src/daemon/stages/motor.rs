@@ -38,7 +38,7 @@ pub struct MotorStage {
     /// Commands in.
     pub rx: Rx<CmdMsg>,
     /// Bumper contacts to the map.
-    pub to_map: Tx<MapMsg>,
+    pub(crate) to_map: Tx<MapMsg>,
     /// Shared state.
     pub shared: Arc<Shared>,
     /// The injected clock.
@@ -46,13 +46,13 @@ pub struct MotorStage {
     /// Encoder polling period (clock s).
     pub period: f64,
     /// Clock time of the next poll.
-    pub next_poll: f64,
+    pub(crate) next_poll: f64,
     /// Robot radius (m): where a bumper contact is.
     pub radius: f64,
     /// Wheel base (m).
     pub wheel_base: f64,
     /// The last wheel speeds commanded.
-    pub last_wheels: WheelSpeeds,
+    pub(crate) last_wheels: WheelSpeeds,
     /// The wheels' measured motion: what a contact interrupted.
     pub motion: MotionMemory,
     /// Where the body has been (rules out contact bearings).

@@ -42,7 +42,7 @@ pub struct PlanStage {
     /// The injected clock.
     pub clock: SharedClock,
     /// Shortest time between two planning updates (clock s).
-    pub min_interval: f64,
+    pub(crate) min_interval: f64,
     /// Clock time of the last update.
     pub last: f64,
     /// Sequence number of the last path sent.
@@ -53,21 +53,21 @@ pub struct PlanStage {
     /// before the first): the next one reuses what did not change.
     pub(crate) records: PlanSnapshot,
     /// New bumper contacts the planner has been told of.
-    pub contacts_seen: u64,
+    pub(crate) contacts_seen: u64,
     /// Clock time of the last bump whose contact the planner has seen.
-    pub bump_handled: f64,
+    pub(crate) bump_handled: f64,
     /// Longest a plan update waits for a bump's contact to reach the map
     /// (clock s).
-    pub contact_settle: f64,
+    pub(crate) contact_settle: f64,
     /// Contact marks that wall off floor, taken out once at the end.
     pub probe: MarkProbe,
 }
 
 /// The plan stage's second look at bumper contact marks when coverage is
-/// otherwise done (see [`MarkProbe::walled_floor`]).
+/// otherwise done (see `MarkProbe::walled_floor`).
 pub struct MarkProbe {
     /// Requests to take a contact mark out go to the map stage here.
-    pub to_map: Tx<MapMsg>,
+    pub(crate) to_map: Tx<MapMsg>,
     /// Whether marks that wall off floor are taken out at all.
     pub on: bool,
     /// Least floor a mark must wall off to be taken out (m²): as much as
@@ -77,11 +77,11 @@ pub struct MarkProbe {
     /// behind it has had its try.
     pub spacing: f64,
     /// Where marks were taken out.
-    pub probed: Vec<Point2<f64>>,
+    pub(crate) probed: Vec<Point2<f64>>,
     /// Requests to take a mark out sent so far.
     pub sent: u64,
     /// Clock time of the last such request.
-    pub sent_at: f64,
+    pub(crate) sent_at: f64,
 }
 
 impl Stage for PlanStage {
@@ -335,7 +335,7 @@ impl MarkProbe {
     /// (the obstacle's own, free in the map): one mark per end of coverage,
     /// the one walling off the most, and none within `spacing` of a place
     /// tried before, so an obstacle costs at most one more bump.
-    pub fn walled_floor(
+    pub(crate) fn walled_floor(
         &mut self,
         planner: &CoveragePlanner,
         shared: &Shared,
@@ -381,7 +381,12 @@ impl MarkProbe {
     /// Takes the mark at `at` (chosen by [`Self::walled_floor`]) out of the
     /// map and reopens the `planner` around it; true when the request went
     /// (coverage goes on).
-    pub fn take_out(&mut self, at: Point2<f64>, planner: &mut CoveragePlanner, now: f64) -> bool {
+    pub(crate) fn take_out(
+        &mut self,
+        at: Point2<f64>,
+        planner: &mut CoveragePlanner,
+        now: f64,
+    ) -> bool {
         if self.to_map.send(MapMsg::Retire(at)).is_err() {
             return false;
         }

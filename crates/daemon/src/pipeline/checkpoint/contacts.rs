@@ -4,14 +4,14 @@
 //! them occupied.
 //!
 //! Payload, version 1: [`ContactArcs`] in postcard: the number of marks (at
-//! most [`MAX_CONTACTS`]; the oldest are written when there are more), then
+//! most `MAX_CONTACTS`; the oldest are written when there are more), then
 //! per mark the robot centre (x, y), the contact point (x, y) and the half
 //! length of the marked arc, all f64 in metres, map frame.
 //!
 //! Section `daemon.contacts_tried` ([`TriedPlaces`]), version 1: where marks
 //! were taken out to try the floor they walled off, so that a resumed run
 //! does not try one place again. Payload: the number of places (at most
-//! [`MAX_CONTACTS`]), then per place (x, y), f64 in metres, map frame.
+//! `MAX_CONTACTS`), then per place (x, y), f64 in metres, map frame.
 
 use nalgebra::Point2;
 
@@ -22,11 +22,11 @@ use super::Section;
 use crate::daemon::contact::ContactMark;
 
 /// Most marks a checkpoint may hold (a run bumps a few dozen times at most).
-pub const MAX_CONTACTS: u32 = 4096;
+pub(crate) const MAX_CONTACTS: u32 = 4096;
 /// Longest half arc accepted (m).
-pub const MAX_HALF_LENGTH: f64 = 0.5;
+pub(crate) const MAX_HALF_LENGTH: f64 = 0.5;
 /// Farthest a contact point may lie from the robot centre (m).
-pub const MAX_REACH: f64 = 2.0;
+pub(crate) const MAX_REACH: f64 = 2.0;
 
 /// Writes at most the first [`MAX_CONTACTS`] records of `v`, so that a run
 /// with more still writes its checkpoints.

@@ -9,7 +9,7 @@
 //! frame and intensity as f32), their normals' directions
 //! ([`sweepline_core::stored::normal_directions`]: f32, `None` where
 //! unknown) and their intensity-edge flags (one bit each). At most
-//! [`MAX_KEYFRAMES`] keyframes of at most [`MAX_KEYFRAME_POINTS`] points.
+//! `MAX_KEYFRAMES` keyframes of at most `MAX_KEYFRAME_POINTS` points.
 //! Singles keep a 40-keyframe window of URG-04LX scans near 400 kB
 //! (micrometres at 100 m are far below the scanner's centimetre noise).
 
@@ -19,9 +19,9 @@ use crate::capacity::MAX_BEAMS;
 use crate::icp::TrackerState;
 
 /// Most keyframes a checkpoint may restore.
-pub const MAX_KEYFRAMES: usize = 64;
+pub(crate) const MAX_KEYFRAMES: usize = 64;
 /// Most points one keyframe may hold (one scan's beams).
-pub const MAX_KEYFRAME_POINTS: usize = MAX_BEAMS;
+pub(crate) const MAX_KEYFRAME_POINTS: usize = MAX_BEAMS;
 
 impl Section for TrackerState {
     const NAME: &'static str = "icp.keyframes";

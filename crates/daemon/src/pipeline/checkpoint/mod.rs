@@ -44,7 +44,7 @@ pub mod keyframes;
 mod lattice;
 pub mod mount;
 mod reach;
-pub mod resume_log;
+pub(crate) mod resume_log;
 mod sections;
 mod swept;
 mod tries;
@@ -70,11 +70,11 @@ pub const FORMAT_VERSION: u16 = 2;
 /// and a full keyframe window fit many times over.
 pub const MAX_PAYLOAD: usize = 256 << 20;
 /// Most sections a checkpoint may hold.
-pub const MAX_SECTIONS: u32 = 256;
+pub(crate) const MAX_SECTIONS: u32 = 256;
 /// Longest section name.
-pub const MAX_NAME: usize = 48;
+pub(crate) const MAX_NAME: usize = 48;
 /// Largest checkpoint file the reader accepts (bytes).
-pub const MAX_FILE_BYTES: u64 = 512 << 20;
+pub(crate) const MAX_FILE_BYTES: u64 = 512 << 20;
 /// Size of the fixed header.
 const HEADER: usize = 16;
 
@@ -127,7 +127,7 @@ pub enum CheckpointError {
         /// Version this build reads.
         supported: u16,
     },
-    /// The file is larger than [`MAX_FILE_BYTES`].
+    /// The file is larger than `MAX_FILE_BYTES`.
     #[error("checkpoint is {0} bytes, more than the {MAX_FILE_BYTES} bytes accepted")]
     TooLarge(u64),
     /// Neither the checkpoint nor its previous copy is usable.
@@ -496,7 +496,7 @@ pub struct CheckpointStore {
 
 impl CheckpointStore {
     /// The default file name inside the state folder.
-    pub const DEFAULT_NAME: &'static str = "checkpoint.swc";
+    pub(crate) const DEFAULT_NAME: &'static str = "checkpoint.swc";
 
     /// A store for `dir/checkpoint.swc`.
     pub fn new(dir: &Path) -> Self {
@@ -504,7 +504,7 @@ impl CheckpointStore {
     }
 
     /// A store for `dir/name`.
-    pub fn with_name(dir: &Path, name: &str) -> Self {
+    pub(crate) fn with_name(dir: &Path, name: &str) -> Self {
         Self {
             dir: dir.to_path_buf(),
             name: name.to_string(),
@@ -589,7 +589,7 @@ impl CheckpointStore {
     /// fsync, verification or a previous copy: for the frequent, expendable
     /// heartbeat, where a crash of the process (not of the machine) must
     /// leave either the old or the new file, never a torn one.
-    pub fn save_unsynced(&self, cp: &Checkpoint) -> Result<(), CheckpointError> {
+    pub(crate) fn save_unsynced(&self, cp: &Checkpoint) -> Result<(), CheckpointError> {
         let tmp = self.tmp_path();
         let cur = self.path();
         let io = |p: &Path| {
@@ -603,7 +603,7 @@ impl CheckpointStore {
 
     /// Reads the current file only (no fallback): `Ok(None)` when it does
     /// not exist.
-    pub fn read_current(&self) -> Result<Option<Checkpoint>, CheckpointError> {
+    pub(crate) fn read_current(&self) -> Result<Option<Checkpoint>, CheckpointError> {
         match Checkpoint::read(&self.path()) {
             Ok(cp) => Ok(Some(cp)),
             Err(CheckpointError::Io { source, .. })

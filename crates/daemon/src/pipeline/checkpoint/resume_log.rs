@@ -74,7 +74,7 @@ pub struct ResumeEntry {
     /// Which restart of the run this is (1 = the first resume).
     pub restart: u32,
     /// Wall-clock UNIX time (s) the resumed daemon started.
-    pub resumed_unix: f64,
+    pub(crate) resumed_unix: f64,
     /// The checkpoint resumed from.
     pub checkpoint: ProgressMark,
     /// The previous daemon's last heartbeat after that checkpoint (its last
@@ -96,7 +96,7 @@ impl ResumeEntry {
     }
 
     /// The same on the wall clock (s), when both times are known.
-    pub fn checkpoint_age_wall(&self) -> Option<f64> {
+    pub(crate) fn checkpoint_age_wall(&self) -> Option<f64> {
         let a = self.last_alive?.unix?;
         Some((a - self.checkpoint.unix?).max(0.0))
     }
@@ -110,7 +110,7 @@ impl ResumeEntry {
 
     /// Wall time (s) from the last sign of life (else the checkpoint) to the
     /// resume.
-    pub fn downtime(&self) -> Option<f64> {
+    pub(crate) fn downtime(&self) -> Option<f64> {
         let last = self
             .last_alive
             .and_then(|a| a.unix)
@@ -169,7 +169,7 @@ impl ResumeLog {
     /// Records a new resume in `dir`: the entries of earlier restarts of the
     /// same run are kept (an unreadable record is replaced), and `entry`
     /// is appended.
-    pub fn append(dir: &Path, entry: ResumeEntry) -> Result<Self, ResumeLogError> {
+    pub(crate) fn append(dir: &Path, entry: ResumeEntry) -> Result<Self, ResumeLogError> {
         let mut log = Self::read(dir).ok().flatten().unwrap_or_default();
         log.resume.retain(|e| e.restart < entry.restart);
         log.resume.push(entry);
