@@ -1,4 +1,4 @@
-//! The map frame's wall alignment (`daemon::align`) on real laser scans:
+//! The map frame's wall alignment (`checks::align`) on real laser scans:
 //! the corrected logs of four buildings (Kümmerle et al. 2009 benchmark),
 //! whose poses are the SLAM-optimised ones. Each scan alone gives a wall
 //! direction; added to the scan's corrected heading it is the building's
@@ -8,7 +8,7 @@
 //! left out: the Stata Center's walls run at many angles (there 55 of 82
 //! scans turn the frame, median 4.48° off the mean, p95 23.25°).
 
-use sweepline::daemon::align::{turn_to_axes, AlignStep, WallAlign};
+use sweepline::checks::align::{turn_to_axes, AlignStep, WallAlign};
 use sweepline::geom::heading;
 use sweepline::sim::carmen::{self, NO_RETURN_RANGE};
 

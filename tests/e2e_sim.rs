@@ -8,8 +8,8 @@ mod ros_map_support;
 
 use std::path::Path;
 
+use sweepline::checks::{offset_check, travel_check};
 use sweepline::config::Config;
-use sweepline::daemon::{offset_check, travel_check};
 use sweepline::motor::BaseKind;
 use sweepline::sim::closed_loop::{self, SimOptions};
 use sweepline::sim::ros_map;

@@ -216,10 +216,10 @@ pub struct SimReport {
     pub turn_ratio: Option<f64>,
     /// The scans' travel against the wheels' over the first metre driven
     /// straight (the daemon's check of the scanner's yaw; `None`: not reached).
-    pub travel_fit: Option<crate::daemon::travel_check::TravelFit>,
+    pub travel_fit: Option<sweepline_core::checks::travel_check::TravelFit>,
     /// The scanner offset the daemon fitted from its first half turn in
     /// place (`None`: not reached).
-    pub offset_fit: Option<crate::daemon::offset_check::OffsetFit>,
+    pub offset_fit: Option<sweepline_core::checks::offset_check::OffsetFit>,
     /// The scanner mount the daemon refitted from those checks (`None`: it
     /// drove with the configured one).
     pub refitted_mount: Option<Pose>,

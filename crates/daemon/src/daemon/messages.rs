@@ -89,7 +89,7 @@ pub struct MapSnapshot {
     pub contacts: u64,
     /// Requests to take a contact mark out handled so far (a planner that
     /// sent more waits for the snapshot without the mark).
-    pub retired: u64,
+    pub(crate) retired: u64,
 }
 
 /// plan → control: a path to follow.

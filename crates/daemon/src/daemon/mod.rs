@@ -19,9 +19,12 @@ pub mod shared;
 pub mod snapshot;
 pub mod stages;
 
-/// The checks beside the stages (mount, alignment, contact marks,
-/// relocalisation, stuck watch), from `sweepline-core`.
-pub use crate::checks::{
+#[cfg(test)]
+mod contacts_resume_tests;
+
+// The checks beside the stages (mount, alignment, contact marks,
+// relocalisation, stuck watch), from `sweepline-core`, by their short names.
+pub(crate) use crate::checks::{
     align, contact, offset_check, relocalise, stuck, travel_check, turn_check,
 };
 

@@ -37,7 +37,7 @@ pub struct MapStage {
     /// A contact this close to a marked one is a repeat of it (m).
     pub same_contact: f64,
     /// Requests to take a mark out handled (see [`MapSnapshot::retired`]).
-    pub retired: u64,
+    pub(crate) retired: u64,
     /// The grid as last handed to the planner (none before the first
     /// scan of a fresh run), for the snapshot.
     published: Option<Arc<Grid>>,

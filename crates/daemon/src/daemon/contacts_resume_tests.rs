@@ -1,4 +1,5 @@
-//! Bumper contact marks survive a restart: they are checkpointed in the
+//! Bumper contact marks survive a restart (tests of the map stage, the
+//! checkpoint and the resume path together): they are checkpointed in the
 //! `daemon.contacts` section, the resume path loads them, and the map stage
 //! marks them again so that the rays of later scans cannot clear them. The
 //! places where marks were taken out (`daemon.contacts_tried`) are loaded
@@ -6,18 +7,18 @@
 
 use std::sync::Arc;
 
+use crate::daemon::contact::{ContactMark, ContactParams, Known};
+use crate::daemon::messages::MapMsg;
+use crate::daemon::resume::{heartbeat_store, load};
+use crate::daemon::stages::{contact_arcs, MapStage};
+use crate::daemon::{MapStageSnapshot, Shared};
+use crate::geom::pose;
+use crate::grid::{CellState, Grid};
+use crate::motor::{Sides, WheelSpeeds};
+use crate::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress, TriedPlaces};
+use crate::pipeline::{latest, queue, Overflow};
+use crate::scan::{Beam, LaserScan};
 use nalgebra::Point2;
-use sweepline::daemon::contact::{ContactMark, ContactParams, Known};
-use sweepline::daemon::messages::MapMsg;
-use sweepline::daemon::resume::{heartbeat_store, load};
-use sweepline::daemon::stages::{contact_arcs, MapStage};
-use sweepline::daemon::{MapStageSnapshot, Shared};
-use sweepline::geom::pose;
-use sweepline::grid::{CellState, Grid};
-use sweepline::motor::{Sides, WheelSpeeds};
-use sweepline::pipeline::checkpoint::{Checkpoint, CheckpointStore, RunProgress, TriedPlaces};
-use sweepline::pipeline::{latest, queue, Overflow};
-use sweepline::scan::{Beam, LaserScan};
 
 struct TempDir(std::path::PathBuf);
 impl Drop for TempDir {
