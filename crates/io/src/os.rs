@@ -6,6 +6,11 @@
 //!
 //! None of them allocates: the clock and CPU-time reads run once per stage
 //! iteration on the scan path.
+//!
+//! The clocks and the clock ticks are `rustix`'s (safe, typed). Two calls
+//! stay on `libc`, which rustix does not cover: `getrusage` and
+//! `pthread_setschedparam` / `pthread_getschedparam` (rustix has no
+//! thread scheduling policy calls).
 
 use std::io;
 use std::time::Duration;
@@ -14,35 +19,26 @@ use std::time::Duration;
 /// [`set_thread_fifo`] was granted.
 pub const SCHED_FIFO: i32 = libc::SCHED_FIFO;
 
-/// Reads `clock` in nanoseconds; 0 if the call fails (it cannot for the
-/// clocks used here).
-fn read_clock(clock: libc::clockid_t) -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; clock_gettime only writes it.
-    let rc = unsafe { libc::clock_gettime(clock, &mut ts) };
-    if rc != 0 {
-        return 0;
-    }
-    (ts.tv_sec as u64)
+/// Reads `clock` in nanoseconds.
+fn read_clock(clock: rustix::time::ClockId) -> u64 {
+    let ts = rustix::time::clock_gettime(clock);
+    (ts.tv_sec.max(0) as u64)
         .saturating_mul(1_000_000_000)
-        .saturating_add(ts.tv_nsec as u64)
+        .saturating_add(ts.tv_nsec.max(0) as u64)
 }
 
 /// Nanoseconds on the system's monotonic clock (`CLOCK_MONOTONIC`, origin
 /// at boot): one clock shared by every thread and process, so stamps taken
 /// on different threads compare. A vDSO read, no syscall on Linux.
 pub fn monotonic_nanos() -> u64 {
-    read_clock(libc::CLOCK_MONOTONIC)
+    read_clock(rustix::time::ClockId::Monotonic)
 }
 
 /// CPU time consumed so far by the calling thread
 /// (`CLOCK_THREAD_CPUTIME_ID`), for the per-stage CPU budgets. A real
 /// syscall (not vDSO): call it once per stage iteration, not per beam.
 pub fn thread_cpu_time() -> Duration {
-    Duration::from_nanos(read_clock(libc::CLOCK_THREAD_CPUTIME_ID))
+    Duration::from_nanos(read_clock(rustix::time::ClockId::ThreadCPUTime))
 }
 
 /// CPU time (user + system) consumed so far by the whole process, all
@@ -96,9 +92,7 @@ pub fn thread_scheduling() -> io::Result<(i32, i32)> {
 /// The kernel's clock ticks per second (`sysconf(_SC_CLK_TCK)`), the unit
 /// of the CPU times in `/proc/*/stat`; `None` when the system does not say.
 pub fn clock_ticks_per_second() -> Option<u64> {
-    // SAFETY: sysconf only reads a system constant.
-    let ticks = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
-    u64::try_from(ticks).ok().filter(|&t| t > 0)
+    Some(rustix::param::clock_ticks_per_second()).filter(|&t| t > 0)
 }
 
 #[cfg(test)]
