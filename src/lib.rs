@@ -22,6 +22,8 @@
 //!    [`sim`]: worlds, kinematics, device emulators, log replay;
 //! 6. front: [`cli`] (the `sweepline` binary).
 
+#![forbid(unsafe_code)]
+
 pub mod capacity;
 pub mod cli;
 pub mod testdata;

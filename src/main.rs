@@ -1,5 +1,7 @@
 //! The `sweepline` binary: command line parsing and dispatch only.
 
+#![forbid(unsafe_code)]
+
 use clap::{Parser, Subcommand};
 use sweepline::cli;
 

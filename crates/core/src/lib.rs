@@ -23,6 +23,8 @@
 //! codecs (`sweepline-wire`) beside it, so the crate graph keeps DESIGN.md's
 //! rule that no layer calls upward.
 
+#![forbid(unsafe_code)]
+
 pub mod base;
 pub mod capacity;
 pub mod checks;

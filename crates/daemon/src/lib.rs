@@ -16,6 +16,8 @@
 //! (algorithms) and `sweepline-wire` (codecs), and cannot name the
 //! simulator or the command line (the `sweepline` crate), which sit above.
 
+#![forbid(unsafe_code)]
+
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::icp::Tracker` read the same in every crate.
 use sweepline_core::{

@@ -9,10 +9,14 @@
 //! * [`motor`]: the wheel-base drivers (RoboClaw, Create 2) over their
 //!   codecs, the `DiffDriveBase` trait, odometry and safety events;
 //! * [`clock`]: the one clock trait every driver and stage reads (real,
-//!   scaled, manual, paced by the daemon).
+//!   scaled, manual, paced by the daemon);
+//! * [`os`]: safe wrappers for the other OS calls the daemon needs (the
+//!   monotonic clock, thread and process CPU time, real-time scheduling,
+//!   clock ticks).
 //!
 //! The only sweepline crate that talks to the operating system (ports,
-//! ptys, `poll`); it sits on `sweepline-wire` (the codecs) and
+//! ptys, `poll`, clocks, scheduling) and the only one with `unsafe`: the
+//! others `#![forbid(unsafe_code)]`. It sits on `sweepline-wire` (the codecs) and
 //! `sweepline-core` (the plain data) and cannot name the pipeline, the
 //! daemon or the simulator.
 
@@ -23,5 +27,6 @@ use sweepline_wire::scip;
 
 pub mod clock;
 pub mod motor;
+pub mod os;
 pub mod serial;
 pub mod urg;

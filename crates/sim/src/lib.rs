@@ -6,6 +6,8 @@
 //! against emulated devices, and on the drivers, algorithms and codecs
 //! below; only the command line (the `sweepline` crate) sits above it.
 
+#![forbid(unsafe_code)]
+
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::config::Config` read the same in every crate.
 use sweepline_core::{capacity, control, decomp, geom, grid, plan, scan, svg_canvas};

@@ -35,8 +35,7 @@ pub(crate) fn parse_stat(text: &str, ticks: f64) -> Option<(String, f64)> {
 /// CPU time (s) of each live thread of this process, by thread id.
 pub(crate) fn read_threads() -> BTreeMap<u32, (String, f64)> {
     let mut out = BTreeMap::new();
-    // SAFETY: sysconf only reads a system constant.
-    let ticks = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
+    let ticks = sweepline_io::os::clock_ticks_per_second().map_or(0.0, |t| t as f64);
     let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
         return out;
     };

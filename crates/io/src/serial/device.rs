@@ -2,9 +2,14 @@
 //! exactly as a real scanner is: raw 8N1, exclusive (TIOCEXCL + flock, so a
 //! second opener is refused), with a read timeout. The bit rate is set but
 //! ignored by USB-CDC devices and ptys.
+//!
+//! The OS calls are `rustix`'s (safe, typed): `poll`, `read`, `fstat`,
+//! `open(O_PATH)`, `ioctl(TIOCNXCL)`. The tty itself is opened and
+//! configured by the `serialport` crate, whose port gives out only a raw fd:
+//! [`tty_fd`] borrows it, the one `unsafe` left here.
 
 use std::io::{self, Read, Write};
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
+use std::os::fd::{AsFd, AsRawFd, BorrowedFd, OwnedFd};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -18,6 +23,13 @@ pub struct DevicePort {
     tty: TTYPort,
     name: String,
     timeout: Duration,
+}
+
+/// The open fd of `tty`, borrowed for as long as `tty` is.
+fn tty_fd(tty: &TTYPort) -> BorrowedFd<'_> {
+    // SAFETY: the TTYPort owns this fd and keeps it open until it drops,
+    // which the borrow of `tty` outlives.
+    unsafe { BorrowedFd::borrow_raw(tty.as_raw_fd()) }
 }
 
 /// Opens `path` raw and exclusive at `baud` with the given read timeout.
@@ -49,11 +61,8 @@ impl Drop for DevicePort {
         // The kernel keeps a tty exclusive until its *last* close; an
         // emulator holding its own slave fd would then refuse our re-open.
         // Give the exclusivity back explicitly (the flock goes with the fd).
-        // SAFETY: TIOCNXCL takes no argument and the fd is open until the
-        // TTYPort field drops after this.
-        unsafe {
-            libc::ioctl(self.tty.as_raw_fd(), libc::TIOCNXCL);
-        }
+        // A failure leaves nothing to do: the fd closes right after.
+        let _ = rustix::termios::ioctl_tiocnxcl(tty_fd(&self.tty));
     }
 }
 
@@ -63,37 +72,26 @@ impl Read for DevicePort {
     /// timeout or EINTR costs no allocation on the scan path: errors are
     /// built from their kind only.
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let fd = self.tty.as_raw_fd();
-        let mut p = libc::pollfd {
-            fd,
-            events: libc::POLLIN,
-            revents: 0,
-        };
-        let ms = self.timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
-        // SAFETY: one valid pollfd for the duration of the call.
-        let r = unsafe { libc::poll(&mut p, 1, ms) };
-        if r < 0 {
-            return Err(io::Error::last_os_error());
-        }
+        use rustix::event::{PollFd, PollFlags};
+        let fd = tty_fd(&self.tty);
+        let mut p = [PollFd::from_borrowed_fd(fd, PollFlags::IN)];
+        let timeout = super::poll_timeout(self.timeout);
+        let r = rustix::event::poll(&mut p, Some(&timeout))?;
         if r == 0 {
             return Err(io::ErrorKind::TimedOut.into());
         }
-        if p.revents & libc::POLLIN == 0 {
-            if p.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0 {
+        let revents = p[0].revents();
+        if !revents.contains(PollFlags::IN) {
+            if revents.intersects(PollFlags::HUP | PollFlags::ERR | PollFlags::NVAL) {
                 return Err(io::ErrorKind::BrokenPipe.into());
             }
             return Err(io::ErrorKind::TimedOut.into());
         }
-        // SAFETY: buf is valid for buf.len() bytes; the fd is open.
-        let n = unsafe { libc::read(fd, buf.as_mut_ptr().cast(), buf.len()) };
-        if n < 0 {
-            let e = io::Error::last_os_error();
-            if e.kind() == io::ErrorKind::WouldBlock {
-                return Err(io::ErrorKind::TimedOut.into());
-            }
-            return Err(e);
+        match rustix::io::read(fd, buf) {
+            Ok(n) => Ok(n),
+            Err(rustix::io::Errno::AGAIN) => Err(io::ErrorKind::TimedOut.into()),
+            Err(e) => Err(e.into()),
         }
-        Ok(n as usize)
     }
 }
 
@@ -146,15 +144,11 @@ pub struct DeviceConnector {
 
 /// Unix98 pty slaves use character majors 136..=143 on Linux.
 fn is_pty_slave(rdev: u64) -> bool {
-    (136..=143).contains(&libc::major(rdev as libc::dev_t))
+    (136..=143).contains(&rustix::fs::major(rdev))
 }
 
-fn fstat(fd: RawFd) -> Option<libc::stat> {
-    // SAFETY: fstat fills the zeroed struct; the caller's fd is open.
-    unsafe {
-        let mut st: libc::stat = std::mem::zeroed();
-        (libc::fstat(fd, &mut st) == 0).then_some(st)
-    }
+fn fstat(fd: impl AsFd) -> Option<rustix::fs::Stat> {
+    rustix::fs::fstat(fd).ok()
 }
 
 /// Whether `path` itself (not through a symlink) is a pty slave node.
@@ -167,22 +161,16 @@ fn bare_pty_path(path: &Path) -> bool {
 /// An `O_PATH` handle on the node `path` names, if it is the very pty
 /// `port` has open.
 fn pin_pty(path: &Path, port: &DevicePort) -> Option<OwnedFd> {
-    use std::os::unix::ffi::OsStrExt;
-    let open = fstat(port.tty.as_raw_fd())?;
-    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).ok()?;
-    // SAFETY: a NUL-terminated path; O_PATH opens no device.
-    let fd = unsafe {
-        libc::open(
-            c.as_ptr(),
-            libc::O_PATH | libc::O_CLOEXEC | libc::O_NOFOLLOW,
-        )
-    };
-    if fd < 0 {
-        return None;
-    }
-    // SAFETY: open just returned this fd and nothing else owns it.
-    let fd = unsafe { OwnedFd::from_raw_fd(fd) };
-    let node = fstat(fd.as_raw_fd())?;
+    use rustix::fs::{Mode, OFlags};
+    let open = fstat(tty_fd(&port.tty))?;
+    // O_PATH opens no device.
+    let fd = rustix::fs::open(
+        path,
+        OFlags::PATH | OFlags::CLOEXEC | OFlags::NOFOLLOW,
+        Mode::empty(),
+    )
+    .ok()?;
+    let node = fstat(&fd)?;
     (node.st_ino == open.st_ino && node.st_dev == open.st_dev && node.st_nlink > 0).then_some(fd)
 }
 
@@ -201,7 +189,7 @@ impl DeviceConnector {
     fn pty_gone(&self) -> bool {
         self.pty
             .as_ref()
-            .is_some_and(|fd| fstat(fd.as_raw_fd()).is_none_or(|st| st.st_nlink == 0))
+            .is_some_and(|fd| fstat(&**fd).is_none_or(|st| st.st_nlink == 0))
     }
 
     fn gone_error(&self) -> io::Error {

@@ -48,6 +48,16 @@ pub trait Connector: Send {
     fn describe(&self) -> String;
 }
 
+/// `timeout` as `poll` takes it, whole milliseconds as before the move to
+/// rustix (below 1 ms: return at once), at most `i32::MAX` ms.
+pub(crate) fn poll_timeout(timeout: Duration) -> rustix::event::Timespec {
+    let ms = timeout.as_millis().min(i32::MAX as u128) as i64;
+    rustix::event::Timespec {
+        tv_sec: ms / 1000,
+        tv_nsec: (ms % 1000) * 1_000_000,
+    }
+}
+
 /// Classifies a read/write error: true when the device is gone (hang-up,
 /// EIO, ENODEV, broken pipe, EOF) and the port must be closed and re-opened;
 /// false for timeouts and interruptions, after which the same port is usable.

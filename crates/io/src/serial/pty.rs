@@ -14,11 +14,20 @@
 //! "Unplug" closes the master (the daemon's reads then fail with a hang-up,
 //! as with a USB device pulled out) and removes the symlink; "replug" makes a
 //! new pty and points the symlink at it atomically (see [`PtyHost`]).
+//!
+//! Every OS call is `rustix`'s (safe, typed): `posix_openpt`, `grantpt`,
+//! `unlockpt`, `ptsname` and the slave's `open` in place of glibc's
+//! `openpty`, which rustix leaves out; `tcgetattr` / `tcsetattr` with
+//! `cfmakeraw`, `fcntl`, `poll`, `read` and `write`. No `unsafe` is left.
 
 use std::io::{self, Read, Write};
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
+use std::os::fd::{AsFd, OwnedFd};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+use rustix::event::{PollFd, PollFlags};
+use rustix::fs::{Mode, OFlags};
+use rustix::pty::OpenptFlags;
 
 /// Largest single write to the master.
 pub const WRITE_CHUNK: usize = 4096;
@@ -26,7 +35,7 @@ pub const WRITE_CHUNK: usize = 4096;
 /// Why a pty or its symlink could not be set up.
 #[derive(Debug, thiserror::Error)]
 pub enum PtyError {
-    /// openpty/termios failed.
+    /// The pty, its termios or its flags could not be set up.
     #[error("cannot create a pseudo-terminal: {0}")]
     Create(io::Error),
     /// The symlink could not be created or replaced.
@@ -48,39 +57,23 @@ pub struct Pty {
     write_timeout: Duration,
 }
 
-fn cvt(r: libc::c_int) -> io::Result<libc::c_int> {
-    if r < 0 {
-        Err(io::Error::last_os_error())
-    } else {
-        Ok(r)
-    }
-}
-
 /// Waits for `events` on `fd` up to `timeout`; Ok(true) when ready,
 /// Ok(false) on timeout, Err on hang-up or error. EINTR counts as "not yet".
-fn poll_fd(fd: RawFd, events: libc::c_short, timeout: Duration) -> io::Result<bool> {
-    let mut p = libc::pollfd {
-        fd,
-        events,
-        revents: 0,
+fn poll_fd(fd: impl AsFd, events: PollFlags, timeout: Duration) -> io::Result<bool> {
+    let mut p = [PollFd::new(&fd, events)];
+    let r = match rustix::event::poll(&mut p, Some(&super::poll_timeout(timeout))) {
+        Ok(r) => r,
+        Err(rustix::io::Errno::INTR) => return Ok(false),
+        Err(e) => return Err(e.into()),
     };
-    let ms = timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
-    // SAFETY: one valid pollfd for the duration of the call.
-    let r = unsafe { libc::poll(&mut p, 1, ms) };
-    if r < 0 {
-        let e = io::Error::last_os_error();
-        if e.kind() == io::ErrorKind::Interrupted {
-            return Ok(false);
-        }
-        return Err(e);
-    }
     if r == 0 {
         return Ok(false);
     }
-    if p.revents & events != 0 {
+    let revents = p[0].revents();
+    if revents.intersects(events) {
         return Ok(true);
     }
-    if p.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0 {
+    if revents.intersects(PollFlags::HUP | PollFlags::ERR | PollFlags::NVAL) {
         return Err(io::Error::new(
             io::ErrorKind::BrokenPipe,
             "pseudo-terminal hung up",
@@ -92,46 +85,28 @@ fn poll_fd(fd: RawFd, events: libc::c_short, timeout: Duration) -> io::Result<bo
 impl Pty {
     /// Creates a pty pair: raw slave, non-blocking master.
     pub fn open() -> Result<Pty, PtyError> {
-        let mut m: libc::c_int = -1;
-        let mut s: libc::c_int = -1;
-        // SAFETY: out-pointers to two ints; the name/termios/winsize
-        // arguments may be null.
-        cvt(unsafe {
-            libc::openpty(
-                &mut m,
-                &mut s,
-                std::ptr::null_mut(),
-                std::ptr::null(),
-                std::ptr::null(),
-            )
-        })
-        .map_err(PtyError::Create)?;
-        // SAFETY: openpty succeeded, both fds are ours.
-        let (master, slave) = unsafe { (OwnedFd::from_raw_fd(m), OwnedFd::from_raw_fd(s)) };
-        // SAFETY: plain termios calls on an open fd with a zeroed struct
-        // that tcgetattr fills in.
-        unsafe {
-            let mut t: libc::termios = std::mem::zeroed();
-            cvt(libc::tcgetattr(slave.as_raw_fd(), &mut t)).map_err(PtyError::Create)?;
-            libc::cfmakeraw(&mut t);
-            cvt(libc::tcsetattr(slave.as_raw_fd(), libc::TCSANOW, &t)).map_err(PtyError::Create)?;
-            let fl =
-                cvt(libc::fcntl(master.as_raw_fd(), libc::F_GETFL)).map_err(PtyError::Create)?;
-            cvt(libc::fcntl(
-                master.as_raw_fd(),
-                libc::F_SETFL,
-                fl | libc::O_NONBLOCK,
-            ))
-            .map_err(PtyError::Create)?;
-            libc::fcntl(master.as_raw_fd(), libc::F_SETFD, libc::FD_CLOEXEC);
-            libc::fcntl(slave.as_raw_fd(), libc::F_SETFD, libc::FD_CLOEXEC);
-        }
-        let mut buf = [0 as libc::c_char; 128];
-        // SAFETY: buffer and its length are valid.
-        cvt(unsafe { libc::ptsname_r(master.as_raw_fd(), buf.as_mut_ptr(), buf.len()) })
-            .map_err(PtyError::Create)?;
-        // SAFETY: ptsname_r wrote a NUL-terminated string into buf.
-        let name = unsafe { std::ffi::CStr::from_ptr(buf.as_ptr()) };
+        Self::open_pair().map_err(PtyError::Create)
+    }
+
+    /// `openpty` from its parts: master and slave not the controlling
+    /// terminal, as glibc's `openpty` opens them, and close-on-exec from
+    /// the start (set afterwards when this was `openpty`).
+    fn open_pair() -> io::Result<Pty> {
+        let master =
+            rustix::pty::openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY | OpenptFlags::CLOEXEC)?;
+        rustix::pty::grantpt(&master)?;
+        rustix::pty::unlockpt(&master)?;
+        let name = rustix::pty::ptsname(&master, Vec::new())?;
+        let slave = rustix::fs::open(
+            name.as_c_str(),
+            OFlags::RDWR | OFlags::NOCTTY | OFlags::CLOEXEC,
+            Mode::empty(),
+        )?;
+        let mut t = rustix::termios::tcgetattr(&slave)?;
+        t.make_raw();
+        rustix::termios::tcsetattr(&slave, rustix::termios::OptionalActions::Now, &t)?;
+        let fl = rustix::fs::fcntl_getfl(&master)?;
+        rustix::fs::fcntl_setfl(&master, fl | OFlags::NONBLOCK)?;
         Ok(Pty {
             master,
             _slave: slave,
@@ -160,25 +135,20 @@ impl Pty {
 
 impl Read for Pty {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        if !poll_fd(self.master.as_raw_fd(), libc::POLLIN, self.read_timeout)? {
+        if !poll_fd(&self.master, PollFlags::IN, self.read_timeout)? {
             return Err(io::Error::new(
                 io::ErrorKind::TimedOut,
                 "no bytes from the client",
             ));
         }
-        // SAFETY: buf is valid for buf.len() bytes.
-        let r = unsafe { libc::read(self.master.as_raw_fd(), buf.as_mut_ptr().cast(), buf.len()) };
-        if r < 0 {
-            let e = io::Error::last_os_error();
-            if e.kind() == io::ErrorKind::WouldBlock {
-                return Err(io::Error::new(
-                    io::ErrorKind::TimedOut,
-                    "no bytes from the client",
-                ));
-            }
-            return Err(e);
+        match rustix::io::read(&self.master, buf) {
+            Ok(n) => Ok(n),
+            Err(rustix::io::Errno::AGAIN) => Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                "no bytes from the client",
+            )),
+            Err(e) => Err(e.into()),
         }
-        Ok(r as usize)
     }
 }
 
@@ -189,12 +159,10 @@ impl Write for Pty {
         let n = buf.len().min(WRITE_CHUNK);
         let deadline = Instant::now() + self.write_timeout;
         loop {
-            // SAFETY: buf is valid for n bytes.
-            let r = unsafe { libc::write(self.master.as_raw_fd(), buf.as_ptr().cast(), n) };
-            if r >= 0 {
-                return Ok(r as usize);
-            }
-            let e = io::Error::last_os_error();
+            let e = match rustix::io::write(&self.master, &buf[..n]) {
+                Ok(r) => return Ok(r),
+                Err(e) => io::Error::from(e),
+            };
             match e.kind() {
                 io::ErrorKind::Interrupted => continue,
                 io::ErrorKind::WouldBlock => {
@@ -205,7 +173,7 @@ impl Write for Pty {
                             "client is not reading the pty",
                         ));
                     }
-                    poll_fd(self.master.as_raw_fd(), libc::POLLOUT, deadline - now)?;
+                    poll_fd(&self.master, PollFlags::OUT, deadline - now)?;
                 }
                 _ => return Err(e),
             }
