@@ -6,7 +6,7 @@
 //! The OS calls are `rustix`'s (safe, typed): `poll`, `read`, `fstat`,
 //! `open(O_PATH)`, `ioctl(TIOCNXCL)`. The tty itself is opened and
 //! configured by the `serialport` crate, whose port gives out only a raw fd:
-//! [`tty_fd`] borrows it, the one `unsafe` left here.
+//! `tty_fd` borrows it, the one `unsafe` left here.
 
 use std::io::{self, Read, Write};
 use std::os::fd::{AsFd, AsRawFd, BorrowedFd, OwnedFd};
