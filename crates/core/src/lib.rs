@@ -24,6 +24,7 @@
 //! rule that no layer calls upward.
 
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 pub mod base;
 pub mod capacity;

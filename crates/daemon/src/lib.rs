@@ -17,6 +17,7 @@
 //! simulator or the command line (the `sweepline` crate), which sit above.
 
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::icp::Tracker` read the same in every crate.

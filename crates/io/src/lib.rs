@@ -20,6 +20,8 @@
 //! `sweepline-core` (the plain data) and cannot name the pipeline, the
 //! daemon or the simulator.
 
+#![warn(missing_docs)]
+
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::scan::LaserScan` read the same in every crate.
 use sweepline_core::{base, capacity, check_keys, geom, param_check, robot, scan};

@@ -7,6 +7,7 @@
 //! below; only the command line (the `sweepline` crate) sits above it.
 
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::config::Config` read the same in every crate.

@@ -125,6 +125,8 @@ pub struct StageHealth {
 }
 
 impl StageHealth {
+    /// The health record of stage `name`, whose iterations have a CPU
+    /// budget of `budget` each.
     pub fn new(name: &str, budget: Duration) -> Self {
         Self {
             name: name.to_string(),
