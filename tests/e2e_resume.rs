@@ -25,7 +25,7 @@ use sweepline::daemon::resume::HEARTBEAT_FILE;
 use sweepline::geom::{pose, Pose};
 use sweepline::motor::BaseKind;
 use sweepline::pipeline::checkpoint::{
-    CheckpointStore, MountRecord, ResumeLog, RunFinished, RunProgress,
+    CheckpointStore, MountRecord, ResumeLog, RunFinished, RunProgress, WrittenAt,
 };
 use sweepline::plan::LatticePhase;
 use sweepline::sim::closed_loop::{self, SimOptions, DEADMAN_WALL, SAMPLE_PERIOD};
@@ -55,8 +55,13 @@ const KILL_AT: f64 = 0.40;
 const NO_KILL_ENV: &str = "SWEEPLINE_E2E_NO_KILL";
 /// Coverage the whole run must reach (the in-process e2e test's bound).
 const MIN_COVERAGE: f64 = 0.97;
-/// True poses kept to match a checkpointed pose against (3 s simulated).
-const RECENT: usize = (3.0 / SAMPLE_PERIOD) as usize;
+/// How much older than its checkpoint a checkpointed pose may be (s
+/// simulated): the control stage publishes the pose at every scan (0.1 s),
+/// and the snapshot's wall stamp is read a moment before the pose.
+const POSE_AGE: f64 = 0.3;
+/// How much later than its checkpoint's stamp the pose may be (s
+/// simulated): the stamp is read just before the pose.
+const STAMP_SLACK: f64 = 0.1;
 /// Scans the resumed daemon tracks before its pose is scored (1 s).
 const SETTLE_SCANS: u64 = 10;
 /// Largest median checkpointed pose error allowed after the resume (m):
@@ -121,14 +126,29 @@ fn spawn(dir: &Path, links: &Path, n: u32, sim_clock: &str) -> Daemon {
 }
 
 fn latest(store: &CheckpointStore) -> Option<RunProgress> {
-    latest_with_pose(store).map(|(p, _)| p)
+    latest_with_pose(store).map(|(p, _, _)| p)
 }
 
-fn latest_with_pose(store: &CheckpointStore) -> Option<(RunProgress, Pose)> {
+fn latest_with_pose(store: &CheckpointStore) -> Option<(RunProgress, Pose, WrittenAt)> {
     let l = store.load().ok()??;
     let p = l.checkpoint.get::<RunProgress>().ok()??;
     let q = l.checkpoint.get::<Pose>().ok()??;
-    Some((p, q))
+    let w = l.checkpoint.get::<WrittenAt>().ok()??;
+    Some((p, q, w))
+}
+
+/// Distance (m) from `est` to the true path near simulated time `t`: the
+/// nearest of the true poses sampled between `t - POSE_AGE` and
+/// `t + STAMP_SLACK`, and of the last one before and the first one after
+/// that window (so a gap in the sampling widens the window rather than
+/// leaving it empty).
+fn error_at(truth: &[(f64, Pose)], t: f64, est: &Pose) -> f64 {
+    let lo = truth.partition_point(|(s, _)| *s < t - POSE_AGE);
+    let hi = truth.partition_point(|(s, _)| *s <= t + STAMP_SLACK);
+    truth[lo.saturating_sub(1)..(hi + 1).min(truth.len())]
+        .iter()
+        .map(|(_, q)| (est.translation.vector - q.translation.vector).norm())
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// What the configuration says between the crash and the restart.
@@ -206,14 +226,19 @@ fn crash_and_resume(name: &str, restart: Restart) {
     let mut mount_at_kill: Option<MountRecord> = None;
     let mut first_resumed: Option<(RunProgress, f64)> = None;
     let mut last_poll = Instant::now();
-    // Largest distance between a checkpointed pose and the nearest true pose
-    // of the last 3 s, before and after the kill.
+    // Largest distance between a checkpointed pose and the true path when
+    // the checkpoint was taken (see `error_at`), before and after the kill:
+    // how late the disk put it there does not count (a busy disk delays a
+    // write by up to a second of wall time, ten simulated seconds here).
     let mut pose_err = [0.0f64; 2];
+    // The checkpoint last scored.
+    let mut scored: Option<u64> = None;
+    // Every true pose sampled, with its simulated time.
+    let mut truth_path: Vec<(f64, Pose)> = Vec::new();
     // Every error scored after the resume, for its median.
     let mut resumed_errs: Vec<f64> = Vec::new();
     // The same per 20 s of simulated time, for the output.
     let mut err_by_time: Vec<f64> = Vec::new();
-    let mut recent = std::collections::VecDeque::with_capacity(RECENT);
     // Ground-truth coverage every 20 s simulated, for the output.
     let mut timeline = String::new();
     let mut next_mark = 0.0;
@@ -229,10 +254,7 @@ fn crash_and_resume(name: &str, restart: Restart) {
         let truth_pose = base.truth();
         tracker.record(&truth_pose, t);
         last_truth = truth_pose;
-        if recent.len() == RECENT {
-            recent.pop_front();
-        }
-        recent.push_back(truth_pose);
+        truth_path.push((t, truth_pose));
         let truth = tracker.metrics().coverage;
         if t >= next_mark {
             timeline += &format!(" {t:.0}s:{:.0}%", truth * 100.0);
@@ -240,13 +262,15 @@ fn crash_and_resume(name: &str, restart: Restart) {
         }
         if last_poll.elapsed() >= Duration::from_millis(50) {
             last_poll = Instant::now();
-            if let Some((p, est)) = latest_with_pose(&store) {
+            if let Some((p, est, taken)) = latest_with_pose(&store) {
                 // The daemon's frame is the world frame moved to the start.
                 let est = map_to_world * est;
-                let e = recent
-                    .iter()
-                    .map(|q: &Pose| (est.translation.vector - q.translation.vector).norm())
-                    .fold(f64::INFINITY, f64::min);
+                // When the checkpoint was taken, on this test's clock (the
+                // daemon's runs on the same epoch and speed).
+                let t_taken = (taken.unix - epoch) * SPEED - t0;
+                let e = error_at(&truth_path, t_taken, &est);
+                let new = scored != Some(p.sequence);
+                scored = Some(p.sequence);
                 // After the restart, once the second daemon has tracked
                 // SETTLE_SCANS scans: until its first scans are processed
                 // (process start, device opening) its checkpoints still hold
@@ -257,7 +281,7 @@ fn crash_and_resume(name: &str, restart: Restart) {
                     (Some(_), Some(a)) => p.resumes >= 1 && p.scans >= a.scans + SETTLE_SCANS,
                     (Some(_), None) => false,
                 };
-                if tracking {
+                if tracking && new {
                     pose_err[k] = pose_err[k].max(e);
                     if k == 1 {
                         resumed_errs.push(e);

@@ -2,7 +2,9 @@
 //! estimate, a checkpoint (progress, pose, map) every
 //! `pipeline.checkpoint_period`, a heartbeat (progress, wall time) every
 //! `pipeline.heartbeat_period`, and the ordered shutdown (wheels stopped
-//! first, then the stages joined, then the final checkpoint).
+//! first, then the stages joined, then the final checkpoint). The files
+//! are put on disk by a [`StateWriter`] thread: the supervisor only takes
+//! the snapshot, so a slow disk delays a checkpoint, never supervision.
 
 use std::path::Path;
 use std::sync::atomic::Ordering;
@@ -17,7 +19,13 @@ use crate::pipeline::checkpoint::{
 use crate::pipeline::metrics::MetricsSnapshot;
 use crate::pipeline::periodic::Every;
 use crate::pipeline::supervisor::{Hooks, StopReason};
+use crate::pipeline::writer::{StateWriter, WriteStats};
 use crate::pipeline::Pipeline;
+
+/// The writer's slot for checkpoints.
+const CHECKPOINT: &str = "checkpoint";
+/// The writer's slot for heartbeats.
+const HEARTBEAT: &str = "heartbeat";
 
 /// Hooks of a daemon run.
 pub struct DaemonHooks {
@@ -30,10 +38,13 @@ pub struct DaemonHooks {
     started: f64,
     base: RunProgress,
     sequence: u64,
-    /// Checkpoints that could not be written.
-    pub(crate) checkpoint_errors: u64,
-    /// Heartbeats that could not be written.
-    pub(crate) heartbeat_errors: u64,
+    /// Puts checkpoints and heartbeats on disk (none: no state folder, or
+    /// the thread could not be started and they are written here).
+    writer: Option<StateWriter>,
+    /// The checkpoint period (s), to tell a slow disk in the log.
+    period: f64,
+    /// Whether the slow disk was logged.
+    warned_slow: bool,
     /// Kind of the planner's task last logged.
     task_kind: String,
     /// The robot as configured, for the run folder's `mount.toml`.
@@ -60,18 +71,28 @@ impl DaemonHooks {
                 ..p
             })
             .unwrap_or_default();
+        let writer = state_dir.and_then(|_| {
+            StateWriter::spawn("state-writer")
+                .inspect_err(|e| {
+                    log::warn!(
+                        "state writer not started ({e}); checkpoints are written by the supervisor"
+                    )
+                })
+                .ok()
+        });
         Self {
             started: clock.now(),
             shared,
             clock,
+            writer,
+            period,
+            warned_slow: false,
             store: state_dir.map(CheckpointStore::new),
             every: Every::new(period),
             heartbeat: state_dir.map(super::resume::heartbeat_store),
             beat: Every::new(heartbeat),
             sequence: base.sequence,
             base,
-            checkpoint_errors: 0,
-            heartbeat_errors: 0,
             task_kind: String::new(),
             robot: None,
         }
@@ -106,10 +127,13 @@ impl DaemonHooks {
         }
     }
 
-    /// Writes a checkpoint now (when a state folder is set).
+    /// Takes a checkpoint of the run now and hands it to the writer (when a
+    /// state folder is set). Its `WrittenAt` is when the snapshot was taken,
+    /// not when the disk finished.
     pub fn checkpoint(&mut self) {
         let Some(store) = &self.store else { return };
         self.sequence += 1;
+        let taken = WrittenAt::now();
         let progress = self.progress();
         let finished = self.shared.done.load(Ordering::Relaxed);
         let (pose, map, plan, localise) = self
@@ -125,16 +149,15 @@ impl DaemonHooks {
         let mut cp = Checkpoint::new();
         let r = run
             .put(&mut cp)
-            .and_then(|()| cp.put(&WrittenAt::now()))
+            .and_then(|()| cp.put(&taken))
             .and_then(|()| map.put(&mut cp))
             .and_then(|()| plan.put(&mut cp))
             .and_then(|()| localise.put(&mut cp));
-        if let Err(e) = r.and_then(|()| store.save(&cp)) {
-            self.checkpoint_errors += 1;
-            if self.checkpoint_errors <= 3 {
-                log::warn!("checkpoint not written: {e}");
-            }
-        }
+        let store = store.clone();
+        self.write(
+            CHECKPOINT,
+            Box::new(move || r.and_then(|()| store.save(&cp)).map_err(|e| e.to_string())),
+        );
     }
 
     /// Notes the run's progress and the wall time in the heartbeat file now
@@ -142,14 +165,46 @@ impl DaemonHooks {
     /// checkpoint with to tell how much progress the crash lost.
     pub fn heartbeat(&mut self) {
         let Some(store) = &self.heartbeat else { return };
-        let r = super::resume::heartbeat(&self.progress(), WrittenAt::now())
-            .and_then(|cp| store.save_unsynced(&cp));
-        if let Err(e) = r {
-            self.heartbeat_errors += 1;
-            if self.heartbeat_errors <= 3 {
-                log::warn!("heartbeat not written: {e}");
+        let beat = super::resume::heartbeat(&self.progress(), WrittenAt::now());
+        let store = store.clone();
+        self.write(
+            HEARTBEAT,
+            Box::new(move || {
+                beat.and_then(|cp| store.save_unsynced(&cp))
+                    .map_err(|e| e.to_string())
+            }),
+        );
+    }
+
+    /// Hands `job` to the writer, or writes it here without one.
+    fn write(&mut self, kind: &'static str, job: crate::pipeline::writer::Job) {
+        match &self.writer {
+            Some(w) => {
+                w.submit(kind, job);
+                // Wall seconds on the run's clock (a simulation may run
+                // faster than the wall).
+                let slowest = w.stats(kind).slowest * self.clock.speed();
+                if kind == CHECKPOINT && slowest > self.period && !self.warned_slow {
+                    self.warned_slow = true;
+                    log::warn!(
+                        "a checkpoint took {slowest:.1} s to write, longer than pipeline.checkpoint_period ({:.1} s): the state folder's disk is slow; the newest checkpoint is written whenever the disk is free again",
+                        self.period
+                    );
+                }
+            }
+            None => {
+                if let Err(e) = job() {
+                    log::warn!("{kind} not written: {e}");
+                }
             }
         }
+    }
+
+    /// What the writer did with the checkpoints and heartbeats so far.
+    pub fn write_stats(&self) -> (WriteStats, WriteStats) {
+        self.writer.as_ref().map_or_else(Default::default, |w| {
+            (w.stats(CHECKPOINT), w.stats(HEARTBEAT))
+        })
     }
 }
 
@@ -200,8 +255,26 @@ impl Hooks for DaemonHooks {
     }
 
     fn after_stop(&mut self, _reason: &StopReason, _final: &MetricsSnapshot) {
+        // What is pending goes first; the final checkpoint is then written
+        // on this thread, before the process exits.
+        if let Some(w) = self.writer.as_mut() {
+            w.finish();
+        }
         self.checkpoint();
         self.heartbeat();
+        let (c, h) = self.write_stats();
+        if c.done > 0 {
+            log::info!(
+                "state writes: {} checkpoint(s) ({} failed, {} superseded by a newer one while the disk was busy, slowest {:.3} s), {} heartbeat(s) ({} failed, slowest {:.3} s)",
+                c.done,
+                c.failed,
+                c.superseded,
+                c.slowest,
+                h.done,
+                h.failed,
+                h.slowest
+            );
+        }
     }
 
     fn run_folder_files(&self) -> Vec<(&'static str, String)> {

@@ -73,6 +73,7 @@ pub mod signals;
 pub mod stage;
 pub mod supervisor;
 pub mod threads;
+pub mod writer;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
