@@ -489,7 +489,10 @@ impl Scene for WorldScene {
                     let r = hit.range + self.noise * self.gauss();
                     Echo::Hit {
                         range: r.max(0.0),
-                        reflectivity: hit.reflectivity * hit.incidence.cos().abs().max(0.05),
+                        reflectivity: hit.reflectivity,
+                        // Never quite edge-on: a wall seen along its
+                        // length still returns some light.
+                        cos_incidence: hit.incidence.cos().abs().max(0.05),
                     }
                 }
                 None => Echo::NoReturn,

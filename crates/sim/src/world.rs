@@ -11,10 +11,16 @@
 //! box 1.0 1.0 1.6 1.4 refl 0.9          # rectangular obstacle: x0 y0 x1 y1
 //! polygon 3 3 3.5 3 3.2 3.6 refl 0.3    # obstacle polygon (closed)
 //! wall 2 0 2 1.5 refl 0.8               # a thin wall segment (no area)
+//! tape 3 0 3.1 0 refl 0.95              # a strip of tape or paint on a wall
 //! low box 0.9 1.9 1.1 2.1               # below the scanner's plane (a stool)
 //! start 0.5 0.5 0.0                     # robot start pose: x y theta
 //! walker 0.2 1.0 1 3 5.5 3 trips 2     # a person: radius speed, a path, how often
 //! ```
+//!
+//! `tape X0 Y0 X1 Y1 refl R` changes the reflectivity of the wall it lies
+//! on (within [`TAPE_REACH`]) along that stretch: reflective tape, a dark
+//! skirting board, a painted stripe. It changes what the scanner's
+//! intensities show, not the geometry.
 //!
 //! `low` before `box` or `polygon` makes an obstacle the scanner's plane
 //! passes over: rays miss it, the body still runs into it (only the bumper
@@ -200,8 +206,14 @@ pub struct World {
     pub start: Pose,
     /// People walking through the room (none unless the world says so).
     pub walkers: Vec<Walker>,
+    /// Stretches of wall with a reflectivity of their own (`tape`).
+    pub tapes: Vec<Wall>,
     index: WallIndex,
 }
+
+/// How far from a wall a `tape` may lie, and a hit from a tape to take its
+/// reflectivity (m).
+pub const TAPE_REACH: f64 = 0.01;
 
 /// Default ground-truth raster cell for hand-written worlds (m).
 const DEFAULT_RESOLUTION: f64 = 0.02;
@@ -217,6 +229,7 @@ impl World {
         let mut obstacles: Vec<(Vec<Point2<f64>>, f64)> = Vec::new();
         let mut low: Vec<Vec<Point2<f64>>> = Vec::new();
         let mut thin: Vec<Wall> = Vec::new();
+        let mut tapes: Vec<(usize, Wall)> = Vec::new();
         let mut start: Option<Pose> = None;
         let mut walkers: Vec<(usize, Walker)> = Vec::new();
         for (i, raw) in text.lines().enumerate() {
@@ -281,6 +294,20 @@ impl World {
                         reflectivity: refl,
                     });
                 }
+                "tape" => {
+                    let v = exactly(&nums, 4, ln, "tape takes x0 y0 x1 y1")?;
+                    let seg = Segment::new(Point2::new(v[0], v[1]), Point2::new(v[2], v[3]));
+                    if seg.length() <= 0.0 {
+                        return Err(err(ln, "tape has zero length"));
+                    }
+                    tapes.push((
+                        ln,
+                        Wall {
+                            seg,
+                            reflectivity: refl,
+                        },
+                    ));
+                }
                 "start" => {
                     let v = exactly(&nums, 3, ln, "start takes x y theta")?;
                     start = Some(pose(v[0], v[1], v[2]));
@@ -299,6 +326,17 @@ impl World {
             push_ring(&mut walls, poly, *r);
         }
         walls.extend(thin.iter().copied());
+        for (ln, t) in &tapes {
+            let on_wall =
+                |p: Point2<f64>| walls.iter().any(|w| w.seg.distance_to(&p) <= TAPE_REACH);
+            let mid = Point2::from((t.seg.a.coords + t.seg.b.coords) / 2.0);
+            if !(on_wall(t.seg.a) && on_wall(t.seg.b) && on_wall(mid)) {
+                return Err(err(
+                    *ln,
+                    format!("tape does not lie on a wall (within {TAPE_REACH} m)"),
+                ));
+            }
+        }
         let (lo, hi) = bounds(&outline);
         let margin = resolution * 2.0;
         let origin = Point2::new(lo.x - margin, lo.y - margin);
@@ -341,6 +379,7 @@ impl World {
         }
         let mut world = World::assemble(name, walls, raster, start);
         world.low = low_walls;
+        world.tapes = tapes.into_iter().map(|(_, t)| t).collect();
         for (ln, w) in walkers {
             world.add_walker(w).map_err(|m| err(ln, m))?;
         }
@@ -430,6 +469,7 @@ impl World {
             free,
             start,
             walkers: Vec::new(),
+            tapes: Vec::new(),
             index,
         }
     }
@@ -498,9 +538,15 @@ impl World {
             let d = w.seg.b - w.seg.a;
             let n = Vector2::new(-d.y, d.x).normalize();
             let cos = dir.dot(&n).abs().min(1.0);
+            let at = origin + dir * t;
+            let reflectivity = self
+                .tapes
+                .iter()
+                .find(|tape| tape.seg.distance_to(&at) <= TAPE_REACH)
+                .map_or(w.reflectivity, |tape| tape.reflectivity);
             RayHit {
                 range: t,
-                reflectivity: w.reflectivity,
+                reflectivity,
                 incidence: cos.acos(),
             }
         })
@@ -661,6 +707,28 @@ mod tests {
             .unwrap();
         assert!((h.range - 2.5).abs() < 1e-9);
         assert!(w.cast_ray(&Point2::new(0.5, 0.5), 0.0, 1.0).is_none());
+    }
+
+    #[test]
+    fn tape_changes_the_reflectivity_of_its_stretch_of_wall_only() {
+        let w = World::parse(&format!("{ROOM}tape 4 2.2 4 2.6 refl 0.95\n")).unwrap();
+        let o = Point2::new(3.0, 2.4);
+        let on = w.cast_ray(&o, 0.0, 10.0).unwrap();
+        assert!((on.range - 1.0).abs() < 1e-9);
+        assert!((on.reflectivity - 0.95).abs() < 1e-12, "{on:?}");
+        // Beside the tape: the wall's own.
+        let off = w.cast_ray(&Point2::new(3.0, 2.0), 0.0, 10.0).unwrap();
+        assert!((off.reflectivity - 0.4).abs() < 1e-12, "{off:?}");
+        // The geometry is the room's: the free floor does not change.
+        assert_eq!(w.free.free, World::parse(ROOM).unwrap().free.free);
+        for bad in [
+            "tape 3 2.2 3 2.6 refl 0.9",
+            "tape 4 1 4 1 refl 0.9",
+            "tape 4 1 4",
+        ] {
+            let e = World::parse(&format!("{ROOM}{bad}\n")).unwrap_err();
+            assert_eq!(e.line, 5, "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -16,6 +16,7 @@
 //! with a [`crate::clock::ScaledClock`].
 
 pub mod faults;
+mod intensity;
 pub mod link;
 pub mod model;
 mod returns;

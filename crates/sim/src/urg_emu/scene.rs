@@ -10,15 +10,17 @@ use rand_chacha::ChaCha8Rng;
 /// What one beam returns.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Echo {
-    /// A surface at `range` metres returning `reflectivity` of the light.
+    /// A surface at `range` metres of reflectivity `reflectivity`, seen at
+    /// `cos_incidence` from its normal.
     Hit {
         /// Range (m).
         range: f64,
-        /// Fraction of the light the surface sends back towards the sensor,
-        /// 0 (black, or seen edge-on) to 1 (retro-reflector): a scene folds
-        /// the incidence angle in (reflectivity × cos(incidence) for a matt
-        /// surface), so the sensor can tell a weak echo from a strong one.
+        /// The surface's reflectivity, 0 (black) to 1 (retro-reflector).
         reflectivity: f64,
+        /// Cosine of the angle between the beam and the surface normal (1
+        /// head-on, towards 0 edge-on): the sensor works out from both how
+        /// strong the echo is and what intensity it reports.
+        cos_incidence: f64,
     },
     /// Nothing within the sensor's range.
     NoReturn,
@@ -156,7 +158,8 @@ impl RectRoom {
         match self.surface(wall, along) {
             Some(r) => Echo::Hit {
                 range,
-                reflectivity: r * cos,
+                reflectivity: r,
+                cos_incidence: cos,
             },
             None => Echo::NoReturn,
         }
@@ -170,6 +173,7 @@ impl Scene for RectRoom {
                 Echo::Hit {
                     range,
                     reflectivity,
+                    cos_incidence,
                 } => {
                     let n = if self.noise > 0.0 {
                         // Box-Muller from two uniforms: deterministic per seed.
@@ -182,6 +186,7 @@ impl Scene for RectRoom {
                     Echo::Hit {
                         range: (range + n).max(0.0),
                         reflectivity,
+                        cos_incidence,
                     }
                 }
                 e => e,
@@ -300,12 +305,17 @@ impl ReplayScan {
                     let values = scan
                         .readings(p)
                         .map(|(v, r)| match r {
-                            Reading::Range(mm) => Echo::Hit {
-                                range: f64::from(mm) / 1000.0,
-                                reflectivity: v
-                                    .intensity
-                                    .map_or(0.5, |i| (f64::from(i) / 10_000.0).clamp(0.0, 1.0)),
-                            },
+                            Reading::Range(mm) => {
+                                let range = f64::from(mm) / 1000.0;
+                                Echo::Hit {
+                                    range,
+                                    // The recorded intensity, head-on.
+                                    reflectivity: v.intensity.map_or(0.5, |i| {
+                                        super::intensity::reflectivity_of(f64::from(i), range)
+                                    }),
+                                    cos_incidence: 1.0,
+                                }
+                            }
                             Reading::Error(e) => Echo::Error(e.code),
                             Reading::BeyondMax(_) => Echo::NoReturn,
                         })
@@ -340,13 +350,15 @@ mod tests {
             r.trace(0.0),
             Echo::Hit {
                 range: 2.5,
-                reflectivity: 0.8
+                reflectivity: 0.8,
+                cos_incidence: 1.0
             }
         );
         match r.trace(FRAC_PI_2) {
             Echo::Hit {
                 range,
                 reflectivity,
+                ..
             } => {
                 assert!((range - 1.8).abs() < 1e-9);
                 assert_eq!(reflectivity, 0.5);
@@ -396,6 +408,7 @@ mod tests {
                 Echo::Hit {
                     range: 1.0,
                     reflectivity: 0.1,
+                    cos_incidence: 1.0,
                 },
             ],
         );

@@ -963,16 +963,19 @@ impl Sensor {
             Echo::Hit {
                 range,
                 reflectivity,
+                cos_incidence,
             } => {
                 let mm = (range * 1000.0).round();
                 if !mm.is_finite() || mm > f64::from(self.spec.dmax) {
                     Step::NoEcho
                 } else if mm < f64::from(self.spec.dmin) {
                     Step::Code(if urg { returns::TOO_CLOSE_CODE } else { 2 })
-                } else if urg && !returns::measured(reflectivity, range, &mut self.optics) {
+                } else if urg
+                    && !returns::measured(reflectivity * cos_incidence, range, &mut self.optics)
+                {
                     Step::NoEcho
                 } else {
-                    let i = reflectivity.clamp(0.0, 1.0) * 10_000.0 / range.max(0.25);
+                    let i = super::intensity::reported(reflectivity, cos_incidence, range);
                     Step::Range {
                         mm: mm as u32,
                         intensity: i.round() as u32,
