@@ -120,7 +120,10 @@ fn urg_ff_intensity_mode_delivers_intensities() {
     let model = |rho: f64, r: f64| 2918.0 / 0.55 * rho * r.powf(-0.18);
     let front = nearest(b, 0.0);
     let left = nearest(b, FRAC_PI_2);
-    assert!((front.intensity - model(0.8, 2.5)).abs() < 60.0, "{front:?}");
+    assert!(
+        (front.intensity - model(0.8, 2.5)).abs() < 60.0,
+        "{front:?}"
+    );
     assert!((left.intensity - model(0.5, 1.8)).abs() < 60.0, "{left:?}");
 }
 

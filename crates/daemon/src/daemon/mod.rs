@@ -263,6 +263,7 @@ impl Daemon {
             fit_mount: cfg.daemon.fit_scanner_mount,
             check_min_information: cfg.icp.degeneracy_threshold * stages::CHECK_INFORMATION_FACTOR,
             deskew: cfg.daemon.deskew_scans,
+            intensity_scale: 1.0 / cfg.scanner.intensity_unit,
             points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
             relocalise_on: None,
             publish_keyframes: setup.state_dir.is_some(),

@@ -44,6 +44,12 @@ pub struct UrgParams {
     /// Experimental: URG-04LX `FF` intensity mode (or ME on models that have
     /// it); only used when the sensor's MODL supports it.
     pub intensity: bool,
+    /// The raw intensity a matt light wall (painted plaster) gives at 1 m
+    /// head-on: intensities are divided by it before matching, so that
+    /// `icp.intensity_weight` and `icp.intensity_edge` mean the same on
+    /// every model (about 2900 on a UTM-30LX, fitted to a real scan; the
+    /// emulator's URG-04LX is given the same: docs/scanner.md#intensities).
+    pub intensity_unit: f64,
     /// Capacity of the scan channel; when full the oldest scan is dropped.
     pub queue: usize,
     /// How long to wait for the reply to a command (s). A URG handles
@@ -81,6 +87,7 @@ impl Default for UrgParams {
             cluster: 1,
             skip: 0,
             intensity: false,
+            intensity_unit: 2918.0,
             queue: 4,
             reply_timeout: 0.5,
             scan_timeout_periods: 4.0,
@@ -129,6 +136,12 @@ impl UrgParams {
         pos("reconnect_max", self.reconnect_max)?;
         pos("poll", self.poll)?;
         pos("reboot_wait", self.reboot_wait)?;
+        if !(self.intensity_unit.is_finite() && self.intensity_unit > 0.0) {
+            return Err(format!(
+                "scanner.intensity_unit must be a positive number, got {}",
+                self.intensity_unit
+            ));
+        }
         if !(self.scan_timeout_periods.is_finite() && self.scan_timeout_periods >= 1.5) {
             return Err(format!(
                 "scanner.scan_timeout_periods must be at least 1.5, got {}",

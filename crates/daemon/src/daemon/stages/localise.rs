@@ -63,6 +63,9 @@ pub struct LocaliseStage {
     /// Whether scans are deskewed by the odometry's motion before use
     /// (`daemon.deskew_scans`).
     pub deskew: bool,
+    /// Factor taking the sensor's raw intensities to wall units
+    /// (`1 / scanner.intensity_unit`): a matt light wall at 1 m is 1.
+    pub(crate) intensity_scale: f64,
     /// Reused point buffer.
     pub points: Vec<IPoint>,
     /// The restored map of a resumed run: the first scan is laid onto it
@@ -218,6 +221,9 @@ impl LocaliseStage {
             deskew(&mut msg.scan, &msg.motion, &self.mount);
         }
         msg.scan.points_into(&mut self.points);
+        for p in &mut self.points {
+            p.intensity *= self.intensity_scale;
+        }
         self.shared
             .with_ahead(|a| a.load_scan(&msg.scan, &self.mount, msg.odom));
         let resuming = self.relocalise_on.is_some();
