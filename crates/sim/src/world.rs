@@ -858,4 +858,60 @@ mod shipped_worlds {
         );
         assert!(w.disk_is_free(&w.start.translation.vector.into(), 0.17));
     }
+
+    fn shipped(name: &str) -> World {
+        let path = format!("{}/../../hw/worlds/{name}", env!("CARGO_MANIFEST_DIR"));
+        World::load(std::path::Path::new(&path)).unwrap()
+    }
+
+    #[test]
+    fn the_corridor_shows_its_tape_only_in_the_reflectivity() {
+        let w = shipped("corridor.world");
+        let o = Point2::new(7.0, 0.9);
+        let down = -std::f64::consts::FRAC_PI_2;
+        // Straight down from x = 7.0 is plaster; towards the strip at
+        // x = 6.7-6.8 on the same wall, tape; the range is the wall's.
+        let plaster = w.cast_ray(&o, down, 10.0).unwrap();
+        let to_tape = (-0.9f64).atan2(-0.25);
+        let tape = w.cast_ray(&o, to_tape, 10.0).unwrap();
+        assert!((plaster.reflectivity - 0.55).abs() < 1e-12, "{plaster:?}");
+        assert!((tape.reflectivity - 0.95).abs() < 1e-12, "{tape:?}");
+        assert!((tape.range - 0.25f64.hypot(0.9)).abs() < 1e-9);
+        // In the middle neither end wall is within the URG-04LX's 5.6 m.
+        let mid = Point2::new(8.0, 0.9);
+        assert!(w.cast_ray(&mid, 0.0, 5.6).is_none());
+        assert!(w.cast_ray(&mid, std::f64::consts::PI, 5.6).is_none());
+    }
+
+    #[test]
+    fn the_mirror_rooms_halves_differ_only_in_reflectivity() {
+        let w = shipped("mirror.world");
+        // Every ray from a point has its mirror image about x = 4 from the
+        // mirrored point: the same range, a different reflectivity where it
+        // hits the room's walls.
+        let (p, q) = (Point2::new(0.9, 1.1), Point2::new(7.1, 1.1));
+        let mut darker = 0;
+        for k in 0..360 {
+            let a = (k as f64 + 0.5).to_radians();
+            let h = w.cast_ray(&p, a, 20.0).unwrap();
+            let m = w.cast_ray(&q, std::f64::consts::PI - a, 20.0).unwrap();
+            assert!((h.range - m.range).abs() < 1e-9, "ray {k}: {h:?} {m:?}");
+            if h.reflectivity < m.reflectivity {
+                darker += 1;
+            }
+        }
+        assert!(darker > 180, "{darker} of 360 rays darker on the left");
+        // The free floor is symmetric too.
+        let r = &w.free;
+        for cy in 0..r.height {
+            for cx in 0..r.width {
+                let p = Point2::new(
+                    r.origin.x + (cx as f64 + 0.5) * r.resolution,
+                    r.origin.y + (cy as f64 + 0.5) * r.resolution,
+                );
+                let m = Point2::new(8.0 - p.x, p.y);
+                assert_eq!(r.is_free(&p), r.is_free(&m), "{p}");
+            }
+        }
+    }
 }
