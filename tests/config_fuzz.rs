@@ -279,6 +279,17 @@ fn hostile_inputs_name_the_key_or_line() {
             &["icp.degeneracy_threshold"],
         ),
         (
+            // Intensities are divided by it before matching.
+            "a zero intensity unit",
+            "[scanner]\nintensity_unit = 0\n".into(),
+            &["scanner.intensity_unit", "positive"],
+        ),
+        (
+            "a NaN intensity unit",
+            "[scanner]\nintensity_unit = nan\n".into(),
+            &["scanner.intensity_unit"],
+        ),
+        (
             "unknown contact key",
             "[daemon.contact]\nbearing = 0.5\n".into(),
             &["bearing", "side_bearing"],
