@@ -38,8 +38,7 @@ pub struct DaemonHooks {
     started: f64,
     base: RunProgress,
     sequence: u64,
-    /// Puts checkpoints and heartbeats on disk (none: no state folder, or
-    /// the thread could not be started and they are written here).
+    /// Puts checkpoints and heartbeats on disk (none: no state folder).
     writer: Option<StateWriter>,
     /// The checkpoint period (s), to tell a slow disk in the log.
     period: f64,
@@ -71,15 +70,7 @@ impl DaemonHooks {
                 ..p
             })
             .unwrap_or_default();
-        let writer = state_dir.and_then(|_| {
-            StateWriter::spawn("state-writer")
-                .inspect_err(|e| {
-                    log::warn!(
-                        "state writer not started ({e}); checkpoints are written by the supervisor"
-                    )
-                })
-                .ok()
-        });
+        let writer = state_dir.map(|_| StateWriter::spawn("state-writer"));
         Self {
             started: clock.now(),
             shared,
@@ -176,27 +167,21 @@ impl DaemonHooks {
         );
     }
 
-    /// Hands `job` to the writer, or writes it here without one.
+    /// Hands `job` to the writer (there is one whenever there is a state
+    /// folder to write to), and logs once when checkpoints are slower than
+    /// their period.
     fn write(&mut self, kind: &'static str, job: crate::pipeline::writer::Job) {
-        match &self.writer {
-            Some(w) => {
-                w.submit(kind, job);
-                // Wall seconds on the run's clock (a simulation may run
-                // faster than the wall).
-                let slowest = w.stats(kind).slowest * self.clock.speed();
-                if kind == CHECKPOINT && slowest > self.period && !self.warned_slow {
-                    self.warned_slow = true;
-                    log::warn!(
-                        "a checkpoint took {slowest:.1} s to write, longer than pipeline.checkpoint_period ({:.1} s): the state folder's disk is slow; the newest checkpoint is written whenever the disk is free again",
-                        self.period
-                    );
-                }
-            }
-            None => {
-                if let Err(e) = job() {
-                    log::warn!("{kind} not written: {e}");
-                }
-            }
+        let Some(w) = &self.writer else { return };
+        w.submit(kind, job);
+        // Wall seconds on the run's clock (a simulation may run faster than
+        // the wall).
+        let slowest = w.stats(kind).slowest * self.clock.speed();
+        if kind == CHECKPOINT && slowest > self.period && !self.warned_slow {
+            self.warned_slow = true;
+            log::warn!(
+                "a checkpoint took {slowest:.1} s to write, longer than pipeline.checkpoint_period ({:.1} s): the state folder's disk is slow; the newest checkpoint is written whenever the disk is free again",
+                self.period
+            );
         }
     }
 

@@ -1,6 +1,6 @@
 //! The state writer: a background thread that puts the supervisor's files
-//! (checkpoints, heartbeats, metrics) on disk, so that a slow disk never
-//! holds up supervision.
+//! (checkpoints and heartbeats) on disk, so that a slow disk never holds up
+//! supervision.
 //!
 //! Why a thread: an `fsync`, or even a rename over an existing file, can
 //! block for a long time when the disk is busy (0.4-0.8 s measured on this
@@ -77,8 +77,10 @@ pub struct StateWriter {
 
 impl StateWriter {
     /// Starts the writer thread, named `name` (as `top` and the report's
-    /// per-thread CPU show it).
-    pub fn spawn(name: &str) -> std::io::Result<Self> {
+    /// per-thread CPU show it). When no thread can be started the writer
+    /// starts finished: every job is then written at once by its caller,
+    /// with the same figures and error log.
+    pub fn spawn(name: &str) -> Self {
         let state = Arc::new(State {
             inner: Mutex::new(Inner::default()),
             wake: Condvar::new(),
@@ -86,11 +88,13 @@ impl StateWriter {
         let s = Arc::clone(&state);
         let thread = std::thread::Builder::new()
             .name(name.to_string())
-            .spawn(move || run(&s))?;
-        Ok(Self {
-            state,
-            thread: Some(thread),
-        })
+            .spawn(move || run(&s))
+            .inspect_err(|e| {
+                log::warn!("{name}: no thread ({e}); files are written by the caller");
+                lock(&state).closed = true;
+            })
+            .ok();
+        Self { state, thread }
     }
 
     /// Queues `job` as the newest write of `kind`, replacing one of that
@@ -209,7 +213,7 @@ mod tests {
 
     #[test]
     fn a_newer_job_replaces_a_waiting_one_and_finish_writes_what_is_pending() {
-        let mut w = StateWriter::spawn("test-writer").unwrap();
+        let mut w = StateWriter::spawn("test-writer");
         let written = Arc::new(AtomicU64::new(0));
         // A slow first job holds the thread while three more of one kind
         // arrive: the two older of them are superseded.
@@ -255,7 +259,7 @@ mod tests {
 
     #[test]
     fn a_panicking_job_is_an_error_and_the_writer_goes_on() {
-        let mut w = StateWriter::spawn("test-writer").unwrap();
+        let mut w = StateWriter::spawn("test-writer");
         w.submit("checkpoint", Box::new(|| panic!("boom")));
         let ok = Arc::new(AtomicU64::new(0));
         let o = Arc::clone(&ok);
