@@ -10,7 +10,7 @@ use std::collections::VecDeque;
 
 use nalgebra::Vector2;
 
-use super::reference::ordered_surface;
+use super::reference::{edge_after, ordered_normal};
 use super::{IcpError, IcpParams, Reference};
 use crate::capacity::MAX_BEAMS;
 use crate::geom::{IPoint, Pose};
@@ -38,7 +38,7 @@ pub struct KeyframeState {
     /// (stored as a single-precision direction).
     #[serde(with = "crate::stored::normal_directions")]
     pub normals: Vec<Vector2<f64>>,
-    /// Whether each point sits on an intensity edge.
+    /// Whether an intensity edge lies between each point and the next one.
     #[serde(with = "crate::stored::bits")]
     pub edges: Vec<bool>,
 }
@@ -110,10 +110,10 @@ impl KeyframeMap {
         kf.edges.clear();
         let rot = pose.rotation;
         for (i, p) in points.iter().enumerate() {
-            let (n, edge) = ordered_surface(points, i, params);
+            let n = ordered_normal(points, i, params);
             kf.points.push(p.transformed(pose));
             kf.normals.push(rot * n);
-            kf.edges.push(edge);
+            kf.edges.push(edge_after(points, i, params).is_some());
         }
         self.keyframes.push_back(kf);
         self.rebuild_reference(params)

@@ -60,8 +60,9 @@ pub struct IcpParams {
     pub normal_neighbours: usize,
     /// Neighbours farther than this (m) do not count for the normal.
     pub normal_radius: f64,
-    /// Intensity step between surface neighbours that marks an intensity edge
-    /// (used when `intensity_weight` > 0): such pairs also constrain motion along the surface.
+    /// Intensity step between successive scan points that marks an
+    /// intensity edge (used when `intensity_weight` > 0): scan and map edges
+    /// are paired edge to edge and pin the pose along the surface.
     pub intensity_edge: f64,
     /// Readings at or beyond this range (m) are dropped before matching.
     pub max_range: f64,

@@ -29,7 +29,7 @@ enum Tree {
 pub struct Reference {
     points: Vec<IPoint>,
     normals: Vec<Vector2<f64>>,
-    edges: Vec<bool>,
+    edges: Vec<EdgeFeature>,
     coords: Vec<[f64; 3]>,
     coords2: Vec<[f64; 2]>,
     tree: Option<Tree>,
@@ -88,11 +88,10 @@ impl Reference {
             .unwrap_or(std::num::NonZeroUsize::MIN);
         let r2 = params.normal_radius * params.normal_radius;
         let mut nb: Vec<Vector2<f64>> = Vec::with_capacity(k.get());
+        // Unordered points have no surface order to find intensity steps along.
         self.edges.clear();
-        let step = params.intensity_edge;
         for p in &self.points {
             nb.clear();
-            let mut edge = false;
             for n in tree2
                 .query(&[p.x, p.y])
                 .nearest_n::<SquaredEuclidean<f64>>(k)
@@ -101,11 +100,9 @@ impl Reference {
                 if n.distance <= r2 {
                     let q = &self.points[n.item as usize];
                     nb.push(Vector2::new(q.x, q.y));
-                    edge |= (q.intensity - p.intensity).abs() >= step;
                 }
             }
             self.normals.push(normal_of(&nb));
-            self.edges.push(edge && params.intensity_weight > 0.0);
         }
         self.build_tree(params)
     }
@@ -124,16 +121,19 @@ impl Reference {
         self.edges.clear();
         let n = self.points.len();
         for i in 0..n {
-            let (normal, edge) = ordered_surface(&self.points, i, params);
-            self.normals.push(normal);
-            self.edges.push(edge);
+            self.normals.push(ordered_normal(&self.points, i, params));
+            if let Some(e) = edge_after(&self.points, i, params) {
+                self.edges.push(e);
+            }
         }
         self.build_tree(params)
     }
 
     /// Rebuilds from points with their normals (zero vector = unknown) and
-    /// intensity-edge flags already known. Entries with a non-finite point or
-    /// normal are dropped; slices are read up to the shortest length.
+    /// intensity-edge flags already known (`edges[i]`: an intensity step lies
+    /// between point `i` and point `i + 1` of the same surface, see
+    /// [`edge_after`]). Entries with a non-finite point or normal are
+    /// dropped; slices are read up to the shortest length.
     pub(crate) fn rebuild_with_normals(
         &mut self,
         points: &[IPoint],
@@ -144,11 +144,17 @@ impl Reference {
         self.points.clear();
         self.normals.clear();
         self.edges.clear();
-        for ((p, n), e) in points.iter().zip(normals).zip(edges) {
+        for (i, ((p, n), e)) in points.iter().zip(normals).zip(edges).enumerate() {
             if finite_point(p) && n.x.is_finite() && n.y.is_finite() {
                 self.points.push(*p);
                 self.normals.push(*n);
-                self.edges.push(*e && params.intensity_weight > 0.0);
+            }
+            if *e {
+                // Checked again: the flag comes from a stored keyframe.
+                let next = points.get(i + 1).zip(normals.get(i + 1));
+                if let Some(f) = next.and_then(|(b, nb)| edge_between(p, b, n, nb, params)) {
+                    self.edges.push(f);
+                }
             }
         }
         self.check_size(params)?;
@@ -179,13 +185,15 @@ impl Reference {
             if !finite_point(p) {
                 continue;
             }
-            let (n, edge) = ordered_surface(points, i, params);
+            let n = ordered_normal(points, i, params);
             let b = p.y.atan2(p.x);
             sorted &= self.bearings.last().is_none_or(|&last| b >= last);
             self.bearings.push(b);
             self.points.push(p.transformed(pose));
             self.normals.push(rot * n);
-            self.edges.push(edge && params.intensity_weight > 0.0);
+            if let Some(e) = edge_after(points, i, params) {
+                self.edges.push(e.transformed(pose));
+            }
         }
         self.check_size(params)?;
         self.intensity_scale = params.intensity_weight.max(0.0).sqrt();
@@ -227,10 +235,10 @@ impl Reference {
         &self.normals
     }
 
-    /// Per point: true where the intensity steps by at least `intensity_edge`
-    /// between surface neighbours (a marker's border) and `w` > 0. Such points
-    /// constrain the pose along the surface too.
-    pub(crate) fn intensity_edges(&self) -> &[bool] {
+    /// The intensity edges along the reference's surfaces (a marker's
+    /// borders; none when `w` = 0 or the points have no surface order).
+    /// They constrain the pose along the surface, where geometry cannot.
+    pub(crate) fn intensity_edges(&self) -> &[EdgeFeature] {
         &self.edges
     }
 
@@ -371,28 +379,114 @@ fn finite_point(p: &IPoint) -> bool {
     p.x.is_finite() && p.y.is_finite() && p.intensity.is_finite()
 }
 
-/// Normal and intensity-edge flag of point `i` of an ordered sequence, from
-/// its neighbours at most `normal_neighbours` steps away on each side and within `normal_radius`.
-pub(crate) fn ordered_surface(
-    points: &[IPoint],
-    i: usize,
-    params: &IcpParams,
-) -> (Vector2<f64>, bool) {
+/// Normal of point `i` of an ordered sequence, from its neighbours at most
+/// `normal_neighbours` steps away on each side and within `normal_radius`.
+pub(crate) fn ordered_normal(points: &[IPoint], i: usize, params: &IcpParams) -> Vector2<f64> {
     let half = params.normal_neighbours.max(1);
     let p = &points[i];
     let r2 = params.normal_radius * params.normal_radius;
     let lo = i.saturating_sub(half);
     let hi = (i + half).min(points.len() - 1);
     let mut acc = Accum::default();
-    let mut edge = false;
     for q in &points[lo..=hi] {
         let (dx, dy) = (q.x - p.x, q.y - p.y);
         if dx * dx + dy * dy <= r2 {
             acc.add(q.x, q.y);
-            edge |= (q.intensity - p.intensity).abs() >= params.intensity_edge;
         }
     }
-    (acc.normal(), edge && params.intensity_weight > 0.0)
+    acc.normal()
+}
+
+/// Farthest apart (m) two successive points may lie for an intensity step
+/// between them to count as an edge: farther, they may sit on different
+/// surfaces, and the edge's place between them is too uncertain to help.
+/// (The URG-04LX's 0.7° intensity steps lie 12 cm apart on a wall seen at
+/// 3 m and 17° off grazing.)
+pub(crate) const EDGE_MAX_GAP: f64 = 0.15;
+
+/// An intensity edge on a surface (a marker's border): where the intensity
+/// steps between two successive points of a scan, and which way along the
+/// surface it rises. Matched edge to edge, it fixes the pose along the
+/// surface; its place is known to within the points' spacing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct EdgeFeature {
+    /// Midway between the two points (m).
+    pub(crate) at: Vector2<f64>,
+    /// Unit vector along the surface, towards the brighter side.
+    pub(crate) rise: Vector2<f64>,
+    /// Distance between the two points (m): the edge lies somewhere between.
+    pub(crate) spacing: f64,
+}
+
+impl EdgeFeature {
+    /// The edge seen from `pose` (the points were in that frame's child).
+    pub(crate) fn transformed(&self, pose: &Pose) -> Self {
+        let at = pose * nalgebra::Point2::from(self.at);
+        Self {
+            at: at.coords,
+            rise: pose.rotation * self.rise,
+            spacing: self.spacing,
+        }
+    }
+}
+
+/// The intensity edge between successive points `a` and `b` of a surface
+/// whose unit normals there are `na` and `nb` (zero = unknown): some when
+/// intensity matching is on (`w` > 0), the points lie at most
+/// [`EDGE_MAX_GAP`] apart on a known surface and their intensities differ
+/// by `intensity_edge` or more. The direction along the surface comes from
+/// the normals (fitted over several points), not from the two points,
+/// whose range noise is as large as their spacing head-on.
+pub(crate) fn edge_between(
+    a: &IPoint,
+    b: &IPoint,
+    na: &Vector2<f64>,
+    nb: &Vector2<f64>,
+    params: &IcpParams,
+) -> Option<EdgeFeature> {
+    if params.intensity_weight <= 0.0 || !(finite_point(a) && finite_point(b)) {
+        return None;
+    }
+    let d = Vector2::new(b.x - a.x, b.y - a.y);
+    let spacing = d.norm();
+    let step = b.intensity - a.intensity;
+    if !(spacing > 0.0 && spacing <= EDGE_MAX_GAP && step.abs() >= params.intensity_edge) {
+        return None;
+    }
+    // Both normals known and of one surface (within 30°), turned alike.
+    if !(na.norm() > 0.5 && nb.norm() > 0.5) {
+        return None;
+    }
+    let n = if na.dot(nb) < 0.0 { na - nb } else { na + nb };
+    let len = n.norm();
+    if len < 2.0 * SAME_SURFACE {
+        return None;
+    }
+    let tangent = Vector2::new(-n.y, n.x) / len;
+    let along = tangent.dot(&d);
+    Some(EdgeFeature {
+        at: Vector2::new(0.5 * (a.x + b.x), 0.5 * (a.y + b.y)),
+        rise: tangent * (along.signum() * step.signum()),
+        spacing,
+    })
+}
+
+/// cos of the half angle between two normals of one surface (15°: their
+/// mean then lies within 15° of each).
+const SAME_SURFACE: f64 = 0.966;
+
+/// The intensity edge between point `i` and point `i + 1` of an ordered
+/// sequence, their normals fitted from their sequence neighbours.
+pub(crate) fn edge_after(points: &[IPoint], i: usize, params: &IcpParams) -> Option<EdgeFeature> {
+    let (a, b) = (points.get(i)?, points.get(i + 1)?);
+    if params.intensity_weight <= 0.0 || (b.intensity - a.intensity).abs() < params.intensity_edge {
+        return None;
+    }
+    let (na, nb) = (
+        ordered_normal(points, i, params),
+        ordered_normal(points, i + 1, params),
+    );
+    edge_between(a, b, &na, &nb, params)
 }
 
 fn normal_of(nb: &[Vector2<f64>]) -> Vector2<f64> {

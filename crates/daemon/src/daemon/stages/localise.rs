@@ -712,6 +712,7 @@ mod tests {
             covariance: None,
             correction_translation: 0.0,
             correction_rotation: 0.0,
+            edge_pairs: 0,
         };
         let least = 0.02 * CHECK_INFORMATION_FACTOR;
         assert!(pins_the_pose(&Outcome::First, least));
