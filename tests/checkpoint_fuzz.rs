@@ -374,7 +374,7 @@ fn hostile_files_give_clear_errors() {
     let mut claims = kf(1, vec![ok_point]);
     claims.truncate(claims.len() - 4);
     let hostile_kf: Vec<(Vec<u8>, &str)> = vec![
-        (kf(65, vec![]), "more than the 64 allowed"),
+        (kf(4097, vec![]), "more than the 4096 allowed"),
         (claims, "icp.keyframes` is malformed"),
         (kf(1, vec![ok_point; 1441]), "more than the 1440 allowed"),
         (kf(1, vec![[1.0, f32::NAN, 0.5]]), "point y"),

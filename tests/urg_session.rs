@@ -202,3 +202,40 @@ fn a_driver_left_on_a_vanished_pty_number_leaves_the_next_pty_alone() {
     drop(emu);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// With `scanner.intensity` the driver asks a URG-04LX for its `FF` mode
+/// (a distance and an intensity per pair of steps); a firmware without it
+/// refuses, and the driver streams plain distances instead (and says so in
+/// one log line) rather than failing or retrying.
+#[test]
+fn intensity_mode_is_asked_for_and_a_refusal_falls_back_to_plain_distances() {
+    let params = sweepline::urg::UrgParams {
+        intensity: true,
+        ..test_params()
+    };
+    let asked = rig("intensity", "", false, params.clone());
+    let got = asked.collect(5, 10.0);
+    let cmds = asked.finish().commands;
+    assert!(
+        cmds.iter().any(|c| c.starts_with("MD00440725FF")),
+        "{cmds:?}"
+    );
+    for s in &got {
+        let lit = s.scan.beams.iter().filter(|b| b.valid && b.intensity > 0.0);
+        assert!(lit.count() > 200, "intensities in FF mode");
+    }
+    let refused = rig("intensity-refused", "no-ff", false, params);
+    let got = refused.collect(5, 10.0);
+    let cmds = refused.finish().commands;
+    let ff = cmds
+        .iter()
+        .filter(|c| c.starts_with("MD00440725FF"))
+        .count();
+    assert_eq!(ff, 1, "asked once, then not again: {cmds:?}");
+    assert!(cmds.iter().any(|c| c == "MD0044072501000"), "{cmds:?}");
+    assert_eq!(got.len(), 5);
+    for s in &got {
+        assert_eq!(s.scan.beams.len(), 682);
+        assert!(s.scan.beams.iter().all(|b| b.intensity == 0.0));
+    }
+}

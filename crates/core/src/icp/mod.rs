@@ -27,6 +27,6 @@ mod tracker;
 pub use error::IcpError;
 pub use local_map::{KeyframeMap, KeyframeState};
 pub use matcher::{Match, Matcher, Quality, Rejection};
-pub use params::{IcpParams, Metric, Prior};
+pub use params::{IcpParams, Metric, Prior, MAX_KEYFRAMES};
 pub use reference::Reference;
 pub use tracker::{Outcome, Step, Tracker, TrackerState};

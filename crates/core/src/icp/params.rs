@@ -24,6 +24,10 @@ pub enum Prior {
     ConstantVelocity,
 }
 
+/// Most keyframes a local map keeps (`icp.keyframe_window`,
+/// `icp.keyframe_store`): 4096 scans of the URG-04LX are about 40 MB.
+pub const MAX_KEYFRAMES: usize = 4096;
+
 /// Scan matcher settings.
 /// Loaded from the `[icp]` table of the config file; every field is documented
 /// in `hw/robot.toml`. Defaults were tuned on the MIT CSAIL benchmark log.
@@ -91,8 +95,14 @@ pub struct IcpParams {
     pub keyframe_distance: f64,
     /// ... or after this much rotation (rad).
     pub keyframe_angle: f64,
-    /// Keyframes kept in the local map (the reference of scan-to-map matching).
+    /// Keyframes in the local map (the reference of scan-to-map matching).
     pub keyframe_window: usize,
+    /// 0: the local map is a sliding window of the last `keyframe_window`
+    /// keyframes. Else up to this many keyframes are kept where they were
+    /// taken (a new one only on new ground or for a new view) and the local
+    /// map is the `keyframe_window` nearest the robot: coming back, it is
+    /// matched against what it mapped first (see [`crate::icp::KeyframeMap`]).
+    pub keyframe_store: usize,
     /// A match that corrects the initial guess by more than this (m) is rejected.
     pub max_correction_translation: f64,
     /// A match that corrects the initial guess by more than this (rad) is rejected.
@@ -137,6 +147,7 @@ impl Default for IcpParams {
             keyframe_distance: 0.3,
             keyframe_angle: 0.2,
             keyframe_window: 6,
+            keyframe_store: 0,
             max_correction_translation: 1.0,
             max_correction_rotation: 0.7,
             live_correction: 0.05,
@@ -203,8 +214,17 @@ impl IcpParams {
         if !(0.0..1.0).contains(&self.scan_fusion) {
             return Err(invalid("icp.scan_fusion", "must be in [0, 1)"));
         }
-        if self.keyframe_window == 0 {
-            return Err(invalid("icp.keyframe_window", "must be at least 1"));
+        if self.keyframe_window == 0 || self.keyframe_window > MAX_KEYFRAMES {
+            return Err(invalid(
+                "icp.keyframe_window",
+                &format!("must be in 1..={MAX_KEYFRAMES}"),
+            ));
+        }
+        if self.keyframe_store > MAX_KEYFRAMES {
+            return Err(invalid(
+                "icp.keyframe_store",
+                &format!("must be at most {MAX_KEYFRAMES} (0 = a sliding window)"),
+            ));
         }
         if !(self.live_correction.is_finite() && self.live_correction >= 0.0) {
             return Err(invalid(

@@ -244,12 +244,15 @@ impl Tracker {
     }
 
     /// Adds the keyframe [`Tracker::step_deferred`] decided on, if any;
-    /// true when one was added.
+    /// true when one was added. With a keyframe store, otherwise chooses
+    /// the keyframes nearest the robot again (both rebuild the reference).
     pub fn finish_keyframe(&mut self) -> bool {
+        let params = self.matcher.params().clone();
         let Some(pose) = self.pending_keyframe.take() else {
+            // A failed rebuild leaves the previous reference in place.
+            let _ = self.map.follow(&self.map_pose, &params);
             return false;
         };
-        let params = self.matcher.params().clone();
         self.map
             .insert(&pose, self.matcher.prepared_points(), &params)
             .is_ok()
@@ -587,17 +590,9 @@ impl Tracker {
     }
 
     /// Whether the scan just matched at `map_pose` is far enough from the
-    /// newest keyframe to become one.
+    /// keyframes to become one ([`KeyframeMap::due`]).
     fn keyframe_due(&self) -> bool {
-        let params = self.matcher.params();
-        match self.map.last_pose() {
-            None => true,
-            Some(k) => {
-                let d = k.inverse() * self.map_pose;
-                d.translation.vector.norm() >= params.keyframe_distance
-                    || d.rotation.angle().abs() >= params.keyframe_angle
-            }
-        }
+        self.map.due(&self.map_pose, self.matcher.params())
     }
 }
 

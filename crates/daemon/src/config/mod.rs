@@ -223,12 +223,14 @@ mod tests {
     fn shipped_icp_table_is_the_default_and_valid() {
         let cfg = shipped();
         // The robot tracks against a room-scale keyframe window (a larger
-        // local map than the corridor-log default); everything else is the default.
+        // local map than the corridor-log default), chosen from a keyframe
+        // store; everything else is the default.
         assert_eq!(
             cfg.icp,
             crate::icp::IcpParams {
                 keyframe_distance: 0.5,
                 keyframe_window: 40,
+                keyframe_store: 2000,
                 ..crate::icp::IcpParams::default()
             }
         );

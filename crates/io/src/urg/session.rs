@@ -140,6 +140,8 @@ struct Core {
     last_scan_at: f64,
     streaming: Option<StreamRequest>,
     dropped_seen: u64,
+    /// The sensor refused its intensity mode: plain distances from then on.
+    no_intensity: bool,
     sink: Box<dyn FnMut(&UrgScan) + Send>,
 }
 
@@ -205,6 +207,7 @@ impl UrgSession {
                 last_scan_at: now,
                 streaming: None,
                 dropped_seen: 0,
+                no_intensity: false,
                 sink,
             },
             stop,
@@ -612,9 +615,10 @@ impl UrgSession {
         let info = self.core.info.as_ref()?;
         let p = &info.params;
         let fam = p.family();
-        let (kind, cluster) = if self.core.params.intensity && fam.supports_ff_intensity() {
+        let intensity = self.core.params.intensity && !self.core.no_intensity;
+        let (kind, cluster) = if intensity && fam.supports_ff_intensity() {
             (DataKind::Distance, Cluster::UrgIntensity)
-        } else if self.core.params.intensity && fam.supports_me() {
+        } else if intensity && fam.supports_me() {
             (
                 DataKind::DistanceIntensity,
                 Cluster::Steps(self.core.params.cluster),
@@ -634,13 +638,43 @@ impl UrgSession {
         })
     }
 
-    /// Starts the continuous MD (or FF/ME) stream.
+    /// Starts the continuous MD (or FF/ME) stream. A sensor that refuses
+    /// the intensity mode (a URG-04LX firmware without `FF`), or has none,
+    /// streams plain distances instead, said in one log line: the match
+    /// then uses geometry alone.
     pub fn start_stream(&mut self) -> Result<(), UrgError> {
         let req = self.stream_request().ok_or_else(|| UrgError::BadReply {
             command: "PP".into(),
             reason: "sensor parameters unknown".into(),
         })?;
-        self.start_request(req)
+        let wants = self.core.params.intensity && !self.core.no_intensity;
+        let asks = req.scan.kind == DataKind::DistanceIntensity
+            || req.scan.cluster == Cluster::UrgIntensity;
+        if wants && !asks {
+            self.core.no_intensity = true;
+            log::warn!(
+                "{}: scanner.intensity is on but this model has no intensity mode (neither FF nor ME): streaming plain distances, the scan match uses geometry alone",
+                self.name
+            );
+        }
+        match self.start_request(req) {
+            Err(UrgError::Refused {
+                command, status, ..
+            }) if asks => {
+                self.core.no_intensity = true;
+                log::warn!(
+                    "{}: the scanner refused its intensity mode ({} answered {status}): streaming plain distances (MD), the scan match uses geometry alone; set scanner.intensity = false to skip the attempt",
+                    self.name,
+                    command.get(..2).unwrap_or(&command)
+                );
+                let plain = self.stream_request().ok_or_else(|| UrgError::BadReply {
+                    command: "PP".into(),
+                    reason: "sensor parameters unknown".into(),
+                })?;
+                self.start_request(plain)
+            }
+            r => r,
+        }
     }
 
     /// Starts a stream of `req` (count 0 = until QT).

@@ -64,6 +64,9 @@ pub struct Faults {
     pub stall: Option<(u32, f64)>,
     /// Start the 24-bit clock 2 s before it wraps.
     pub(crate) clock_wrap: bool,
+    /// A URG-04LX firmware without the undocumented `FF` intensity mode: a
+    /// request for it is refused (status `03`, as for a bad cluster count).
+    pub(crate) no_ff: bool,
     /// After every N-th scan, unplug for the given seconds, then replug (a
     /// new pty, the sensor rebooted).
     pub unplug: Option<(u32, f64)>,
@@ -71,7 +74,7 @@ pub struct Faults {
 
 /// A `--faults` list that could not be parsed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("bad fault `{item}`: {why} (known: checksum=N, drop=N, extra=N, status=N[:CODE], stuck=N, noise=N, hang=N, crlf, split, stall=N:SECONDS, wrap, unplug=N:SECONDS)")]
+#[error("bad fault `{item}`: {why} (known: checksum=N, drop=N, extra=N, status=N[:CODE], stuck=N, noise=N, hang=N, crlf, split, stall=N:SECONDS, wrap, unplug=N:SECONDS, no-ff)")]
 pub struct FaultSpecError {
     /// The offending item.
     pub item: String,
@@ -156,6 +159,7 @@ impl std::str::FromStr for Faults {
                 "crlf" => flag(&mut f.crlf)?,
                 "split" => flag(&mut f.split_writes)?,
                 "wrap" => flag(&mut f.clock_wrap)?,
+                "no-ff" => flag(&mut f.no_ff)?,
                 "stall" => f.stall = Some(every_for(item, value)?),
                 "unplug" => f.unplug = Some(every_for(item, value)?),
                 _ => {
@@ -209,7 +213,7 @@ mod tests {
     #[test]
     fn parses_every_switch() {
         let f: Faults =
-            "checksum=7, drop=11,extra=13,status=17:0L,crlf,split,stall=20:1.5,wrap,unplug=30:0.5"
+            "checksum=7, drop=11,extra=13,status=17:0L,crlf,split,stall=20:1.5,wrap,unplug=30:0.5,no-ff"
                 .parse()
                 .unwrap();
         assert_eq!(f.checksum_every, 7);
@@ -217,7 +221,7 @@ mod tests {
         assert_eq!(f.extra_every, 13);
         assert_eq!(f.status_every, 17);
         assert_eq!(&f.status_code, b"0L");
-        assert!(f.crlf && f.split_writes && f.clock_wrap);
+        assert!(f.crlf && f.split_writes && f.clock_wrap && f.no_ff);
         assert_eq!(f.stall, Some((20, 1.5)));
         assert_eq!(f.unplug, Some((30, 0.5)));
         assert_eq!(f.scan_fault(7), Some(ScanFault::Checksum));

@@ -593,7 +593,7 @@ impl Sensor {
         if req.kind == DataKind::DistanceIntensity && !self.spec.has_me {
             return Err(Status::Scip2(StatusCode::UNDEFINED));
         }
-        if req.cluster == Cluster::UrgIntensity && !self.spec.has_ff {
+        if req.cluster == Cluster::UrgIntensity && (!self.spec.has_ff || self.faults.no_ff) {
             return Err(st(b"03"));
         }
         // The firmware takes any step up to the last one it measures (step
