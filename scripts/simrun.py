@@ -5,7 +5,8 @@ seeds, in one table: the closed loop's counterpart of covrun.py.
 Usage: scripts/simrun.py BIN OUT WORLD... [--seeds N] [--jobs J] [-- SIM-OPTION...]
   BIN     the release binary (target/release/sweepline)
   OUT     folder for each run's report (OUT/<world>_s<seed>/)
-  WORLD   `paper` (hw/worlds/paper.world) or a floor-plan room MAP:N
+  WORLD   `paper` (hw/worlds/paper.world), a world file (…/NAME.world) or a
+          floor-plan room MAP:N
 Options:
   --seeds N   seeds 1..N of the simulated noise per world (default 1)
   --jobs J    runs at a time (default 1: the closed loop runs on real
@@ -25,6 +26,8 @@ PAPER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "hw", "wo
 
 
 def folder(out, world, seed):
+    if world.endswith(".world"):
+        world = os.path.splitext(os.path.basename(world))[0]
     return os.path.join(out, f"{world.replace(':', '_')}_s{seed}")
 
 
@@ -56,7 +59,12 @@ def parse(d):
 
 def run(binp, out, world, seed, extra):
     d = folder(out, world, seed)
-    arg = ["--world", PAPER] if world == "paper" else ["--room", world]
+    if world == "paper":
+        arg = ["--world", PAPER]
+    elif world.endswith(".world"):
+        arg = ["--world", world]
+    else:
+        arg = ["--room", world]
     with open(d + ".log", "w") as log:
         subprocess.run([binp, "sim", *arg, "--seed", str(seed), "--out", d, *extra],
                        stdout=log, stderr=subprocess.STDOUT)

@@ -65,8 +65,9 @@ pub struct IcpParams {
     /// Neighbours farther than this (m) do not count for the normal.
     pub normal_radius: f64,
     /// Intensity step between successive scan points that marks an
-    /// intensity edge (used when `intensity_weight` > 0): scan and map edges
-    /// are paired edge to edge and pin the pose along the surface.
+    /// intensity edge, as a share of the darker one (0.6: 60 % brighter;
+    /// used when `intensity_weight` > 0): scan and map edges are paired
+    /// edge to edge and pin the pose along the surface.
     pub intensity_edge: f64,
     /// Readings at or beyond this range (m) are dropped before matching.
     pub max_range: f64,
@@ -136,7 +137,7 @@ impl Default for IcpParams {
             degeneracy_threshold: 0.02,
             normal_neighbours: 5,
             normal_radius: 0.3,
-            intensity_edge: 0.2,
+            intensity_edge: 0.6,
             max_range: 30.0,
             min_range: 0.05,
             min_point_spacing: 0.03,
