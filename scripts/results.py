@@ -142,6 +142,17 @@ def row_doorway(out):
     return f"{cov:.2f} %, contacts with a person: {cell(md, 'contacts with a person') or '0'}"
 
 
+def eval_groups(text):
+    """(translation m, rotation °) of the `all` and `<= 1 s` lines of `sweepline eval`."""
+    groups = {}
+    for name in ("all", "<= 1 s"):
+        m = re.search(r"^" + re.escape(name) + r"\s+\d+\s+([0-9.]+) ±\s*\S+\s+\S+ ±\s*\S+\s+([0-9.]+) ±", text, re.M)
+        if not m:
+            raise RuntimeError(f"no `{name}` line in the eval output:\n{text}")
+        groups[name] = (float(m.group(1)), float(m.group(2)))
+    return groups
+
+
 def row_csail(out):
     d = os.path.join(out, "csail")
     log = os.path.join(ROOT, "..", "shared", "datasets", "mit-csail", "mit-csail.clf")
@@ -150,17 +161,49 @@ def row_csail(out):
         raise RuntimeError("../shared/datasets/mit-csail missing")
     replay = sh([BIN, "replay", log, "--out", d])
     text = sh([BIN, "eval", "--relations", rel, os.path.join(d, "trajectory.txt")])
-    groups = {}
-    for name in ("all", "<= 1 s"):
-        m = re.search(r"^" + re.escape(name) + r"\s+\d+\s+([0-9.]+) ±\s*\S+\s+\S+ ±\s*\S+\s+([0-9.]+) ±", text, re.M)
-        if not m:
-            raise RuntimeError(f"no `{name}` line in the eval output:\n{text}")
-        groups[name] = (float(m.group(1)), float(m.group(2)))
+    groups = eval_groups(text)
     cpu = re.search(r"thread CPU time per scan.*?median ([0-9.]+) ms", replay)
     (ta, ra), (tl, rl) = groups["all"], groups["<= 1 s"]
     return (f"all relations {ta:.3f} m / {ra:.2f}°, relations ≤ 1 s {tl:.4f} m / {rl:.2f}° "
             f"(CSM PL-ICP: 0.261 m / 2.12° and 0.0275 m / 0.41°, measured in ../shared/research/scan-matching.md); "
             f"CPU per scan {cpu.group(1) if cpu else '?'} ms median")
+
+
+# The benchmark's corrected logs replayed without their odometry: log file,
+# relations, time offset and tolerance (../shared/datasets/README.md), and
+# CSM's figures there (all relations; <= 1 s where they mean something).
+NO_ODOMETRY_LOGS = [
+    ("fr079", "fr079/freiburg-079-corrected.log.gz", "fr079/fr079.relations", "1211.43", "0.1",
+     "CSM 1.47 m / 9.6°, ≤ 1 s 0.034 m / 0.62°"),
+    ("Intel", "intel/intel-corrected.log.gz", "intel/intel.relations", "976052857.337", "0.006",
+     "CSM 5.52 m / 35.2°"),
+    ("ACES", "aces/aces-corrected.log.gz", "aces/aces.relations", "70.179", "0.006",
+     "CSM 38.7 m / 48.7°, 3 relations"),
+]
+
+
+def row_no_odometry(out):
+    figs = []
+    for name, log, rel, offset, tol, csm in NO_ODOMETRY_LOGS:
+        data = os.path.join(ROOT, "..", "shared", "datasets")
+        if not os.path.exists(os.path.join(data, log)):
+            raise RuntimeError(f"../shared/datasets/{log} missing")
+        d = os.path.join(out, "no-odometry", name)
+        replay = sh([BIN, "replay", os.path.join(data, log), "--out", d,
+                     "--config", os.path.join(ROOT, "hw", "replay-no-odometry.toml")])
+        text = sh([BIN, "eval", "--relations", os.path.join(data, rel), os.path.join(d, "trajectory.txt"),
+                   "--time-offset", offset, "--tolerance", tol])
+        g = eval_groups(text)
+        m = re.search(r"scans: (\d+)\s+matched: (\d+)", replay)
+        run = re.search(r"longest run of scans without an accepted match: (\d+)", replay)
+        srch = re.search(r"correlative search: ran (\d+) times.*?recovered the match (\d+); "
+                         r"CPU per searching step median ([0-9.]+) ms", replay)
+        (ta, ra), (tl, rl) = g["all"], g["<= 1 s"]
+        short = f", ≤ 1 s {tl:.4f} m / {rl:.2f}°" if name == "fr079" else ""
+        figs.append(f"{name}: {m.group(2)} of {m.group(1)} scans matched (longest unmatched run {run.group(1)}), "
+                    f"all relations {ta:.3f} m / {ra:.2f}°{short} ({csm}); searched {srch.group(1)} times, "
+                    f"{srch.group(2)} recovered, {srch.group(3)} ms CPU median")
+    return "; ".join(figs)
 
 
 def row_rooms3(out):
@@ -271,6 +314,9 @@ ROWS = [
     ("csail", "scan matching, MIT CSAIL log (translation / rotation error over the relations)",
      "`sweepline replay ../shared/datasets/mit-csail/mit-csail.clf --out OUT`; `sweepline eval --relations ../shared/datasets/mit-csail/mit-csail.relations OUT/trajectory.txt`",
      row_csail),
+    ("no-odometry", "scan matching without odometry (constant-velocity prior, correlative search), the benchmark's fr079, Intel and ACES logs",
+     "`sweepline replay LOG --config hw/replay-no-odometry.toml --out OUT`; `sweepline eval --relations REL OUT/trajectory.txt --time-offset S --tolerance S`",
+     row_no_odometry),
     ("faults", "faults end to end (cable pulled, link silent, corrupted bytes; bumper on RoboClaw and Create 2)",
      "`cargo test --release --test sim_faults -- --ignored --nocapture --test-threads=1`", row_faults),
     ("resume", "crash and resume (the daemon killed mid-run and started again)",

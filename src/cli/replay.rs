@@ -16,7 +16,7 @@ use svg::Document;
 use super::CliResult;
 use crate::config::Config;
 use crate::geom::{IPoint, Pose};
-use crate::icp::{IcpParams, Outcome, Tracker};
+use crate::icp::{IcpParams, Outcome, SearchCounts, Tracker};
 use crate::pipeline::clock::thread_cpu_time;
 use crate::pipeline::metrics::quantile_sorted;
 use crate::sim::carmen::{self, NO_RETURN_RANGE};
@@ -61,6 +61,15 @@ pub struct ReplayResult {
     pub steps: Vec<String>,
     /// Keyframe points, world frame, thinned to a 5 cm grid (for the picture).
     pub points: Vec<IPoint>,
+    /// How often the correlative search ran and found the pose.
+    pub searches: SearchCounts,
+    /// CPU time of each step in which the search ran (s).
+    pub search_cpu_times: Vec<f64>,
+    /// The longest run of successive scans without an accepted match.
+    pub longest_unmatched: usize,
+    /// Scans without an accepted match at the end of the log (a run that
+    /// never ended in a recovered pose).
+    pub unmatched_at_end: usize,
 }
 
 /// Runs the tracker over every laser record of a log.
@@ -102,7 +111,21 @@ pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayR
             ),
             Outcome::Failed(e) => format!("{:.6} failed {e}", l.stamp),
         };
-        res.steps.push(line);
+        res.steps.push(if step.searched {
+            line + " searched"
+        } else {
+            line
+        });
+        if step.searched {
+            res.search_cpu_times.push(dc);
+        }
+        match step.outcome {
+            Outcome::Matched(_) | Outcome::First => res.unmatched_at_end = 0,
+            _ => {
+                res.unmatched_at_end += 1;
+                res.longest_unmatched = res.longest_unmatched.max(res.unmatched_at_end);
+            }
+        }
         match step.outcome {
             Outcome::First => {}
             Outcome::Matched(q) => {
@@ -136,6 +159,7 @@ pub fn replay_log(log: &carmen::CarmenLog, params: &IcpParams) -> Result<ReplayR
             pose: l.odom_pose,
         });
     }
+    res.searches = tracker.search_counts();
     Ok(res)
 }
 
@@ -223,6 +247,24 @@ pub fn summary(res: &ReplayResult) -> String {
             res.iterations as f64 / res.matched as f64
         );
     }
+    let _ = writeln!(
+        s,
+        "longest run of scans without an accepted match: {}  still unmatched at the end: {}",
+        res.longest_unmatched, res.unmatched_at_end
+    );
+    let n = res.searches;
+    let mut sc = res.search_cpu_times.clone();
+    sc.sort_by(f64::total_cmp);
+    let _ = writeln!(
+        s,
+        "correlative search: ran {} times, found a candidate {}, recovered the match {}; CPU per searching step median {:.3} ms  max {:.3} ms; {:.0} candidates scored per search",
+        n.calls,
+        n.found,
+        n.recovered,
+        quantile_sorted(&sc, 0.5) * 1e3,
+        sc.last().copied().unwrap_or(0.0) * 1e3,
+        n.scored as f64 / n.found.max(1) as f64
+    );
     for (name, v) in [("wall-clock", &t), ("thread CPU", &c)] {
         let _ = writeln!(
             s,

@@ -253,6 +253,9 @@ pub struct SimReport {
     pub base_emu: EmuStats,
     /// Scans the daemon localised and how many fell back to odometry.
     pub scans: (u64, u64),
+    /// The scan tracker's correlative searches and their CPU per searching
+    /// scan (sum, largest; s).
+    pub searches: (sweepline_core::icp::SearchCounts, (f64, f64)),
     /// Safety events the daemon saw.
     pub safety_events: u64,
     /// Paths the daemon gave up because the robot made no headway on them.
@@ -879,6 +882,7 @@ fn drive(
         base: shared.base_health(),
         base_emu,
         scans: shared.with_status(|s| (s.scans, s.fallbacks)),
+        searches: shared.with_status(|s| (s.searches, s.search_cpu)),
         safety_events: shared
             .safety_events
             .load(std::sync::atomic::Ordering::Relaxed),

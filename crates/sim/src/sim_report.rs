@@ -280,6 +280,7 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             "scans localised / odometry fallbacks",
             format!("{} / {}", r.scans.0, r.scans.1),
         ),
+        ("correlative searches (icp.search)", search_line(r)),
         ("safety events", format!("{}", r.safety_events)),
         (
             "paths given up for lack of headway",
@@ -416,6 +417,23 @@ fn write_counts(s: &mut String, title: &str, rows: &[(&str, u64)]) {
     for (k, v) in rows {
         let _ = writeln!(s, "| {k} | {v} |");
     }
+}
+
+/// How often the scan tracker searched for a pose its matches missed, what
+/// it found and what a searching scan cost.
+fn search_line(r: &SimReport) -> String {
+    let (n, (sum, max)) = r.searches;
+    if n.calls == 0 {
+        return "none ran".to_string();
+    }
+    format!(
+        "ran {}, found a candidate {}, recovered the match {}; CPU per searching scan mean {:.2} ms, max {:.2} ms",
+        n.calls,
+        n.found,
+        n.recovered,
+        sum / n.calls as f64 * 1e3,
+        max * 1e3
+    )
 }
 
 /// How the simulated clock ran: paced by the daemon (how often and how long

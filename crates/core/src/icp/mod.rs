@@ -16,6 +16,7 @@
 //! The evaluation against a log's relations (Kümmerle et al. 2009) is
 //! tooling with file input: `sweepline::sim::eval`.
 
+mod correlative;
 mod error;
 mod local_map;
 mod matcher;
@@ -24,9 +25,10 @@ mod reference;
 pub mod synth;
 mod tracker;
 
+pub use correlative::{CorrelativeSearch, SearchHit, SearchParams};
 pub use error::IcpError;
 pub use local_map::{KeyframeMap, KeyframeState};
 pub use matcher::{Match, Matcher, Quality, Rejection};
 pub use params::{IcpParams, Metric, Prior, MAX_KEYFRAMES};
 pub use reference::Reference;
-pub use tracker::{Outcome, Step, Tracker, TrackerState};
+pub use tracker::{Outcome, SearchCounts, Step, Tracker, TrackerState};

@@ -1,5 +1,6 @@
 //! The matcher's settings (`[icp]` table of the config file) and their checks.
 
+use super::SearchParams;
 use crate::param_check::{invalid, ParamError};
 
 /// Which error the solver minimises.
@@ -117,6 +118,10 @@ pub struct IcpParams {
     /// scan, so a real offset (wheels slipping) is taken in a few scans.
     /// 0 = only `max_correction_translation`.
     pub live_correction: f64,
+    /// The `[icp.search]` table: a correlative search around the prior
+    /// when a match fails or is rejected (see
+    /// [`crate::icp::CorrelativeSearch`]).
+    pub search: SearchParams,
 }
 
 impl Default for IcpParams {
@@ -152,6 +157,7 @@ impl Default for IcpParams {
             max_correction_translation: 1.0,
             max_correction_rotation: 0.7,
             live_correction: 0.05,
+            search: SearchParams::default(),
         }
     }
 }
@@ -233,7 +239,7 @@ impl IcpParams {
                 "must be a finite number of metres >= 0 (0 = off)",
             ));
         }
-        Ok(())
+        self.search.validate()
     }
 }
 

@@ -10,7 +10,8 @@
 //! reported pose stays within a bounded offset of it.
 
 use super::{
-    IcpError, IcpParams, KeyframeMap, KeyframeState, Matcher, Prior, Quality, Reference, Rejection,
+    CorrelativeSearch, IcpError, IcpParams, KeyframeMap, KeyframeState, Matcher, Prior, Quality,
+    Reference, Rejection,
 };
 
 /// `p` with its rotation re-normalised: nalgebra does not renormalise unit
@@ -56,6 +57,22 @@ pub struct Step {
     /// [`Tracker::step_deferred`]: when it is to be added by
     /// [`Tracker::finish_keyframe`]).
     pub keyframe: bool,
+    /// True when the matches from the prior failed and a correlative search
+    /// ran ([`Outcome::Matched`]: it found the pose).
+    pub searched: bool,
+}
+
+/// How often the correlative search ran and what it cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SearchCounts {
+    /// Searches run (each after the matches from the prior failed).
+    pub calls: u64,
+    /// Searches that found a candidate above `icp.search.min_score`.
+    pub found: u64,
+    /// ... whose ICP match from there was accepted.
+    pub recovered: u64,
+    /// Candidates scored over all searches.
+    pub scored: u64,
 }
 
 /// What a tracker needs to carry on where another left off (e.g. after a
@@ -99,6 +116,8 @@ pub struct Tracker {
     /// `live_correction` lets the next match move the pose from the
     /// odometry's prediction, and whether a scan may be bridged.
     since_accept: Option<(u32, Pose)>,
+    search: CorrelativeSearch,
+    search_counts: SearchCounts,
 }
 
 impl Tracker {
@@ -118,6 +137,8 @@ impl Tracker {
             started: false,
             reported: start,
             previous: Reference::new(),
+            search: CorrelativeSearch::new(),
+            search_counts: SearchCounts::default(),
             pending_keyframe: None,
             since_accept: None,
         })
@@ -318,6 +339,7 @@ impl Tracker {
                                 pose: self.map_pose,
                                 outcome: Outcome::First,
                                 keyframe: true,
+                                searched: false,
                             }
                         }
                         Err(e) => self.fallback(Outcome::Failed(e)),
@@ -451,6 +473,24 @@ impl Tracker {
             }
             Err(bad) => Err(bad),
         };
+        let mut searched = false;
+        let outcome = match outcome {
+            Err(bad) if self.matcher.params().search.enabled() => {
+                searched = true;
+                match self.search_from(&guess, external) {
+                    Some(Ok(m)) => match within(m) {
+                        Ok(m) => {
+                            self.search_counts.recovered += 1;
+                            Ok(m)
+                        }
+                        Err(bad2) => Err(better_failure(bad, bad2)),
+                    },
+                    Some(Err(bad2)) => Err(better_failure(bad, bad2)),
+                    None => Err(bad),
+                }
+            }
+            o => o,
+        };
         match outcome {
             Ok(m) => {
                 let before = self.map_pose;
@@ -465,10 +505,43 @@ impl Tracker {
                     pose,
                     outcome: Outcome::Matched(m.quality),
                     keyframe,
+                    searched,
                 }
             }
-            Err(o) => self.predict(guess, o),
+            Err(o) => Step {
+                searched,
+                ..self.predict(guess, o)
+            },
         }
+    }
+
+    /// The correlative search around `guess` against the reference, and
+    /// the ICP match from the pose it found; `None` when it found nothing
+    /// worth matching (see [`CorrelativeSearch`]).
+    #[allow(clippy::result_large_err)]
+    fn search_from(
+        &mut self,
+        guess: &Pose,
+        external: Option<&Reference>,
+    ) -> Option<Result<super::Match, Outcome>> {
+        let reference = external.unwrap_or(self.map.reference());
+        let params = &self.matcher.params().search;
+        self.search_counts.calls += 1;
+        let hit = self.search.search(
+            reference.points(),
+            self.matcher.prepared_points(),
+            guess,
+            params,
+        );
+        let hit = hit?;
+        self.search_counts.found += 1;
+        self.search_counts.scored += hit.scored as u64;
+        Some(self.try_match(&hit.pose, 0.0, external))
+    }
+
+    /// How often the correlative search ran since the tracker was made.
+    pub fn search_counts(&self) -> SearchCounts {
+        self.search_counts
     }
 
     // Both variants are plain stack values used once; boxing would allocate per scan.
@@ -501,6 +574,7 @@ impl Tracker {
             pose,
             outcome,
             keyframe: false,
+            searched: false,
         }
     }
 
@@ -509,6 +583,7 @@ impl Tracker {
             pose: self.reported,
             outcome,
             keyframe: false,
+            searched: false,
         }
     }
 

@@ -171,6 +171,11 @@ pub struct LiveStatus {
     pub scans: u64,
     /// Scans whose match was rejected or failed (odometry used instead).
     pub fallbacks: u64,
+    /// How often the scan tracker's correlative search ran and found the
+    /// pose (see [`crate::icp::CorrelativeSearch`]).
+    pub searches: crate::icp::SearchCounts,
+    /// CPU time of the localise steps in which it ran: sum and largest (s).
+    pub search_cpu: (f64, f64),
     /// Path driven according to the pose estimate (m).
     pub path_length: f64,
     /// What the planner is doing, in words.
@@ -232,6 +237,8 @@ impl Default for LiveStatus {
             covered_area: 0.0,
             scans: 0,
             fallbacks: 0,
+            searches: Default::default(),
+            search_cpu: (0.0, 0.0),
             path_length: 0.0,
             task: "starting".into(),
             decomposition: None,

@@ -318,9 +318,21 @@ impl LocaliseStage {
             self.tracker.note_live_odometry();
         }
         // The keyframe (a k-d tree rebuild) is added after the pose is handed on.
+        let cpu0 = crate::pipeline::clock::thread_cpu_time();
         let step = self
             .tracker
             .step_deferred(&self.points, Some(&(robot_odom * self.mount)));
+        let search_cpu = step
+            .searched
+            .then(|| (crate::pipeline::clock::thread_cpu_time() - cpu0).as_secs_f64());
+        if step.searched && matches!(step.outcome, Outcome::Matched(_)) {
+            let d = before.inverse() * step.pose;
+            log::info!(
+                "localise: the correlative search found the pose the match from the prediction missed ({:.2} m, {:.1}° from the previous pose)",
+                d.translation.vector.norm(),
+                d.rotation.angle().to_degrees()
+            );
+        }
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
         self.unmatched_run = if matched {
             if self.unmatched_run >= UNMATCHED_WARN {
@@ -427,10 +439,15 @@ impl LocaliseStage {
                 robot = self.refit_mount(refitted, &step.pose);
             }
         }
+        let searches = self.tracker.search_counts();
         self.shared.with_status(|s| {
             s.scans += 1;
             if !matched {
                 s.fallbacks += 1;
+            }
+            s.searches = searches;
+            if let Some(c) = search_cpu {
+                s.search_cpu = (s.search_cpu.0 + c, s.search_cpu.1.max(c));
             }
         });
         if matched {
