@@ -206,6 +206,44 @@ def row_no_odometry(out):
     return "; ".join(figs)
 
 
+# The closed loop's motion faults (`sweepline sim --fault`), each alone in
+# the default room: name, extra options.
+MOTION_FAULTS = [
+    ("slip", ["--fault", "slip=200:1:0.45:0"]),
+    ("knock", ["--fault", "knock=200:10"]),
+    ("scale", ["--odometry-scale-error", "3"]),
+    ("kidnap", ["--fault", "kidnap=200:1:0:30"]),
+]
+
+
+def row_motion_faults(out):
+    from concurrent.futures import ThreadPoolExecutor
+    runs = [(name, seed, args) for name, args in MOTION_FAULTS for seed in SEEDS]
+    with ThreadPoolExecutor(2) as pool:
+        mds = list(pool.map(lambda r: sim_run(out, f"fault_{r[0]}_s{r[1]}", ["--seed", str(r[1]), *r[2]])[0], runs))
+    figs = []
+    for name, _ in MOTION_FAULTS:
+        cov, settle, peak, lost = [], [], [], []
+        for (n, seed, _), md in zip(runs, mds):
+            if n != name:
+                continue
+            cov.append(nums(cell(md, "coverage of reachable floor"))[0])
+            f = cell(md, "after the motion faults")
+            m = re.search(r"peak error ([0-9.]+) mm, under 20 mm from (never|([0-9.]+) s after it) on", f)
+            if m:
+                peak.append(float(m.group(1)))
+                settle.append(m.group(3) or "never")
+            lost.append(int(nums(cell(md, "robot lost and found again"))[0]))
+            if name == "scale":
+                peak.append(nums(cell(md, "localisation error at scan times"))[0])
+        if name == "scale":
+            figs.append(f"odometry 3 % short: coverage {span(cov)} %, pose RMSE {span(peak, '{:.1f}')} mm")
+        else:
+            figs.append(f"{name}: coverage {span(cov)} %, pose under 2 cm from {'/'.join(settle)} s after it on "
+                        f"(peak {span(peak, '{:.1f}')} mm), lost and found {'/'.join(map(str, lost))} times")
+    return "; ".join(figs) + " (seeds 1/2/3)"
+
+
 def row_rooms3(out):
     figs = []
     for room in ("office_f:0", "lab_a_scan:1", "Freiburg52_scan:0"):
@@ -314,6 +352,9 @@ ROWS = [
     ("csail", "scan matching, MIT CSAIL log (translation / rotation error over the relations)",
      "`sweepline replay ../shared/datasets/mit-csail/mit-csail.clf --out OUT`; `sweepline eval --relations ../shared/datasets/mit-csail/mit-csail.relations OUT/trajectory.txt`",
      row_csail),
+    ("motion-faults", "closed loop, default room, motion faults one at a time, seeds 1-3: a 1 s slip burst (left wheel loses 45 %), a knock turning the robot 10°, odometry 3 % short, a kidnap (carried 1 m, turned 30°)",
+     "`sweepline sim --seed N --fault slip=200:1:0.45:0` (`knock=200:10`, `kidnap=200:1:0:30`; `--odometry-scale-error 3`)",
+     row_motion_faults),
     ("no-odometry", "scan matching without odometry (constant-velocity prior, correlative search), the benchmark's fr079, Intel and ACES logs",
      "`sweepline replay LOG --config hw/replay-no-odometry.toml --out OUT`; `sweepline eval --relations REL OUT/trajectory.txt --time-offset S --tolerance S`",
      row_no_odometry),

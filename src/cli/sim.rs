@@ -62,6 +62,23 @@ pub struct Args {
     /// (`daemon.align_to_walls`).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_heading_error)]
     pub heading_error: f64,
+    /// A motion fault at a simulated time (s from the start); may be given
+    /// more than once. `slip=AT:SECS:LEFT:RIGHT`: each wheel covers that
+    /// share less floor than its encoder counts (slip=120:1:0.45:0);
+    /// `kidnap=AT:DX:DY:DEG`: the robot is put down DX m ahead and DY m to
+    /// the left, turned DEG, the daemon not told (kidnap=200:1:0:30);
+    /// `knock=AT:DEG`: turned in place (knock=150:10).
+    #[arg(long = "fault", value_name = "SPEC", allow_hyphen_values = true)]
+    pub faults: Vec<String>,
+    /// Each wheel covers this many percent more floor than its encoder
+    /// counts: a wheel radius or tyre error the odometry does not know.
+    #[arg(
+        long,
+        value_name = "PERCENT",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    pub odometry_scale_error: f64,
     /// Mount the emulated scanner this far (degrees, counter-clockwise)
     /// from the `robot.scanner_yaw` the daemon is told: a wrongly
     /// configured mount, which the daemon should catch on its first drive.
@@ -124,6 +141,12 @@ pub fn run(args: Args) -> CliResult {
     opts.progress = true;
     opts.urg_faults = args.urg_faults.parse()?;
     opts.heading_error = args.heading_error.to_radians();
+    opts.odometry_scale_error = args.odometry_scale_error / 100.0;
+    for spec in &args.faults {
+        let (at, fault) = crate::sim::base_emu::faults::parse_motion(spec)?;
+        opts.base_faults
+            .push(crate::sim::closed_loop::TimedFault { at, fault });
+    }
     let (dx, dy) = args.mount_offset_error;
     if args.mount_yaw_error != 0.0 || dx != 0.0 || dy != 0.0 {
         let r = &opts.config.robot;

@@ -74,6 +74,60 @@ pub struct TimedFault {
     pub fault: Fault,
 }
 
+/// How long after a motion fault its recovery is watched (s).
+pub const FAULT_HORIZON: f64 = 30.0;
+/// Position error (m) under which the pose counts as found again.
+pub const FAULT_SETTLED: f64 = 0.02;
+
+/// How the localisation came back after one injected motion fault (slip,
+/// kidnap, knock), from the matched scans within [`FAULT_HORIZON`] after it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaultRecovery {
+    /// When it was injected (s from the start).
+    pub at: f64,
+    /// What it was.
+    pub fault: Fault,
+    /// Largest position error of a matched scan (m).
+    pub peak: f64,
+    /// From the fault to the first matched scan from which on every one
+    /// within the horizon is under [`FAULT_SETTLED`] (s; `None`: never).
+    pub settled_after: Option<f64>,
+    /// Longest time without a matched scan, the fault's moment included (s).
+    pub longest_gap: f64,
+    /// Matched scans within the horizon.
+    pub scans: usize,
+}
+
+impl FaultRecovery {
+    /// The recovery after the fault `fault` at clock time `at` (s), from
+    /// the matched scans `pairs` (clock times); `start` is the run's start.
+    pub(crate) fn of(fault: &TimedFault, start: f64, pairs: &[FixPair]) -> Self {
+        let at = start + fault.at;
+        let end = at + FAULT_HORIZON;
+        let (mut peak, mut good_since, mut gap, mut last, mut n) = (0.0f64, None, 0.0f64, at, 0);
+        for p in pairs.iter().filter(|p| p.t >= at && p.t <= end) {
+            let e = p.position_error();
+            peak = peak.max(e);
+            good_since = match good_since {
+                _ if e >= FAULT_SETTLED => None,
+                None => Some(p.t),
+                since => since,
+            };
+            gap = gap.max(p.t - last);
+            last = p.t;
+            n += 1;
+        }
+        Self {
+            at: fault.at,
+            fault: fault.fault,
+            peak,
+            settled_after: good_since.map(|t| t - at),
+            longest_gap: gap.max(end.min(pairs.last().map_or(at, |p| p.t)) - last),
+            scans: n,
+        }
+    }
+}
+
 /// How the simulated clock waits for the daemon (see [`PacedClock`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pace {
@@ -131,6 +185,9 @@ pub struct SimOptions {
     /// be laid along them. Poses are scored in the world frame through the
     /// frame the daemon chose.
     pub heading_error: f64,
+    /// Each wheel covers this share more floor than its encoder counts, on
+    /// top of the kinematics' own small errors (0.03: odometry 3 % short).
+    pub odometry_scale_error: f64,
     /// The emulated scanner's true mount (its pose on the robot, upside
     /// down) when it differs from what `config.robot` tells the daemon: a
     /// wrongly configured robot. `None`: as configured.
@@ -182,6 +239,7 @@ impl SimOptions {
             base_faults: Vec::new(),
             range_noise: 0.005,
             heading_error: 0.0,
+            odometry_scale_error: 0.0,
             scanner_truth: None,
             wheel_base_truth: None,
             wheel_radius_truth: None,
@@ -195,6 +253,8 @@ impl SimOptions {
 pub struct SimReport {
     /// Ground-truth coverage figures.
     pub metrics: CoverageMetrics,
+    /// How the localisation came back after each injected motion fault.
+    pub fault_recovery: Vec<FaultRecovery>,
     /// RMS position error of the localised poses (ICP at each scan) against
     /// the true pose the scan was cast from (m).
     pub position_rmse: f64,
@@ -256,6 +316,9 @@ pub struct SimReport {
     /// The scan tracker's correlative searches and their CPU per searching
     /// scan (sum, largest; s).
     pub searches: (sweepline_core::icp::SearchCounts, (f64, f64)),
+    /// Times the daemon lost the robot and found it again over the whole
+    /// map (`daemon.lost_after`), and whether it was lost at the end.
+    pub relocalisations: (u64, bool),
     /// Safety events the daemon saw.
     pub safety_events: u64,
     /// Paths the daemon gave up because the robot made no headway on them.
@@ -580,6 +643,9 @@ fn start_emulators(
     ecfg.kinematics.seed = opts.seed;
     let wheel_base = opts.true_wheel_base();
     ecfg.kinematics.wheel_base = wheel_base;
+    let (el, er) = ecfg.kinematics.scale_error;
+    let e = opts.odometry_scale_error;
+    ecfg.kinematics.scale_error = (el + e, er + e);
     if let Some(r) = opts.wheel_radius_truth {
         ecfg.wheel_radius = r;
     }
@@ -857,8 +923,15 @@ fn drive(
         let refitted = s.localise.mount.map(|m| m.refitted);
         (s.turn_ratio, s.travel_fit, s.offset_fit, refitted)
     });
+    let fault_recovery = opts
+        .base_faults
+        .iter()
+        .filter(|f| matches!(f.fault, Fault::Slip { .. } | Fault::Displace { .. }))
+        .map(|f| FaultRecovery::of(f, t_start, &fix_pairs))
+        .collect();
     let report = SimReport {
         metrics: tracker.metrics(),
+        fault_recovery,
         position_rmse: pos,
         heading_rmse: head,
         position_max: pmax,
@@ -883,6 +956,12 @@ fn drive(
         base_emu,
         scans: shared.with_status(|s| (s.scans, s.fallbacks)),
         searches: shared.with_status(|s| (s.searches, s.search_cpu)),
+        relocalisations: (
+            shared
+                .relocalisations
+                .load(std::sync::atomic::Ordering::Relaxed),
+            shared.lost.load(std::sync::atomic::Ordering::Relaxed),
+        ),
         safety_events: shared
             .safety_events
             .load(std::sync::atomic::Ordering::Relaxed),

@@ -81,6 +81,8 @@ pub struct DiffDriveSim {
     encoder: (f64, f64),
     bumper: Sides,
     rng: ChaCha8Rng,
+    /// Share of each wheel's travel lost to the floor (a slip burst).
+    loss: (f64, f64),
 }
 
 impl DiffDriveSim {
@@ -94,7 +96,43 @@ impl DiffDriveSim {
             encoder: (0.0, 0.0),
             bumper: Sides::default(),
             rng,
+            loss: (0.0, 0.0),
         }
+    }
+
+    /// Makes each wheel cover this share (left, right) less floor than
+    /// its encoder counts, until set back to (0, 0): a slip burst on a rug
+    /// or a wet patch. Shares are clamped to 0..=1.
+    pub fn set_slip_loss(&mut self, loss: (f64, f64)) {
+        self.loss = (loss.0.clamp(0.0, 1.0), loss.1.clamp(0.0, 1.0));
+    }
+
+    /// Moves the body `dx` ahead and `dy` to the left of where it stands
+    /// and turns it by `turn` (rad), at once and with nothing counted by
+    /// the encoders: a person lifting the robot and putting it down
+    /// elsewhere, or (no move) a knock that turns it. When that spot is
+    /// not free, the same move is tried turned by a quarter, a half and
+    /// three quarters of a turn. Returns the move made (robot frame), or
+    /// `None` when no spot was free.
+    pub fn displace(
+        &mut self,
+        dx: f64,
+        dy: f64,
+        turn: f64,
+        world: Option<&World>,
+    ) -> Option<(f64, f64)> {
+        for k in 0..4 {
+            let (s, c) = (f64::from(k) * std::f64::consts::FRAC_PI_2).sin_cos();
+            let (mx, my) = (c * dx - s * dy, s * dx + c * dy);
+            let to = self.pose * crate::geom::pose(mx, my, 0.0);
+            let at = Point2::from(to.translation.vector);
+            if world.is_none_or(|w| w.disk_is_free(&at, self.params.body_radius)) {
+                self.pose = to * crate::geom::pose(0.0, 0.0, turn);
+                self.wheel = WheelSpeeds::STOP;
+                return Some((mx, my));
+            }
+        }
+        None
     }
 
     /// The true pose (ground truth).
@@ -161,8 +199,8 @@ impl DiffDriveSim {
         let dr = 0.5 * (self.wheel.right + next.right) * dt;
         let (slip, noise) = (p.slip, p.encoder_noise);
         let (el, er) = p.scale_error;
-        let gl = dl * (1.0 + el + slip * self.gauss());
-        let gr = dr * (1.0 + er + slip * self.gauss());
+        let gl = dl * (1.0 + el + slip * self.gauss()) * (1.0 - self.loss.0);
+        let gr = dr * (1.0 + er + slip * self.gauss()) * (1.0 - self.loss.1);
         let candidate = self.pose * arc_increment(gl, gr, p.wheel_base);
         let (c, c0) = (
             Point2::from(candidate.translation.vector),
@@ -439,5 +477,36 @@ mod tests {
             None,
         );
         assert!(s.pose().translation.vector.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn a_slip_burst_shortens_the_ground_travel_and_a_displacement_moves_the_body() {
+        let p = KinematicsParams {
+            slip: 0.0,
+            scale_error: (0.0, 0.0),
+            encoder_noise: 0.0,
+            max_accel: 100.0,
+            ..KinematicsParams::default()
+        };
+        let mut sim = DiffDriveSim::new(p, Pose::identity());
+        sim.set_slip_loss((0.5, 0.5));
+        let ahead = WheelSpeeds {
+            left: 0.2,
+            right: 0.2,
+        };
+        for _ in 0..100 {
+            sim.step(ahead, 0.01, None);
+        }
+        let (l, r) = sim.encoder_travel();
+        let x = sim.pose().translation.x;
+        assert!(
+            (x - 0.5 * l).abs() < 0.01 && (l - r).abs() < 1e-9,
+            "x {x}, encoders {l}"
+        );
+        let moved = sim.displace(1.0, 0.0, 0.5, None).unwrap();
+        assert_eq!(moved, (1.0, 0.0));
+        assert!((sim.pose().translation.x - x - 1.0).abs() < 1e-9);
+        assert!((crate::geom::heading(&sim.pose()) - 0.5).abs() < 1e-9);
+        assert_eq!(sim.encoder_travel(), (l, r), "nothing counted");
     }
 }

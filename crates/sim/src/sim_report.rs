@@ -10,6 +10,7 @@ use std::path::Path;
 use svg::node::element::{Polyline, Rectangle};
 use svg::Document;
 
+use super::base_emu::Fault;
 use super::closed_loop::{FixPair, SimOptions, SimReport};
 use super::coverage_metrics::{CoverageTracker, OVERLAP_CAUSES};
 use super::coverage_svg;
@@ -281,6 +282,15 @@ pub fn summary(opts: &SimOptions, r: &SimReport) -> String {
             format!("{} / {}", r.scans.0, r.scans.1),
         ),
         ("correlative searches (icp.search)", search_line(r)),
+        ("after the motion faults (--fault)", fault_lines(r)),
+        (
+            "robot lost and found again over the whole map (daemon.lost_after)",
+            format!(
+                "{} time(s){}",
+                r.relocalisations.0,
+                if r.relocalisations.1 { "; lost at the end" } else { "" }
+            ),
+        ),
         ("safety events", format!("{}", r.safety_events)),
         (
             "paths given up for lack of headway",
@@ -417,6 +427,49 @@ fn write_counts(s: &mut String, title: &str, rows: &[(&str, u64)]) {
     for (k, v) in rows {
         let _ = writeln!(s, "| {k} | {v} |");
     }
+}
+
+/// Per injected motion fault: the largest error of a matched scan after
+/// it, when the error was last at least 2 cm, and the longest time without
+/// a matched scan (see [`crate::closed_loop::FaultRecovery`]).
+fn fault_lines(r: &SimReport) -> String {
+    if r.fault_recovery.is_empty() {
+        return "none injected".to_string();
+    }
+    let lines: Vec<String> = r
+        .fault_recovery
+        .iter()
+        .map(|f| {
+            let what = match f.fault {
+                Fault::Slip { secs, left, right } => format!(
+                    "slip {secs:.1} s (wheels lose {:.0} / {:.0} %)",
+                    left * 100.0,
+                    right * 100.0
+                ),
+                Fault::Displace { dx, dy, turn } if dx == 0.0 && dy == 0.0 => {
+                    format!("knock {:.0}°", turn.to_degrees())
+                }
+                Fault::Displace { dx, dy, turn } => format!(
+                    "kidnap {:.2} m, {:.0}°",
+                    dx.hypot(dy),
+                    turn.to_degrees()
+                ),
+                other => format!("{other:?}"),
+            };
+            format!(
+                "{what} at {:.0} s: peak error {:.1} mm, under {:.0} mm from {} on, longest time without a matched scan {:.1} s ({} matched in {:.0} s)",
+                f.at,
+                f.peak * 1e3,
+                crate::closed_loop::FAULT_SETTLED * 1e3,
+                f.settled_after
+                    .map_or("never".to_string(), |s| format!("{s:.1} s after it")),
+                f.longest_gap,
+                f.scans,
+                crate::closed_loop::FAULT_HORIZON
+            )
+        })
+        .collect();
+    lines.join("; ")
 }
 
 /// How often the scan tracker searched for a pose its matches missed, what

@@ -214,9 +214,13 @@ impl CorrelativeSearch {
         }
         let side = (MAX_CELLS as f64).sqrt() * res / 2.0;
         let half = (reach + margin).min(side);
+        // A coarse block starting left of (or below) the grid may still
+        // reach into it; level h stores blocks by their lower corner, so
+        // the low sides get 2^levels empty cells for the bound to hold.
+        let pad = f64::from(1u32 << params.levels) * res;
         lo = [
-            (lo[0] - margin).max(c.x - half),
-            (lo[1] - margin).max(c.y - half),
+            (lo[0] - margin).max(c.x - half) - pad,
+            (lo[1] - margin).max(c.y - half) - pad,
         ];
         hi = [
             (hi[0] + margin).min(c.x + half),
@@ -494,6 +498,61 @@ mod tests {
         assert!(CorrelativeSearch::new()
             .search(&[], &scan, &pose(0.0, 0.0, 0.0), &params)
             .is_none());
+    }
+
+    /// The whole room and a full turn: scan points fall off the grid's
+    /// sides at many candidates, where a coarse block starting outside
+    /// must still bound the cells it reaches inside.
+    #[test]
+    fn a_search_over_the_whole_room_and_a_full_turn_finds_the_pose() {
+        let walls = walls();
+        let reference = crate::icp::synth::wall_points(&walls, 0.02);
+        let truth = pose(1.2, 3.0, 3.695);
+        let scan = scan_at(&walls, &truth);
+        let whole = SearchParams {
+            window: 4.0,
+            window_angle: std::f64::consts::PI,
+            levels: 6,
+            ..SearchParams::default()
+        };
+        let mut s = CorrelativeSearch::new();
+        let hit = s
+            .search(&reference, &scan, &pose(4.7, 2.16, 1.95), &whole)
+            .expect("found");
+        let d = hit.pose.translation.vector - truth.translation.vector;
+        assert!(d.norm() < 0.05, "{hit:?}");
+        assert!(
+            (hit.pose.rotation.angle() - truth.rotation.angle()).abs() < 0.01,
+            "{hit:?}"
+        );
+        let at_truth = SearchParams {
+            window: 0.0,
+            window_angle: 0.0,
+            ..whole.clone()
+        };
+        let there = s
+            .search(&reference, &scan, &truth, &at_truth)
+            .expect("fits");
+        assert!(hit.score >= there.score - 0.01, "{hit:?} vs {there:?}");
+        // Against the exhaustive search where the window hangs over the
+        // grid's low corner.
+        let edge = SearchParams {
+            window: 0.6,
+            window_angle: 0.1,
+            levels: 3,
+            ..SearchParams::default()
+        };
+        let exhaustive = SearchParams {
+            levels: 0,
+            ..edge.clone()
+        };
+        let prior = pose(0.4, 0.3, 3.9);
+        let scan = scan_at(&walls, &pose(0.5, 0.5, 3.95));
+        let a = s.search(&reference, &scan, &prior, &edge).expect("found");
+        let b = s
+            .search(&reference, &scan, &prior, &exhaustive)
+            .expect("found");
+        assert_eq!(a.score, b.score, "{a:?} vs {b:?}");
     }
 
     #[test]

@@ -44,6 +44,10 @@ pub enum IcpError {
         /// Iteration at which it happened (0-based).
         iteration: u32,
     },
+    /// A correlative search found no place within its window where the
+    /// scan fits well enough to match from.
+    #[error("no place within the search window fits the scan well enough to match from")]
+    NotFound,
     /// The solver produced a non-finite pose (numerically singular problem).
     #[error("the solver found no usable solution at iteration {iteration} (non-finite pose, or fewer than 3 pairs with a surface normal)")]
     Diverged {

@@ -319,6 +319,40 @@ impl KeyframeMap {
         r
     }
 
+    /// Store mode: takes the `keyframe_window` keyframes nearest `pose`
+    /// whatever the current choice, and rebuilds the reference when the
+    /// choice changed (after a relocalisation: the robot is elsewhere).
+    pub(crate) fn reselect(&mut self, pose: &Pose, params: &IcpParams) -> Result<(), IcpError> {
+        if self.store == 0 || self.keyframes.is_empty() || !self.select(pose, true) {
+            return Ok(());
+        }
+        self.rebuild_reference(params)
+    }
+
+    /// Forgets the `n` newest keyframes (taken at a pose that proved
+    /// wrong) and rebuilds the reference from what is left.
+    pub(crate) fn drop_newest(&mut self, n: usize, params: &IcpParams) -> Result<(), IcpError> {
+        let n = n.min(self.keyframes.len().saturating_sub(1));
+        if n == 0 {
+            return Ok(());
+        }
+        for _ in 0..n {
+            if let Some(k) = self.keyframes.pop_back() {
+                self.spare = Some(k);
+            }
+        }
+        self.selected.clear();
+        self.selected_at = None;
+        if self.store == 0 {
+            return self.rebuild_reference(params);
+        }
+        let last = self.keyframes.back().map(|k| k.pose);
+        match last {
+            Some(at) if self.select(&at, true) => self.rebuild_reference(params),
+            _ => Ok(()),
+        }
+    }
+
     /// Forgets every keyframe (e.g. after the robot was carried away).
     pub fn clear(&mut self) {
         if let Some(k) = self.keyframes.pop_back() {

@@ -118,6 +118,11 @@ pub struct Tracker {
     since_accept: Option<(u32, Pose)>,
     search: CorrelativeSearch,
     search_counts: SearchCounts,
+    /// Keyframes taken at the prediction since the last accepted match
+    /// (see [`Tracker::forget_unconfirmed`]).
+    unconfirmed: usize,
+    /// Work buffer of [`Tracker::relocalise`]: every keyframe's points.
+    everything: Vec<IPoint>,
 }
 
 impl Tracker {
@@ -139,6 +144,8 @@ impl Tracker {
             previous: Reference::new(),
             search: CorrelativeSearch::new(),
             search_counts: SearchCounts::default(),
+            unconfirmed: 0,
+            everything: Vec::new(),
             pending_keyframe: None,
             since_accept: None,
         })
@@ -385,8 +392,12 @@ impl Tracker {
         if armed.is_some_and(|at| self.bridges(&step.outcome, &at)) {
             self.pending_keyframe = Some(self.map_pose);
             step.keyframe = true;
+            self.unconfirmed += 1;
         }
         let accepted = matches!(step.outcome, Outcome::Matched(_));
+        if accepted {
+            self.unconfirmed = 0;
+        }
         self.since_accept = match (live, accepted) {
             (false, _) => None,
             (true, true) => Some((0, self.map_pose)),
@@ -537,6 +548,70 @@ impl Tracker {
         self.search_counts.found += 1;
         self.search_counts.scored += hit.scored as u64;
         Some(self.try_match(&hit.pose, 0.0, external))
+    }
+
+    /// Looks for the scan `points` over every keyframe of the local map
+    /// within `search`'s window around the estimate (a robot carried
+    /// elsewhere, or lost after a slip the local search could not span):
+    /// a correlative search, then ICP from its best candidate against the
+    /// keyframes nearest it. Found: the estimate moves there, the motion
+    /// prior starts over, and the outcome is [`Outcome::Matched`]. Else the
+    /// estimate stays where it was and the outcome says why. Costs a search
+    /// over the whole window (tens of milliseconds for a room and a full
+    /// turn): for a robot that stands still.
+    pub fn relocalise(&mut self, points: &[IPoint], search: &super::SearchParams) -> Step {
+        self.finish_keyframe();
+        let stay = |pose, outcome| Step {
+            pose,
+            outcome,
+            keyframe: false,
+            searched: true,
+        };
+        if let Err(e) = self.matcher.prepare_points(points) {
+            return stay(self.reported, Outcome::Failed(e));
+        }
+        self.everything.clear();
+        self.everything.extend(self.map.points().copied());
+        self.search_counts.calls += 1;
+        let hit = self.search.search(
+            &self.everything,
+            self.matcher.prepared_points(),
+            &self.map_pose,
+            search,
+        );
+        let Some(hit) = hit else {
+            return stay(self.reported, Outcome::Failed(IcpError::NotFound));
+        };
+        self.search_counts.found += 1;
+        self.search_counts.scored += hit.scored as u64;
+        let params = self.matcher.params().clone();
+        // A failed rebuild keeps the previous reference: the match fails.
+        let _ = self.map.reselect(&hit.pose, &params);
+        match self.try_match(&hit.pose, 0.0, None) {
+            Ok(m) => {
+                self.search_counts.recovered += 1;
+                self.set_pose(m.pose);
+                self.unconfirmed = 0;
+                stay(self.reported, Outcome::Matched(m.quality))
+            }
+            Err(o) => {
+                let _ = self.map.reselect(&self.map_pose, &params);
+                stay(self.reported, o)
+            }
+        }
+    }
+
+    /// Forgets the keyframes taken at the prediction since the last
+    /// accepted match (a scan that saw too little of the local map is
+    /// taken at the wheels' pose: see `bridges`), for when that pose proved
+    /// wrong (the robot was carried away); returns how many.
+    pub fn forget_unconfirmed(&mut self) -> usize {
+        self.finish_keyframe();
+        let n = std::mem::take(&mut self.unconfirmed);
+        let params = self.matcher.params().clone();
+        // A failed rebuild keeps the previous reference.
+        let _ = self.map.drop_newest(n, &params);
+        n
     }
 
     /// How often the correlative search ran since the tracker was made.
@@ -717,6 +792,69 @@ mod tests {
         assert!(keyframes >= 10, "{keyframes} keyframes");
         later.finish_keyframe();
         assert_eq!(now.state(), later.state());
+    }
+
+    /// A robot carried 1.6 m and turned 100° while the wheels say it
+    /// stood still: the local search's window does not reach, matches
+    /// fail; the whole-map search finds it, and the keyframes bridged at
+    /// the wrong pose in between are forgotten first.
+    #[test]
+    fn a_carried_robot_is_found_over_the_whole_map() {
+        let walls = crate::icp::synth::l_room_with_pillar();
+        let params = IcpParams {
+            keyframe_store: 200,
+            keyframe_window: 20,
+            keyframe_distance: 0.3,
+            ..IcpParams::default()
+        };
+        let truth = |k: u32| {
+            pose(
+                0.8 + 0.1 * f64::from(k),
+                0.6 + 0.04 * f64::from(k),
+                0.05 * f64::from(k),
+            )
+        };
+        let mut t = Tracker::new(params, truth(0)).unwrap();
+        for k in 0..40 {
+            t.note_live_odometry();
+            let s = t.step(
+                &cast_seeded(&walls, &truth(k), u64::from(k)),
+                Some(&truth(k)),
+            );
+            assert!(
+                matches!(s.outcome, Outcome::First | Outcome::Matched(_)),
+                "scan {k}: {s:?}"
+            );
+        }
+        let before = t.map().len();
+        let here = truth(39);
+        let carried = pose(1.2, 3.0, here.rotation.angle() + 100f64.to_radians());
+        let mut failed = 0;
+        for k in 0..5 {
+            t.note_live_odometry();
+            let s = t.step(&cast_seeded(&walls, &carried, 100 + k), Some(&here));
+            failed += usize::from(!matches!(s.outcome, Outcome::Matched(_)));
+        }
+        assert_eq!(failed, 5, "the local search cannot reach 1.6 m and 100°");
+        let forgotten = t.forget_unconfirmed();
+        assert!(t.map().len() + forgotten >= before);
+        let whole = crate::icp::SearchParams {
+            window: 4.0,
+            window_angle: std::f64::consts::PI,
+            levels: 6,
+            min_score: 0.5,
+            ..crate::icp::SearchParams::default()
+        };
+        let s = t.relocalise(&cast_seeded(&walls, &carried, 200), &whole);
+        assert!(matches!(s.outcome, Outcome::Matched(_)), "{s:?}");
+        let d = s.pose.translation.vector - carried.translation.vector;
+        assert!(d.norm() < 0.02, "{:?}", s.pose);
+        assert!((s.pose.rotation.angle() - carried.rotation.angle()).abs() < 0.01);
+        // Tracking goes on from there.
+        let on = carried * pose(0.05, 0.0, 0.02);
+        let s = t.step(&cast_seeded(&walls, &on, 300), None);
+        assert!(matches!(s.outcome, Outcome::Matched(_)), "{s:?}");
+        assert!((s.pose.translation.vector - on.translation.vector).norm() < 0.02);
     }
 
     #[test]

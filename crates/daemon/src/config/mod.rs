@@ -224,13 +224,20 @@ mod tests {
         let cfg = shipped();
         // The robot tracks against a room-scale keyframe window (a larger
         // local map than the corridor-log default), chosen from a keyframe
-        // store; everything else is the default.
+        // store; the local search is off (a lost robot is searched for
+        // over the whole map with its wheels held instead: `daemon.lost_after`);
+        // everything else is the default.
         assert_eq!(
             cfg.icp,
             crate::icp::IcpParams {
                 keyframe_distance: 0.5,
                 keyframe_window: 40,
                 keyframe_store: 2000,
+                search: crate::icp::SearchParams {
+                    window: 0.0,
+                    window_angle: 0.0,
+                    ..crate::icp::SearchParams::default()
+                },
                 ..crate::icp::IcpParams::default()
             }
         );

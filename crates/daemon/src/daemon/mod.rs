@@ -275,6 +275,11 @@ impl Daemon {
             travel_check: travel_check::TravelCheck::new(heading(&configured_mount)),
             offset_check: offset_check::OffsetCheck::new(heading(&configured_mount)),
             offset_fitted: false,
+            lost: stages::Lost::new(
+                cfg.daemon.lost_after,
+                cfg.daemon.relocalise_radius,
+                &cfg.icp.search,
+            ),
         };
         if let Some(r) = &resume {
             localise

@@ -23,6 +23,15 @@ pub(crate) const PLAN_INTERVAL: f64 = 0.2;
 /// Longest `daemon.plan_interval` accepted (clock s).
 pub(crate) const MAX_PLAN_INTERVAL: f64 = 10.0;
 
+/// Default of `daemon.lost_after` (clock s): twenty URG-04LX scans.
+pub(crate) const LOST_AFTER: f64 = 2.0;
+
+/// Longest `daemon.lost_after` accepted (clock s).
+pub(crate) const MAX_LOST_AFTER: f64 = 60.0;
+
+/// Default of `daemon.relocalise_radius` (m): a large room.
+pub(crate) const RELOCALISE_RADIUS: f64 = 10.0;
+
 /// The `[daemon]` table.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -55,6 +64,13 @@ pub struct DaemonParams {
     /// sweep takes 67 ms), and a robot turning at 0.78 rad/s turns 3° in
     /// that time (see [`crate::scan::LaserScan::deskew`]).
     pub deskew_scans: bool,
+    /// Clock seconds without an accepted match after which the robot is
+    /// lost: the wheels are held and each scan is searched for over the
+    /// whole map until it fits somewhere (a robot lifted and put down
+    /// elsewhere, or a slip the local search cannot span); 0 = never.
+    pub lost_after: f64,
+    /// How far from the last estimate the whole-map search looks (m).
+    pub relocalise_radius: f64,
     /// Bumper contact marks.
     pub contact: ContactParams,
 }
@@ -68,6 +84,8 @@ impl Default for DaemonParams {
             align_to_walls: true,
             fit_scanner_mount: true,
             deskew_scans: true,
+            lost_after: LOST_AFTER,
+            relocalise_radius: RELOCALISE_RADIUS,
             contact: ContactParams::default(),
         }
     }
@@ -99,6 +117,20 @@ impl DaemonParams {
                 &format!(
                     "must be a finite number of seconds in 0.01..={MAX_PLAN_INTERVAL}, got {p:?}"
                 ),
+            ));
+        }
+        let l = self.lost_after;
+        if !(l.is_finite() && (0.0..=MAX_LOST_AFTER).contains(&l)) {
+            return Err(invalid(
+                "daemon.lost_after",
+                &format!("must be a finite number of seconds in 0..={MAX_LOST_AFTER} (0 = never), got {l:?}"),
+            ));
+        }
+        let r = self.relocalise_radius;
+        if !(r.is_finite() && r > 0.0 && r <= 50.0) {
+            return Err(invalid(
+                "daemon.relocalise_radius",
+                &format!("must be a finite number of metres in (0, 50], got {r:?}"),
             ));
         }
         self.contact.validate()

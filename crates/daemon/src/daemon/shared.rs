@@ -278,6 +278,12 @@ pub struct Shared {
     pub stuck_paths: AtomicU64,
     /// Times the control stage held the wheels for lack of scans.
     pub scan_holds: AtomicU64,
+    /// The localise stage has lost the robot: for `daemon.lost_after` no
+    /// scan matched, and it searches the whole map while the control stage
+    /// holds the wheels (see [`crate::daemon::stages::LocaliseStage`]).
+    pub lost: AtomicBool,
+    /// Times the robot was lost, and found again by the whole-map search.
+    pub relocalisations: AtomicU64,
     /// The newest scan's end points in the robot frame with the odometry
     /// pose they were seen from (localise writes, control reads: the
     /// protective field, see [`crate::control::guard`]).

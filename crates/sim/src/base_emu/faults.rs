@@ -83,6 +83,54 @@ fn parse_one(item: &str) -> Result<Periodic, String> {
     Ok(Periodic { every, fault })
 }
 
+/// The timed motion faults `sweepline sim --fault` takes, for `--help`.
+pub const MOTION_NAMES: &str = "slip=AT:SECS:LEFT:RIGHT, kidnap=AT:DX:DY:DEG, knock=AT:DEG";
+
+/// One motion fault at a simulated time: `slip=AT:SECS:LEFT:RIGHT` (each
+/// wheel covers that share less floor than its encoder counts for SECS),
+/// `kidnap=AT:DX:DY:DEG` (the robot put down DX m ahead and DY m to the
+/// left, turned DEG), `knock=AT:DEG` (turned in place). Returns the time (s
+/// from the start) and the fault.
+pub fn parse_motion(item: &str) -> Result<(f64, Fault), String> {
+    let bad = |why: &str| format!("fault `{item}`: {why} (expected one of {MOTION_NAMES})");
+    let (name, value) = item.split_once('=').ok_or_else(|| bad("no `=`"))?;
+    let v: Vec<f64> = value
+        .split(':')
+        .map(|x| x.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| bad("every field must be a number"))?;
+    let at = *v
+        .first()
+        .filter(|a| **a >= 0.0)
+        .ok_or_else(|| bad("the time must be >= 0 s"))?;
+    let share = |x: f64| {
+        (0.0..=1.0)
+            .contains(&x)
+            .then_some(x)
+            .ok_or_else(|| bad("a wheel's lost share must be in 0..=1"))
+    };
+    let fault = match (name.trim(), v.len()) {
+        ("slip", 4) if v[1] > 0.0 => Fault::Slip {
+            secs: v[1],
+            left: share(v[2])?,
+            right: share(v[3])?,
+        },
+        ("kidnap", 4) => Fault::Displace {
+            dx: v[1],
+            dy: v[2],
+            turn: v[3].to_radians(),
+        },
+        ("knock", 2) => Fault::Displace {
+            dx: 0.0,
+            dy: 0.0,
+            turn: v[1].to_radians(),
+        },
+        ("slip" | "kidnap" | "knock", _) => return Err(bad("wrong number of fields")),
+        _ => return Err(bad("unknown fault")),
+    };
+    Ok((at, fault))
+}
+
 impl FaultPlan {
     /// Whether the plan injects nothing.
     pub fn is_empty(&self) -> bool {
@@ -104,6 +152,41 @@ impl FaultPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parses_motion_faults_and_refuses_nonsense_naming_it() {
+        assert_eq!(
+            parse_motion("slip=120:1:0.45:0"),
+            Ok((
+                120.0,
+                Fault::Slip {
+                    secs: 1.0,
+                    left: 0.45,
+                    right: 0.0
+                }
+            ))
+        );
+        let (at, f) = parse_motion("kidnap=200:1:0:30").unwrap();
+        assert_eq!(at, 200.0);
+        assert!(
+            matches!(f, Fault::Displace { dx, dy, turn } if dx == 1.0 && dy == 0.0 && (turn - 30f64.to_radians()).abs() < 1e-9)
+        );
+        assert!(matches!(
+            parse_motion("knock=5:-10"),
+            Ok((5.0, Fault::Displace { .. }))
+        ));
+        for bad in [
+            "slip=1:1:1.5:0",
+            "slip=1:0:0.5:0",
+            "kidnap=1:1",
+            "knock=-1:10",
+            "fly=1:1",
+            "knock",
+        ] {
+            let e = parse_motion(bad).unwrap_err();
+            assert!(e.contains(bad) && e.contains("kidnap=AT"), "{e}");
+        }
+    }
 
     #[test]
     fn parses_every_fault_and_refuses_nonsense_naming_it() {

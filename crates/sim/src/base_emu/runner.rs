@@ -89,6 +89,28 @@ pub enum Fault {
         /// Duration (s).
         secs: f64,
     },
+    /// For `secs` seconds each wheel covers this share less floor than its
+    /// encoder counts (a slip burst on a rug or a wet patch).
+    Slip {
+        /// Duration (s).
+        secs: f64,
+        /// Share of the left wheel's travel lost, 0..=1.
+        left: f64,
+        /// Share of the right wheel's travel lost, 0..=1.
+        right: f64,
+    },
+    /// The body is moved `dx` ahead and `dy` left and turned by `turn`
+    /// (rad) at once, the encoders counting nothing: a person lifting the
+    /// robot and putting it down elsewhere, or (no move) a knock that
+    /// turns it (see [`crate::kinematics::DiffDriveSim::displace`]).
+    Displace {
+        /// Ahead (m, robot frame).
+        dx: f64,
+        /// To the left (m, robot frame).
+        dy: f64,
+        /// Turn (rad, counter-clockwise).
+        turn: f64,
+    },
 }
 
 /// Counters of a running emulator.
@@ -213,6 +235,9 @@ struct Faults {
     bump_until: f64,
     drop_until: f64,
     unplug_for: Option<f64>,
+    slip_until: f64,
+    slip: (f64, f64),
+    displace: Option<(f64, f64, f64)>,
 }
 
 /// How far back (s) the emulator keeps the robot's true poses: longer than
@@ -330,6 +355,11 @@ impl EmulatorHandle {
                 Fault::Bump { secs } => f.bump_until = now + secs,
                 Fault::WheelDrop { secs } => f.drop_until = now + secs,
                 Fault::Unplug { secs } => f.unplug_for = Some(secs),
+                Fault::Slip { secs, left, right } => {
+                    f.slip_until = now + secs;
+                    f.slip = (left, right);
+                }
+                Fault::Displace { dx, dy, turn } => f.displace = Some((dx, dy, turn)),
             }
         });
     }
@@ -436,7 +466,7 @@ fn run(
             device.line_silent(before_read);
         }
         let now = clock.now();
-        let (silent, mut corrupt_in, bump, lifted, unplug) = {
+        let (silent, mut corrupt_in, bump, lifted, unplug, slip, displace) = {
             let mut s = lock(&shared);
             s.now = now;
             let f = &mut s.faults;
@@ -446,10 +476,35 @@ fn run(
                 now < f.bump_until,
                 now < f.drop_until,
                 f.unplug_for.take(),
+                if now < f.slip_until {
+                    f.slip
+                } else {
+                    (0.0, 0.0)
+                },
+                f.displace.take(),
             );
             f.corrupt_in = 0;
             r
         };
+        sim.set_slip_loss(slip);
+        if let Some((dx, dy, turn)) = displace {
+            let from = sim.pose();
+            match sim.displace(dx, dy, turn, world.as_deref()) {
+                Some((mx, my)) => log::info!(
+                    "emulated base displaced by ({mx:.2}, {my:.2}) m and {:.0}° from ({:.2}, {:.2}) m, {:.0}°",
+                    turn.to_degrees(),
+                    from.translation.x,
+                    from.translation.y,
+                    crate::geom::heading(&from).to_degrees()
+                ),
+                None => log::warn!(
+                    "emulated base not displaced: no free spot {:.2} m from ({:.2}, {:.2}) m",
+                    dx.hypot(dy),
+                    from.translation.x,
+                    from.translation.y
+                ),
+            }
+        }
         if let Some(secs) = unplug {
             if wire.unplug() {
                 unplugged_until = Some(now + secs);

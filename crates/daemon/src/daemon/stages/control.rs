@@ -189,7 +189,12 @@ impl ControlStage {
                 self.follower.set_path(&[], None);
             }
             WheelSpeeds::from_body(-0.05, 0.0, self.wheel_base)
-        } else if blind {
+        } else if blind || self.shared.lost.load(Ordering::Relaxed) {
+            // Lost: the path was planned from a pose the scans no longer
+            // confirm; the planner plans again once the robot is found.
+            if !blind && !self.follower.is_done() {
+                self.follower.set_path(&[], None);
+            }
             self.watch.reset();
             WheelSpeeds::STOP
         } else {

@@ -96,6 +96,53 @@ pub struct LocaliseStage {
     /// The mount's offset was refitted by the offset check (in this run, or
     /// before the checkpoint it resumed from).
     pub(crate) offset_fitted: bool,
+    /// When the robot counts as lost, and how the whole map is searched
+    /// then (see [`Lost`]).
+    pub(crate) lost: Lost,
+}
+
+/// Losing and finding the robot: after `daemon.lost_after` without an
+/// accepted match the robot is lost, the control stage holds the wheels
+/// (`Shared::lost`), and each scan is searched for over the whole map
+/// ([`Tracker::relocalise`]) until it fits; the keyframes taken at the
+/// wheels' pose meanwhile are forgotten first.
+#[derive(Debug)]
+pub(crate) struct Lost {
+    /// `daemon.lost_after` (clock s; 0 = never).
+    pub(crate) after: f64,
+    /// The whole-map search: `[icp.search]` widened to
+    /// `daemon.relocalise_radius` and a full turn.
+    pub(crate) search: crate::icp::SearchParams,
+    /// Stamp of the first scan of the current unmatched run.
+    pub(crate) unmatched_since: Option<f64>,
+    /// Stamp since which the robot is lost, and of the last log line.
+    pub(crate) since: Option<(f64, f64)>,
+}
+
+/// A lost robot's log line is repeated this often (clock s).
+const LOST_TOLD_EVERY: f64 = 10.0;
+
+/// Least mean likelihood of the whole-map search's candidate: stricter
+/// than the local search's, as a whole map holds more look-alikes.
+const RELOCALISE_MIN_SCORE: f64 = 0.5;
+
+impl Lost {
+    /// The policy of `daemon.lost_after` with the whole-map search built
+    /// from `search` (`[icp.search]`) out to `radius` (m).
+    pub(crate) fn new(after: f64, radius: f64, search: &crate::icp::SearchParams) -> Self {
+        Self {
+            after,
+            search: crate::icp::SearchParams {
+                window: radius,
+                window_angle: std::f64::consts::PI,
+                levels: search.levels.max(6),
+                min_score: search.min_score.max(RELOCALISE_MIN_SCORE),
+                ..search.clone()
+            },
+            unmatched_since: None,
+            since: None,
+        }
+    }
 }
 
 impl LocaliseStage {
@@ -108,6 +155,48 @@ impl LocaliseStage {
         self.tracker.set_pose(*scanner);
         self.publish();
         scanner * mount.inverse()
+    }
+
+    /// Keeps [`Lost`] up to date after a scan at `stamp` that `matched` or
+    /// not, the estimate moved from `before` to `after`: declares the robot
+    /// lost (wheels held, unconfirmed keyframes forgotten) or found again.
+    fn watch_lost(&mut self, matched: bool, stamp: f64, before: &Pose, after: &Pose) {
+        use std::sync::atomic::Ordering;
+        if matched {
+            self.lost.unmatched_since = None;
+            if let Some((since, _)) = self.lost.since.take() {
+                let d = before.inverse() * after;
+                log::info!(
+                    "localise: found again by the whole-map search after {:.1} s, {:.2} m and {:.0}° from where the wheels had it; driving on",
+                    stamp - since,
+                    d.translation.vector.norm(),
+                    d.rotation.angle().to_degrees()
+                );
+                self.shared.relocalisations.fetch_add(1, Ordering::Relaxed);
+                self.shared.lost.store(false, Ordering::Relaxed);
+            }
+            return;
+        }
+        let first = *self.lost.unmatched_since.get_or_insert(stamp);
+        match self.lost.since {
+            None if self.lost.after > 0.0 && stamp - first >= self.lost.after => {
+                let forgotten = self.tracker.forget_unconfirmed();
+                log::warn!(
+                    "localise: lost: no scan matched for {:.1} s (daemon.lost_after), not even after a search around the prediction; wheels held while each scan is searched for over the whole map ({forgotten} keyframe(s) taken meanwhile forgotten)",
+                    stamp - first
+                );
+                self.lost.since = Some((stamp, stamp));
+                self.shared.lost.store(true, Ordering::Relaxed);
+            }
+            Some((since, told)) if stamp - told >= LOST_TOLD_EVERY => {
+                log::warn!(
+                    "localise: still lost after {:.0} s: the scans fit nowhere within daemon.relocalise_radius of the last estimate; wheels held. Put the robot back where it was, or restart with `sweepline run --fresh`",
+                    stamp - since
+                );
+                self.lost.since = Some((since, stamp));
+            }
+            _ => {}
+        }
     }
 
     /// What a restart needs of this stage: the keyframes as of the newest
@@ -319,9 +408,12 @@ impl LocaliseStage {
         }
         // The keyframe (a k-d tree rebuild) is added after the pose is handed on.
         let cpu0 = crate::pipeline::clock::thread_cpu_time();
-        let step = self
-            .tracker
-            .step_deferred(&self.points, Some(&(robot_odom * self.mount)));
+        let step = if self.lost.since.is_some() {
+            self.tracker.relocalise(&self.points, &self.lost.search)
+        } else {
+            self.tracker
+                .step_deferred(&self.points, Some(&(robot_odom * self.mount)))
+        };
         let search_cpu = step
             .searched
             .then(|| (crate::pipeline::clock::thread_cpu_time() - cpu0).as_secs_f64());
@@ -334,6 +426,7 @@ impl LocaliseStage {
             );
         }
         let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        self.watch_lost(matched, msg.stamp, &before, &step.pose);
         self.unmatched_run = if matched {
             if self.unmatched_run >= UNMATCHED_WARN {
                 log::info!(

@@ -11,6 +11,7 @@ mod plan;
 mod scanner;
 
 pub use control::{ControlStage, ControlWork};
+pub(crate) use localise::Lost;
 pub use localise::{deskew, pins_the_pose, LocaliseStage, CHECK_INFORMATION_FACTOR};
 pub use map::{contact_arcs, MapStage};
 pub use motor::{MotorStage, MotorWork};
