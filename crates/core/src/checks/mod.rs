@@ -10,12 +10,15 @@
 //!   mark out to try the floor behind it;
 //! * [`relocalise`]: finding the robot in its checkpointed map after a
 //!   restart;
+//! * [`consistency`]: whether a matched scan agrees with the map (a match
+//!   at a wrong place puts its end points on floor seen free);
 //! * [`stuck`]: the control stage's progress watch.
 //!
 //! Deskewing a scan by the odometry's motion is
 //! [`LaserScan::deskew_steady`](crate::scan::LaserScan::deskew_steady).
 
 pub mod align;
+pub mod consistency;
 pub mod contact;
 pub mod offset_check;
 pub mod relocalise;

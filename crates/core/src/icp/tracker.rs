@@ -614,6 +614,13 @@ impl Tracker {
         n
     }
 
+    /// Drops the keyframe [`Tracker::step_deferred`] decided on and has
+    /// not added yet (its match proved wrong after all: the caller found it
+    /// contradicts the map); true when there was one.
+    pub fn discard_pending_keyframe(&mut self) -> bool {
+        self.pending_keyframe.take().is_some()
+    }
+
     /// How often the correlative search ran since the tracker was made.
     pub fn search_counts(&self) -> SearchCounts {
         self.search_counts

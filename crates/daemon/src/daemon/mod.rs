@@ -25,7 +25,7 @@ mod contacts_resume_tests;
 // The checks beside the stages (mount, alignment, contact marks,
 // relocalisation, stuck watch), from `sweepline-core`, by their short names.
 pub(crate) use crate::checks::{
-    align, contact, offset_check, relocalise, stuck, travel_check, turn_check,
+    align, consistency, contact, offset_check, relocalise, stuck, travel_check, turn_check,
 };
 
 use std::path::PathBuf;

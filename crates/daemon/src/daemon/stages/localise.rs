@@ -117,6 +117,8 @@ pub(crate) struct Lost {
     pub(crate) unmatched_since: Option<f64>,
     /// Stamp since which the robot is lost, and of the last log line.
     pub(crate) since: Option<(f64, f64)>,
+    /// Matches in a row that contradicted the map.
+    pub(crate) contradicted: u32,
 }
 
 /// A lost robot's log line is repeated this often (clock s).
@@ -141,6 +143,7 @@ impl Lost {
             },
             unmatched_since: None,
             since: None,
+            contradicted: 0,
         }
     }
 }
@@ -155,6 +158,37 @@ impl LocaliseStage {
         self.tracker.set_pose(*scanner);
         self.publish();
         scanner * mount.inverse()
+    }
+
+    /// Whether the match of `step` puts the scan where the map has seen
+    /// free floor (see [`crate::daemon::consistency`]): then it is no match
+    /// (the pose follows the wheels, the scan stays out of the map and its
+    /// keyframe is dropped), and a run of them makes the robot lost.
+    fn contradicts_map(&mut self, step: &crate::icp::Step) -> bool {
+        use crate::daemon::consistency::{free_share, CONTRADICTION};
+        if !matches!(step.outcome, Outcome::Matched(_)) {
+            return false;
+        }
+        let Some(grid) = self.shared.with_status(|s| s.map.grid.clone()) else {
+            return false;
+        };
+        match free_share(&grid, &self.points, &step.pose) {
+            Some(share) if share > CONTRADICTION => {
+                self.tracker.discard_pending_keyframe();
+                if self.lost.contradicted == 0 {
+                    log::warn!(
+                        "localise: a match puts {:.0} % of the scan on floor the map has seen free; taken as no match",
+                        share * 100.0
+                    );
+                }
+                self.lost.contradicted += 1;
+                true
+            }
+            _ => {
+                self.lost.contradicted = 0;
+                false
+            }
+        }
     }
 
     /// Keeps [`Lost`] up to date after a scan at `stamp` that `matched` or
@@ -425,7 +459,8 @@ impl LocaliseStage {
                 d.rotation.angle().to_degrees()
             );
         }
-        let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_));
+        let matched = matches!(step.outcome, Outcome::First | Outcome::Matched(_))
+            && !self.contradicts_map(&step);
         self.watch_lost(matched, msg.stamp, &before, &step.pose);
         self.unmatched_run = if matched {
             if self.unmatched_run >= UNMATCHED_WARN {
