@@ -78,6 +78,13 @@ pub struct TimedFault {
 pub const FAULT_HORIZON: f64 = 30.0;
 /// Position error (m) under which the pose counts as found again.
 pub const FAULT_SETTLED: f64 = 0.02;
+/// How long (s) the error must stay under [`FAULT_SETTLED`], matched scans
+/// never more than [`FAULT_MAX_GAP`] apart, for the pose to count as found
+/// again: a turn's single spike of 2-4 cm later on (which runs without
+/// faults show too) says nothing of the fault.
+pub const FAULT_HOLD: f64 = 5.0;
+/// Longest time between matched scans within [`FAULT_HOLD`] (s).
+pub const FAULT_MAX_GAP: f64 = 1.0;
 
 /// How the localisation came back after one injected motion fault (slip,
 /// kidnap, knock), from the matched scans within [`FAULT_HORIZON`] after it.
@@ -89,8 +96,9 @@ pub struct FaultRecovery {
     pub fault: Fault,
     /// Largest position error of a matched scan (m).
     pub peak: f64,
-    /// From the fault to the first matched scan from which on every one
-    /// within the horizon is under [`FAULT_SETTLED`] (s; `None`: never).
+    /// From the fault to the first matched scan from which on the error
+    /// stays under [`FAULT_SETTLED`] for [`FAULT_HOLD`] (s; `None`: not
+    /// within the horizon).
     pub settled_after: Option<f64>,
     /// Longest time without a matched scan, the fault's moment included (s).
     pub longest_gap: f64,
@@ -104,15 +112,23 @@ impl FaultRecovery {
     pub(crate) fn of(fault: &TimedFault, start: f64, pairs: &[FixPair]) -> Self {
         let at = start + fault.at;
         let end = at + FAULT_HORIZON;
-        let (mut peak, mut good_since, mut gap, mut last, mut n) = (0.0f64, None, 0.0f64, at, 0);
+        let (mut peak, mut good_since, mut settled, mut gap, mut last, mut n) =
+            (0.0f64, None::<f64>, None, 0.0f64, at, 0);
         for p in pairs.iter().filter(|p| p.t >= at && p.t <= end) {
             let e = p.position_error();
             peak = peak.max(e);
             good_since = match good_since {
-                _ if e >= FAULT_SETTLED => None,
+                _ if e >= FAULT_SETTLED || p.t - last > FAULT_MAX_GAP => {
+                    (e < FAULT_SETTLED).then_some(p.t)
+                }
                 None => Some(p.t),
                 since => since,
             };
+            if let (None, Some(since)) = (settled, good_since) {
+                if p.t - since >= FAULT_HOLD {
+                    settled = Some(since - at);
+                }
+            }
             gap = gap.max(p.t - last);
             last = p.t;
             n += 1;
@@ -121,7 +137,7 @@ impl FaultRecovery {
             at: fault.at,
             fault: fault.fault,
             peak,
-            settled_after: good_since.map(|t| t - at),
+            settled_after: settled,
             longest_gap: gap.max(end.min(pairs.last().map_or(at, |p| p.t)) - last),
             scans: n,
         }
@@ -1013,6 +1029,59 @@ mod tests {
     /// A robot driving a curve at 0.2 m/s, 0.5 rad/s: its pose at `t`.
     fn at(t: f64) -> Pose {
         integrate(&pose(1.0, 1.0, 0.0), &Twist { v: 0.2, w: 0.5 }, t)
+    }
+
+    /// Matched scans at 10 Hz from the run's start: error 30 mm until 2 s
+    /// after a fault at 10 s, none matched from 12 to 13.5 s, 5 mm after,
+    /// and one 25 mm spike at 30 s.
+    #[test]
+    fn a_fault_counts_as_taken_up_once_the_error_stays_low_for_five_seconds() {
+        let pairs: Vec<FixPair> = (0..400)
+            .map(|k| 100.0 + f64::from(k) * 0.1)
+            .filter(|t| !(112.0..113.5).contains(t))
+            .map(|t| {
+                let e = match t - 100.0 {
+                    x if (10.0..12.0).contains(&x) => 0.03,
+                    x if (29.95..30.05).contains(&x) => 0.025,
+                    _ => 0.005,
+                };
+                FixPair {
+                    t,
+                    fix: pose(e, 0.0, 0.0),
+                    truth: Pose::identity(),
+                }
+            })
+            .collect();
+        let fault = TimedFault {
+            at: 10.0,
+            fault: Fault::Displace {
+                dx: 1.0,
+                dy: 0.0,
+                turn: 0.0,
+            },
+        };
+        let r = FaultRecovery::of(&fault, 100.0, &pairs);
+        assert!((r.peak - 0.03).abs() < 1e-9);
+        // From the first scan after the gap (13.5 s), not the one before it.
+        let settled = r.settled_after.unwrap();
+        assert!((settled - 3.5).abs() < 0.06, "{r:?}");
+        assert!((r.longest_gap - 1.6).abs() < 0.06, "{r:?}");
+        // The spike 20 s after the fault does not undo it.
+        let never = FixPair {
+            t: 112.05,
+            fix: pose(0.03, 0.0, 0.0),
+            truth: Pose::identity(),
+        };
+        let gapless: Vec<FixPair> = pairs
+            .iter()
+            .copied()
+            .filter(|p| p.t < 112.0)
+            .chain([never])
+            .collect();
+        assert_eq!(
+            FaultRecovery::of(&fault, 100.0, &gapless).settled_after,
+            None
+        );
     }
 
     #[test]

@@ -457,12 +457,14 @@ fn fault_lines(r: &SimReport) -> String {
                 other => format!("{other:?}"),
             };
             format!(
-                "{what} at {:.0} s: peak error {:.1} mm, under {:.0} mm from {} on, longest time without a matched scan {:.1} s ({} matched in {:.0} s)",
+                "{what} at {:.0} s: peak error {:.1} mm, under {:.0} mm for {:.0} s {}, longest time without a matched scan {:.1} s ({} matched in {:.0} s)",
                 f.at,
                 f.peak * 1e3,
                 crate::closed_loop::FAULT_SETTLED * 1e3,
-                f.settled_after
-                    .map_or("never".to_string(), |s| format!("{s:.1} s after it")),
+                crate::closed_loop::FAULT_HOLD,
+                f.settled_after.map_or("not within the horizon".to_string(), |s| {
+                    format!("from {s:.1} s after it")
+                }),
                 f.longest_gap,
                 f.scans,
                 crate::closed_loop::FAULT_HORIZON
