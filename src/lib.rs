@@ -32,6 +32,10 @@ pub mod testdata;
 /// evaluation, from the `sweepline-sim` crate.
 pub use sweepline_sim as sim;
 
+/// The live view, the recorder and recordings read back, from the
+/// `sweepline-live` crate.
+pub use sweepline_live as live;
+
 /// The pipeline, the stages, the configuration and the report, from the
 /// `sweepline-daemon` crate.
 pub use sweepline_daemon::{config, daemon, pipeline, report};

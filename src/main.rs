@@ -100,5 +100,9 @@ fn init_logging(default: &str) {
     } else {
         b.format_timestamp_millis();
     }
-    b.init();
+    // The console as configured, and a copy of each line for the live view
+    // and the recording (`/log`).
+    let console = b.build();
+    let level = console.filter();
+    let _ = sweepline::live::logs::install(Box::new(console), level);
 }

@@ -460,6 +460,27 @@ fn crash_and_resume(name: &str, restart: Restart) {
         "second daemon did not say {expected:?}:\n{log2}"
     );
     check_report(&dir.join("state/run"), &at_kill, kill_t);
+    check_recordings(&dir.join("state/recordings"));
+}
+
+/// Each daemon recorded its part of the run (`[record]` is on by
+/// default): the killed one's file reads up to the kill without a footer,
+/// the resumed one's is closed; both hold scans and their setup.
+fn check_recordings(dir: &Path) {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 2, "{files:?}");
+    let killed = sweepline::live::Recording::read(&files[0]).unwrap();
+    let resumed = sweepline::live::Recording::read(&files[1]).unwrap();
+    assert!(!killed.complete && resumed.complete);
+    for r in [&killed, &resumed] {
+        assert!(r.scans.len() > 100, "{} scans", r.scans.len());
+        assert!(r.setup.as_ref().is_some_and(|s| s.is_ok()));
+    }
 }
 
 /// The refitted scanner mount of the newest checkpoint.

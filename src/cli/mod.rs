@@ -6,6 +6,7 @@ pub mod emulate;
 pub mod eval;
 pub mod probe;
 pub mod replay;
+pub mod replay_mcap;
 pub mod report;
 pub mod run;
 pub mod sim;

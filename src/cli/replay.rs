@@ -25,12 +25,16 @@ use crate::sim::eval::{format_trajectory, Stamped};
 /// Arguments of `sweepline replay`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The CARMEN log (FLASER / ROBOTLASER1 / ODOM lines); .gz accepted.
+    /// The CARMEN log (FLASER / ROBOTLASER1 / ODOM lines; .gz accepted), or
+    /// a sweepline recording (`run.mcap`), replayed through the daemon's
+    /// own localise and map stages with the recorded configuration.
     pub log: PathBuf,
     /// Output folder for trajectory.txt, replay.svg and summary.txt.
     #[arg(long, default_value = "out/replay")]
     pub out: PathBuf,
-    /// Config file whose `[icp]` table sets the matcher (default: built-in defaults).
+    /// Config file whose `[icp]` table sets the matcher (default: built-in
+    /// defaults; for a recording: the whole configuration, default the
+    /// recorded one).
     #[arg(long)]
     pub config: Option<PathBuf>,
 }
@@ -367,6 +371,9 @@ fn load_params(config: Option<&Path>) -> Result<IcpParams, String> {
 
 /// Runs `sweepline replay`.
 pub fn run(args: Args) -> CliResult {
+    if args.log.extension().is_some_and(|e| e == "mcap") {
+        return super::replay_mcap::run(&args.log, &args.out, args.config.as_deref());
+    }
     let params = load_params(args.config.as_deref())?;
     let log = carmen::read_file(&args.log).map_err(|e| match e {
         carmen::CarmenError::Malformed { .. } => format!("{}: {e}", args.log.display()),

@@ -224,26 +224,75 @@ pub fn run(args: Args) -> CliResult {
         args.map_extent,
         cfg.decomp.resolution,
     );
-    let daemon = Daemon::start(DaemonSetup {
+    let telemetry_wanted = cfg.record.enabled || !cfg.live.bind.is_empty();
+    let mut daemon = Daemon::start(DaemonSetup {
         config: cfg.clone(),
-        clock,
+        clock: clock.clone(),
         scanner: crate::serial::scanner_connector(&scanner_name, cfg.scanner.baud),
         base,
         start,
         map,
         resume,
         state_dir: Some(dir.clone()),
+        taps: telemetry_wanted,
     })?;
+    let telemetry = start_telemetry(&cfg, &dir, (start, map), &mut daemon, clock);
     let _signals = SignalForwarder::install(daemon.control())
         .map_err(|e| format!("cannot install signal handlers: {e}"))?;
     let mut hooks = RunFolderHooks::new(daemon.hooks(), &dir.join(RUN_FOLDER), &cfg.pipeline)
         .with_resume(daemon.resume_entry());
     let outcome = daemon.run(&mut hooks);
     log::info!("stopped: {}", outcome.reason);
+    if let Some(t) = telemetry {
+        let stats = t.finish(Vec::new());
+        log::info!(
+            "recorded {} scans ({} bytes in the last file)",
+            stats.scans,
+            stats.recorded_bytes
+        );
+    }
     if outcome.reason.is_failure() {
         Err(format!("the daemon stopped: {}", outcome.reason).into())
     } else {
         Ok(())
+    }
+}
+
+/// The recording (`recordings/` in the state folder, rotating under the
+/// `[record]` size cap) and the live view (`[live] bind`), as configured.
+fn start_telemetry(
+    cfg: &Config,
+    dir: &std::path::Path,
+    (start, frame): (Pose, MapFrame),
+    daemon: &mut Daemon,
+    clock: SharedClock,
+) -> Option<crate::live::Telemetry> {
+    let taps = daemon.take_taps()?;
+    const MIB: f64 = 1024.0 * 1024.0;
+    let r = &cfg.record;
+    let opts = crate::live::TelemetryOptions {
+        record: r.enabled.then(|| crate::live::RecordTo::Rotating {
+            dir: dir.join("recordings"),
+            file_bytes: (r.file_mib * MIB) as u64,
+            total_bytes: (r.max_mib * MIB) as u64,
+        }),
+        record_channels: r.channels.clone(),
+        live: (!cfg.live.bind.is_empty()).then(|| cfg.live.bind.clone()),
+        mount: cfg.robot.scanner_mount(),
+        sim: false,
+        setup: Some(crate::live::recording::Setup {
+            config: cfg.clone(),
+            start,
+            frame,
+        }),
+    };
+    // A robot does not refuse to clean for want of a recording.
+    match crate::live::Telemetry::start(taps, daemon.shared(), clock, opts) {
+        Ok(t) => Some(t),
+        Err(e) => {
+            log::warn!("{e}; the run goes on without a recording or live view");
+            None
+        }
     }
 }
 

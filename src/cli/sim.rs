@@ -89,6 +89,14 @@ pub struct Args {
     /// should catch on its first half turn in place.
     #[arg(long, default_value = "0,0", allow_hyphen_values = true, value_parser = parse_offset_error)]
     pub mount_offset_error: (f64, f64),
+    /// Serve the live view (the Foxglove WebSocket protocol: open Foxglove
+    /// or Lichtblick and connect to ws://HOST:PORT) on HOST:PORT; `off`:
+    /// none. Read-only; keep it on the loopback address.
+    #[arg(long, default_value = "127.0.0.1:8765", value_name = "HOST:PORT")]
+    pub live: String,
+    /// Do not write the recording `run.mcap` into the report folder.
+    #[arg(long)]
+    pub no_record: bool,
 }
 
 /// Parses a base name.
@@ -139,6 +147,8 @@ pub fn run(args: Args) -> CliResult {
     opts.seed = args.seed;
     opts.time_cap = super::world_args::time_cap(args.time_cap, &opts.world);
     opts.progress = true;
+    opts.live = (args.live != "off").then(|| args.live.clone());
+    opts.record = !args.no_record;
     opts.urg_faults = args.urg_faults.parse()?;
     opts.heading_error = args.heading_error.to_radians();
     opts.odometry_scale_error = args.odometry_scale_error / 100.0;
@@ -190,7 +200,7 @@ pub fn run(args: Args) -> CliResult {
         r.ended_from_start
     );
     println!(
-        "report: {}/summary.md (pictures map.svg, cells.svg, path.svg)",
+        "report: {}/summary.md (pictures map.svg, cells.svg, path.svg; recording run.mcap)",
         args.out.display()
     );
     if r.finished {

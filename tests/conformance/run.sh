@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# The conformance tier: the emulators driven by client libraries nobody here
-# wrote (Basicmicro's `basicmicro`, the community's `pycreate2`), installed
-# pinned into a virtual environment under target/. Usage:
+# The conformance tier: the emulators, the recordings and the live view
+# driven by client libraries nobody here wrote (Basicmicro's `basicmicro`,
+# the community's `pycreate2`, the `mcap` Python library and its protobuf
+# decoder, installed pinned into a virtual environment under target/; the
+# Foxglove WebSocket protocol's `@foxglove/ws-protocol`, installed by npm
+# under target/). Usage:
 #
 #   bash tests/conformance/run.sh [path/to/sweepline]
 #

@@ -220,6 +220,10 @@ pub struct SimOptions {
     /// `motor.roboclaw.m1_is_left` says (motors and encoders swapped
     /// left for right).
     pub wheels_swapped: bool,
+    /// Serve the live view on this address (`host:port`; none: off).
+    pub live: Option<String>,
+    /// Write `run.mcap` into the report folder (when there is one).
+    pub record: bool,
 }
 
 impl SimOptions {
@@ -258,6 +262,8 @@ impl SimOptions {
             odometry_scale_error: 0.0,
             scanner_truth: None,
             wheel_base_truth: None,
+            live: None,
+            record: true,
             wheel_radius_truth: None,
             wheels_swapped: false,
         }
@@ -424,6 +430,22 @@ impl FixPair {
         pose_error(&self.fix, &self.truth).1
     }
 }
+
+/// The pose error of localised robot poses `fixes` (map frame, sorted by
+/// time) against the true poses `truth` (world frame), the map lying at
+/// `map_to_world`, scored as a closed-loop run's report scores them:
+/// (position RMSE m, heading RMSE rad, max position error m, pairs).
+pub fn score_fixes(
+    fixes: &[(f64, Pose)],
+    truth: &[(f64, Pose)],
+    map_to_world: &Pose,
+) -> (f64, f64, f64, usize) {
+    let world: Vec<(f64, Pose)> = fixes.iter().map(|(t, p)| (*t, map_to_world * p)).collect();
+    fix_errors(&fix_pairs(&world, truth, 0.0, FIX_TOLERANCE))
+}
+
+/// A fix is scored against the truth sample nearest its stamp within this (s).
+const FIX_TOLERANCE: f64 = 0.2;
 
 /// Pose error of the `pairs` of [`fix_pairs`]: (position RMSE, heading
 /// RMSE, max position error, pairs).
@@ -759,6 +781,53 @@ pub fn run(opts: &SimOptions) -> Result<SimReport, SimError> {
     result
 }
 
+/// The run's telemetry: `run.mcap` in the report folder, the live view
+/// where asked for (none: neither).
+fn start_telemetry(
+    opts: &SimOptions,
+    (cfg, frame): (&Config, MapFrame),
+    daemon: &mut Daemon,
+    clock: &SharedClock,
+) -> Result<Option<crate::live::Telemetry>, SimError> {
+    let record = opts
+        .out
+        .as_ref()
+        .filter(|_| opts.record)
+        .map(|o| crate::live::RecordTo::File(o.join("run.mcap")));
+    let Some(taps) = daemon.take_taps() else {
+        return Ok(None);
+    };
+    if record.is_none() && opts.live.is_none() {
+        return Ok(None);
+    }
+    let topts = crate::live::TelemetryOptions {
+        record,
+        record_channels: Vec::new(),
+        live: opts.live.clone(),
+        mount: opts.config.robot.scanner_mount(),
+        sim: true,
+        setup: Some(crate::live::recording::Setup {
+            config: cfg.clone(),
+            start: told_start(opts),
+            frame,
+        }),
+    };
+    crate::live::Telemetry::start(taps, daemon.shared(), clock.clone(), topts)
+        .map(Some)
+        .map_err(|e| SimError::Emulator(e.to_string()))
+}
+
+/// Hands the truth samples logged since the last call to the recorder.
+fn send_truth(tx: &crossbeam_channel::Sender<(f64, Pose)>, seen: &TruthLog, sent: &mut usize) {
+    let Ok(log) = seen.lock() else { return };
+    for &(t, p) in log.iter().skip(*sent) {
+        if tx.try_send((t, p)).is_err() {
+            break;
+        }
+        *sent += 1;
+    }
+}
+
 /// What the emulators share with the run's sampler: the true poses the
 /// scans were cast from, and the people walking through.
 struct Truth {
@@ -794,21 +863,27 @@ fn drive(
     // dead-man at least 50 ms of wall time.
     cfg.motor.deadman = cfg.motor.deadman.max(DEADMAN_WALL * opts.speed);
     let driver = crate::motor::open_base(&cfg.motor, &cfg.robot, clock.clone());
+    let frame = if opts.heading_error == 0.0 {
+        map_frame(&opts.world)
+    } else {
+        map_frame_around_start(&opts.world)
+    };
     let daemon = Daemon::start(DaemonSetup {
         config: cfg.clone(),
         clock: clock.clone(),
         scanner: Box::new(DeviceConnector::new(urg_path)),
         base: driver,
         start: told_start(opts),
-        map: if opts.heading_error == 0.0 {
-            map_frame(&opts.world)
-        } else {
-            map_frame_around_start(&opts.world)
-        },
+        map: frame,
         resume: None,
         state_dir: opts.out.as_ref().map(|o| o.join("state")),
+        taps: true,
     })?;
+    let mut daemon = daemon;
     let shared = daemon.shared();
+    let telemetry = start_telemetry(opts, (&cfg, frame), &mut daemon, &clock)?;
+    let truth_tx = telemetry.as_ref().and_then(|t| t.truth());
+    let mut truth_sent = 0usize;
     if let Some(p) = pace.clone() {
         shared.scan_done.set(Box::new(move |t| p.done(t)));
     }
@@ -894,6 +969,9 @@ fn drive(
         max_err = max_err.max(e);
         truth.push(p);
         estimate.push(est_map);
+        if let Some(tx) = &truth_tx {
+            send_truth(tx, &seen, &mut truth_sent);
+        }
         if opts.progress && last_print.elapsed().as_secs_f64() >= 2.0 {
             last_print = Instant::now();
             println!(
@@ -932,7 +1010,26 @@ fn drive(
         .into_iter()
         .map(|(t, p)| (t, to_w * p))
         .collect();
-    let fix_pairs = fix_pairs(&fixes, &seen, 0.0, 0.2);
+    if let Some(t) = telemetry {
+        let p = &to_w;
+        let pairs = vec![
+            ("x".to_string(), p.translation.vector.x.to_string()),
+            ("y".to_string(), p.translation.vector.y.to_string()),
+            ("theta".to_string(), p.rotation.angle().to_string()),
+        ];
+        let stats = t.finish(vec![(
+            crate::live::topics::MAP_TO_WORLD.to_string(),
+            pairs.into_iter().collect(),
+        )]);
+        log::info!(
+            "telemetry: {} scans, {} poses, {} truth samples; recording {} bytes",
+            stats.scans,
+            stats.poses,
+            stats.truth,
+            stats.recorded_bytes
+        );
+    }
+    let fix_pairs = fix_pairs(&fixes, &seen, 0.0, FIX_TOLERANCE);
     let (pos, head, pmax, pairs) = fix_errors(&fix_pairs);
     let best_offset = best_stamp_shift(&fixes, &seen);
     let (turn_ratio, travel_fit, offset_fit, refitted_mount) = shared.with_status(|s| {

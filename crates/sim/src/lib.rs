@@ -14,6 +14,7 @@
 use sweepline_core::{capacity, control, decomp, geom, grid, plan, scan, svg_canvas};
 use sweepline_daemon::{config, daemon, pipeline, report};
 use sweepline_io::{clock, motor, serial, urg};
+use sweepline_live as live;
 use sweepline_wire::scip;
 
 pub mod base_emu;

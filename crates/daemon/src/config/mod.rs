@@ -8,6 +8,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::param_check::{invalid, ParamError};
 
+mod telemetry;
+pub use telemetry::{LiveParams, RecordParams};
+
 pub use crate::robot::RobotParams;
 
 /// The whole configuration file.
@@ -34,6 +37,10 @@ pub struct Config {
     pub pipeline: crate::pipeline::PipelineParams,
     /// The daemon's own settings (giving paths up, bumper contact marks).
     pub daemon: crate::daemon::DaemonParams,
+    /// The live view of `sweepline run`.
+    pub live: LiveParams,
+    /// The recording of `sweepline run`.
+    pub record: RecordParams,
 }
 
 /// Why a configuration could not be loaded.
@@ -165,6 +172,8 @@ impl Config {
         })?;
         self.map.validate()?;
         self.daemon.validate()?;
+        self.live.validate()?;
+        self.record.validate()?;
         // The algorithm tables check themselves when their stage is built;
         // checked here too, so that `run --check-config` refuses what `run`,
         // `sim` and `coverage` would refuse.

@@ -14,10 +14,12 @@ pub mod hooks;
 pub mod messages;
 pub(crate) mod mount_report;
 pub mod params;
+pub mod replay;
 pub mod resume;
 pub mod shared;
 pub mod snapshot;
 pub mod stages;
+pub mod taps;
 
 #[cfg(test)]
 mod contacts_resume_tests;
@@ -52,6 +54,7 @@ pub use hooks::DaemonHooks;
 pub use params::DaemonParams;
 pub use shared::{LiveStatus, Shared};
 pub use snapshot::{LocaliseSnapshot, MapStageSnapshot, PlanStageSnapshot, RunSnapshot};
+pub use taps::{SensorScan, TapScan, Taps};
 
 /// Control period (s): the follower runs at 20 Hz.
 pub(crate) const CONTROL_PERIOD: f64 = 0.05;
@@ -105,7 +108,7 @@ impl MapFrame {
         }
     }
 
-    fn grid(&self) -> Grid {
+    pub(crate) fn grid(&self) -> Grid {
         Grid::new(self.origin, self.resolution, self.width, self.height)
     }
 }
@@ -145,6 +148,9 @@ pub struct DaemonSetup {
     pub resume: Option<Resume>,
     /// Folder for checkpoints (none: no checkpoints).
     pub state_dir: Option<PathBuf>,
+    /// Copy every scan and pose onto taps for a live view or a recorder
+    /// (see [`Daemon::take_taps`]).
+    pub taps: bool,
 }
 
 /// A daemon whose stages are running, not yet supervised.
@@ -161,6 +167,8 @@ pub struct Daemon {
     resume_entry: Option<ResumeEntry>,
     /// The robot as configured (for the run folder's `mount.toml`).
     robot: crate::robot::RobotParams,
+    /// The consumer ends of the taps, until taken.
+    taps: Option<Taps>,
 }
 
 impl Daemon {
@@ -170,7 +178,6 @@ impl Daemon {
         let cfg = setup.config;
         let clock = setup.clock;
         let robot = cfg.robot.clone();
-        let configured_mount = robot.scanner_mount();
         let resume = setup.resume;
         let supervisor = Supervisor::new(&cfg.pipeline, clock.clone());
         let mut pipeline = Pipeline::new(&cfg.pipeline);
@@ -200,9 +207,15 @@ impl Daemon {
         pipeline.register_edge(&path_tx);
         pipeline.register_edge(&pose_tx);
         pipeline.register_edge(&cmd_tx);
+        let (tap_tx, taps) = if setup.taps {
+            let (tx, rx) = taps::taps();
+            pipeline.register_edge(&tx.scans);
+            pipeline.register_edge(&tx.fixes);
+            (Some(tx), Some(rx))
+        } else {
+            (None, None)
+        };
 
-        let tracker = Tracker::new(cfg.icp.clone(), start * configured_mount)
-            .map_err(|e| DaemonError::Config(e.to_string()))?;
         let decomposer = Decomposer::new(&cfg.decomp, robot.radius)
             .map_err(|e| DaemonError::Config(e.to_string()))?;
         let planner = CoveragePlanner::new(&cfg.plan, &robot)
@@ -249,38 +262,18 @@ impl Daemon {
         if let Some(r) = &resume {
             map.restore(r.map.clone());
         }
-        let mut localise = stages::LocaliseStage {
-            tracker,
-            rx: scan_rx,
-            to_control: fix_tx,
-            to_map: map_tx.clone(),
-            shared: shared.clone(),
-            mount: configured_mount,
-            configured_mount,
-            mount_refitted: false,
-            wheel_base: robot.wheel_base,
-            wheel_radius: robot.wheel_radius,
-            fit_mount: cfg.daemon.fit_scanner_mount,
-            check_min_information: cfg.icp.degeneracy_threshold * stages::CHECK_INFORMATION_FACTOR,
-            deskew: cfg.daemon.deskew_scans,
-            intensity_scale: 1.0 / cfg.scanner.intensity_unit,
-            points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
-            relocalise_on: None,
-            publish_keyframes: setup.state_dir.is_some(),
-            keyframes: None,
-            last_stamp: None,
-            unmatched_run: 0,
-            align: cfg.daemon.align_to_walls.then(align::WallAlign::new),
-            turn_check: turn_check::TurnCheck::default(),
-            travel_check: travel_check::TravelCheck::new(heading(&configured_mount)),
-            offset_check: offset_check::OffsetCheck::new(heading(&configured_mount)),
-            offset_fitted: false,
-            lost: stages::Lost::new(
-                cfg.daemon.lost_after,
-                cfg.daemon.relocalise_radius,
-                &cfg.icp.search,
-            ),
-        };
+        let mut localise = localise_stage(
+            &cfg,
+            start,
+            LocaliseEdges {
+                rx: scan_rx,
+                to_control: fix_tx,
+                to_map: map_tx.clone(),
+                tap: tap_tx.as_ref().map(|t| t.fixes.clone()),
+            },
+            shared.clone(),
+            setup.state_dir.is_some(),
+        )?;
         if let Some(r) = &resume {
             localise
                 .restore(r.localise.clone(), &start, r.map.grid.clone())
@@ -351,6 +344,7 @@ impl Daemon {
                 tx: scan_tx,
                 shared: shared.clone(),
                 upside_down: robot.scanner_upside_down,
+                tap: tap_tx.map(|t| t.scans),
             },
         )?;
         Ok(Daemon {
@@ -365,7 +359,13 @@ impl Daemon {
             checkpoint_period: cfg.pipeline.checkpoint_period,
             heartbeat_period: cfg.pipeline.heartbeat_period,
             robot: cfg.robot.clone(),
+            taps,
         })
+    }
+
+    /// The taps' consumer ends (once; none unless [`DaemonSetup::taps`]).
+    pub fn take_taps(&mut self) -> Option<Taps> {
+        self.taps.take()
     }
 
     /// A handle to ask for a stop or signal readiness.
@@ -408,4 +408,65 @@ impl Daemon {
         self.supervisor.control().ready();
         self.supervisor.run(self.pipeline, hooks)
     }
+}
+
+/// The localise stage's edges.
+pub(crate) struct LocaliseEdges {
+    /// Scans in.
+    pub(crate) rx: crate::pipeline::Rx<messages::ScanMsg>,
+    /// Pose fixes out to the control stage.
+    pub(crate) to_control: crate::pipeline::Tx<messages::PoseFix>,
+    /// Registered scans out to the map stage.
+    pub(crate) to_map: crate::pipeline::Tx<messages::MapMsg>,
+    /// A copy of every pose fix (none: no tap).
+    pub(crate) tap: Option<crate::pipeline::Tx<messages::PoseFix>>,
+}
+
+/// The localise stage of a robot told it starts at `start`, as `cfg`
+/// sets it up (the daemon's and the recording replay's alike); it hands
+/// its keyframes to the checkpoints when `publish_keyframes`.
+pub(crate) fn localise_stage(
+    cfg: &Config,
+    start: Pose,
+    edges: LocaliseEdges,
+    shared: Arc<Shared>,
+    publish_keyframes: bool,
+) -> Result<stages::LocaliseStage, DaemonError> {
+    let robot = &cfg.robot;
+    let configured_mount = robot.scanner_mount();
+    let tracker = Tracker::new(cfg.icp.clone(), start * configured_mount)
+        .map_err(|e| DaemonError::Config(e.to_string()))?;
+    Ok(stages::LocaliseStage {
+        tracker,
+        rx: edges.rx,
+        to_control: edges.to_control,
+        to_map: edges.to_map,
+        shared: shared.clone(),
+        mount: configured_mount,
+        configured_mount,
+        mount_refitted: false,
+        wheel_base: robot.wheel_base,
+        wheel_radius: robot.wheel_radius,
+        fit_mount: cfg.daemon.fit_scanner_mount,
+        check_min_information: cfg.icp.degeneracy_threshold * stages::CHECK_INFORMATION_FACTOR,
+        deskew: cfg.daemon.deskew_scans,
+        intensity_scale: 1.0 / cfg.scanner.intensity_unit,
+        points: Vec::with_capacity(crate::capacity::MAX_BEAMS),
+        relocalise_on: None,
+        publish_keyframes,
+        keyframes: None,
+        last_stamp: None,
+        unmatched_run: 0,
+        align: cfg.daemon.align_to_walls.then(align::WallAlign::new),
+        turn_check: turn_check::TurnCheck::default(),
+        travel_check: travel_check::TravelCheck::new(heading(&configured_mount)),
+        offset_check: offset_check::OffsetCheck::new(heading(&configured_mount)),
+        offset_fitted: false,
+        lost: stages::Lost::new(
+            cfg.daemon.lost_after,
+            cfg.daemon.relocalise_radius,
+            &cfg.icp.search,
+        ),
+        tap: edges.tap,
+    })
 }

@@ -212,6 +212,9 @@ pub struct LiveStatus {
     /// with [`Progress`], what the robot is doing now, for the simulator's
     /// overlap breakdown.
     pub path_motions: Option<PathMotions>,
+    /// The newest planned path: its sequence number and waypoints (map
+    /// frame), for the live view.
+    pub path: Option<(u64, std::sync::Arc<[nalgebra::Point2<f64>]>)>,
     /// The planner's counters as of its newest path, or its end.
     pub plan_stats: crate::plan::planner::PlanStats,
 }
@@ -251,6 +254,7 @@ impl Default for LiveStatus {
             travel_fit: None,
             offset_fit: None,
             path_motions: None,
+            path: None,
             plan_stats: crate::plan::planner::PlanStats::default(),
         }
     }

@@ -244,6 +244,22 @@ pub struct StageCtx<'a> {
     handed_off: Option<Stamp>,
 }
 
+impl<'a> StageCtx<'a> {
+    /// A context for driving a stage by hand, outside the pipeline (a
+    /// replay): full quality, nothing ever late, latencies into
+    /// `end_to_end`.
+    pub(crate) fn offline(end_to_end: &'a mut LatencyHistogram) -> Self {
+        Self {
+            started: Stamp::now(),
+            degrade: 0,
+            late_after: Duration::MAX,
+            late: 0,
+            end_to_end,
+            handed_off: None,
+        }
+    }
+}
+
 impl StageCtx<'_> {
     /// Degradation level the stage should work at: 0 = full quality; each
     /// level up means "do less" (fewer ICP iterations, rate-limited

@@ -99,6 +99,8 @@ pub struct LocaliseStage {
     /// When the robot counts as lost, and how the whole map is searched
     /// then (see [`Lost`]).
     pub(crate) lost: Lost,
+    /// A copy of every pose fix for the recorder and the live view.
+    pub(crate) tap: Option<Tx<PoseFix>>,
 }
 
 /// Losing and finding the robot: after `daemon.lost_after` without an
@@ -588,6 +590,9 @@ impl LocaliseStage {
             odom: robot_odom,
             matched,
         };
+        if let Some(tap) = &self.tap {
+            let _ = tap.send(fix);
+        }
         ctx.hand_off();
         if self.to_control.send(fix).is_err() {
             return gone(&self.shared, "control");

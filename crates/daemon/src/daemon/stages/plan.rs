@@ -216,6 +216,7 @@ impl Stage for PlanStage {
                 let stats = self.planner.stats();
                 self.shared.with_status(|s| {
                     s.path_motions = Some(motions);
+                    s.path = Some((self.seq, std::sync::Arc::from(points)));
                     s.plan_stats = stats;
                 });
                 let msg = PathMsg {

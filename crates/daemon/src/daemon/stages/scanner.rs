@@ -22,6 +22,9 @@ pub struct ScannerStage {
     pub shared: Arc<Shared>,
     /// The scanner is mounted upside down: its scans are mirrored.
     pub upside_down: bool,
+    /// A copy of every scan for the recorder and the live view (oldest
+    /// kept when full: a stalled reader loses copies, never a scan).
+    pub tap: Option<Tx<crate::daemon::TapScan>>,
 }
 
 impl Stage for ScannerStage {
@@ -49,6 +52,10 @@ impl Stage for ScannerStage {
         let last = scan.beam_time(scan.beams.len().saturating_sub(1));
         let sweep_end = scan.stamp + scan.first_beam_time.max(last);
         let odom = self.shared.odom.for_scan(scan.stamp, sweep_end);
+        let sensor = self
+            .tap
+            .as_ref()
+            .map(|_| crate::daemon::SensorScan::of(&work));
         let msg = ScanMsg {
             t0,
             stamp: work.scan.stamp,
@@ -58,6 +65,12 @@ impl Stage for ScannerStage {
             motion: odom.motion,
             scan: work.scan,
         };
+        if let (Some(tap), Some(sensor)) = (&self.tap, sensor) {
+            let _ = tap.send(crate::daemon::TapScan {
+                msg: msg.clone(),
+                sensor,
+            });
+        }
         ctx.hand_off();
         self.tx
             .send(msg)

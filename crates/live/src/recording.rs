@@ -1,0 +1,283 @@
+//! A recording read back: the scans as the localise stage got them, the
+//! simulator's truth and the map frame's place in the world, for
+//! `sweepline replay run.mcap` and its scoring.
+//!
+//! A recording cut short (the daemon killed, the disk full) reads up to
+//! its last whole chunk: [`Recording::complete`] says whether the file
+//! ended as a writer closes it.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use foxglove::Decode;
+use mcap::read::{LinearReader, MessageStream, Options};
+use mcap::records::Record;
+use sweepline_daemon::daemon::taps::ScanRecord;
+
+use crate::geom::Pose;
+use crate::topics;
+
+/// The metadata record mapping message times to the daemon's clock
+/// (keys `start`: the daemon clock's seconds, `wall_ns`: the Unix time in
+/// nanoseconds it was mapped to).
+pub const CLOCK: &str = "clock";
+
+/// Why a recording cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordingError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not an MCAP file, or broken before its first message.
+    #[error("{path}: not a readable MCAP file: {why}")]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        why: String,
+    },
+    /// A message cannot be decoded.
+    #[error("{path}: message {index} on {topic}: {why}")]
+    Message {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// Its index among the file's messages.
+        index: usize,
+        /// Why.
+        why: String,
+    },
+}
+
+/// One channel of a recording.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ChannelSummary {
+    /// The schema's name (empty: none).
+    pub schema: String,
+    /// The messages' encoding.
+    pub encoding: String,
+    /// Messages on it.
+    pub messages: usize,
+    /// Its log times never went backwards.
+    pub ordered: bool,
+    /// Log time of its last message (ns).
+    last: u64,
+}
+
+/// What a recording holds.
+#[derive(Clone, Debug, Default)]
+pub struct Recording {
+    /// Every scan the localise stage was handed, in order.
+    pub scans: Vec<ScanRecord>,
+    /// The simulator's true poses (daemon-clock s, world frame).
+    pub truth: Vec<(f64, Pose)>,
+    /// The map frame in the world (`sim` only).
+    pub map_to_world: Option<Pose>,
+    /// What the daemon was started with (none: not recorded, or unreadable:
+    /// the error).
+    pub setup: Option<Result<Setup, String>>,
+    /// Per topic: schema, encoding, count and order.
+    pub channels: BTreeMap<String, ChannelSummary>,
+    /// The file ends as a closed recording does (else it was cut short
+    /// and read up to its last whole chunk).
+    pub complete: bool,
+}
+
+impl Recording {
+    /// Reads the recording at `path`.
+    pub fn read(path: &Path) -> Result<Recording, RecordingError> {
+        let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mcap_err = |why: String| RecordingError::Mcap {
+            path: path.to_path_buf(),
+            why,
+        };
+        let mut rec = Recording::default();
+        let metadata = read_metadata(&bytes, &mut rec.complete).map_err(mcap_err)?;
+        let clock = metadata
+            .get(CLOCK)
+            .and_then(|m| Some((num(m, "start")?, num(m, "wall_ns")?)));
+        rec.map_to_world = metadata.get(topics::MAP_TO_WORLD).and_then(|m| {
+            Some(crate::geom::pose(
+                num(m, "x")?,
+                num(m, "y")?,
+                num(m, "theta")?,
+            ))
+        });
+        rec.setup = metadata.get(SETUP).map(Setup::from_metadata);
+        let stream = MessageStream::new_with_options(&bytes, Options::IgnoreEndMagic.into())
+            .map_err(|e| mcap_err(e.to_string()))?;
+        for (index, msg) in stream.enumerate() {
+            let Ok(msg) = msg else {
+                // A cut-short file: everything before the cut is kept.
+                rec.complete = false;
+                break;
+            };
+            let topic = msg.channel.topic.as_str();
+            let bad = |why: String| RecordingError::Message {
+                path: path.to_path_buf(),
+                topic: topic.to_string(),
+                index,
+                why,
+            };
+            let entry = rec
+                .channels
+                .entry(topic.to_string())
+                .or_insert_with(|| ChannelSummary {
+                    schema: msg
+                        .channel
+                        .schema
+                        .as_ref()
+                        .map(|s| s.name.clone())
+                        .unwrap_or_default(),
+                    encoding: msg.channel.message_encoding.clone(),
+                    ordered: true,
+                    ..Default::default()
+                });
+            entry.messages += 1;
+            entry.ordered &= msg.log_time >= entry.last;
+            entry.last = msg.log_time;
+            match topic {
+                topics::SCAN_INPUT => rec
+                    .scans
+                    .push(serde_json::from_slice(&msg.data).map_err(|e| bad(e.to_string()))?),
+                topics::TRUTH => {
+                    let p = foxglove::schemas::PoseInFrame::decode(&msg.data[..])
+                        .map_err(|e| bad(e.to_string()))?;
+                    let (start, wall_ns) = clock.ok_or_else(|| {
+                        bad("no `clock` metadata to place the truth in time".into())
+                    })?;
+                    let t = start + (msg.log_time as f64 - wall_ns) * 1e-9;
+                    rec.truth.push((t, planar(&p.pose.unwrap_or_default())));
+                }
+                _ => {}
+            }
+        }
+        Ok(rec)
+    }
+}
+
+/// The number under `key` of a metadata record.
+fn num(m: &BTreeMap<String, String>, key: &str) -> Option<f64> {
+    m.get(key)?.parse().ok()
+}
+
+/// The file's metadata records by name, and whether it ends with a footer.
+fn read_metadata(
+    bytes: &[u8],
+    complete: &mut bool,
+) -> Result<BTreeMap<String, BTreeMap<String, String>>, String> {
+    let reader = LinearReader::new_with_options(bytes, Options::IgnoreEndMagic.into())
+        .map_err(|e| e.to_string())?;
+    let mut out = BTreeMap::new();
+    *complete = false;
+    for record in reader {
+        match record {
+            Ok(Record::Metadata(m)) => {
+                out.insert(m.name, m.metadata);
+            }
+            Ok(Record::Footer(_)) => *complete = true,
+            Ok(_) => {}
+            Err(_) => break,
+        }
+    }
+    Ok(out)
+}
+
+/// A 3D pose on the floor as a planar one.
+pub(crate) fn planar(p: &foxglove::schemas::Pose) -> Pose {
+    let v = p.position.unwrap_or_default();
+    let q = p.orientation.unwrap_or_default();
+    let theta = 2.0 * q.z.atan2(q.w);
+    crate::geom::pose(v.x, v.y, theta)
+}
+
+/// The metadata record of the run's setup: keys `config` (the daemon's
+/// configuration as JSON), `start` and `map_frame` (numbers separated by
+/// spaces).
+pub const SETUP: &str = "setup";
+
+/// What the daemon was started with, so that a replay starts the same way.
+#[derive(Clone, Debug)]
+pub struct Setup {
+    /// The configuration.
+    pub config: sweepline_daemon::config::Config,
+    /// The robot pose the daemon was told it starts at (map frame).
+    pub start: Pose,
+    /// The extent of the map.
+    pub frame: sweepline_daemon::daemon::MapFrame,
+}
+
+impl Setup {
+    /// As a metadata record.
+    pub fn to_metadata(&self) -> Result<BTreeMap<String, String>, String> {
+        let s = &self.start;
+        let f = &self.frame;
+        Ok([
+            (
+                "config".to_string(),
+                serde_json::to_string(&self.config).map_err(|e| e.to_string())?,
+            ),
+            (
+                "start".to_string(),
+                format!(
+                    "{} {} {}",
+                    s.translation.vector.x,
+                    s.translation.vector.y,
+                    s.rotation.angle()
+                ),
+            ),
+            (
+                "map_frame".to_string(),
+                format!(
+                    "{} {} {} {} {}",
+                    f.origin.x, f.origin.y, f.resolution, f.width, f.height
+                ),
+            ),
+        ]
+        .into_iter()
+        .collect())
+    }
+
+    /// From a metadata record.
+    pub fn from_metadata(m: &BTreeMap<String, String>) -> Result<Setup, String> {
+        let get = |k: &str| m.get(k).ok_or_else(|| format!("setup: no `{k}`"));
+        let nums = |k: &str, n: usize| -> Result<Vec<f64>, String> {
+            let v: Vec<f64> = get(k)?
+                .split_whitespace()
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .map_err(|e| format!("setup: `{k}`: {e}"))?;
+            if v.len() == n && v.iter().all(|x| x.is_finite()) {
+                Ok(v)
+            } else {
+                Err(format!("setup: `{k}` needs {n} finite numbers"))
+            }
+        };
+        let config: sweepline_daemon::config::Config =
+            serde_json::from_str(get("config")?).map_err(|e| format!("setup: config: {e}"))?;
+        config
+            .validate()
+            .map_err(|e| format!("setup: config: {e}"))?;
+        let s = nums("start", 3)?;
+        let f = nums("map_frame", 5)?;
+        Ok(Setup {
+            config,
+            start: crate::geom::pose(s[0], s[1], s[2]),
+            frame: sweepline_daemon::daemon::MapFrame {
+                origin: nalgebra::Point2::new(f[0], f[1]),
+                resolution: f[2],
+                width: f[3] as usize,
+                height: f[4] as usize,
+            },
+        })
+    }
+}
