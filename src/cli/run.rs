@@ -285,6 +285,7 @@ fn start_telemetry(
             start,
             frame,
         }),
+        scanner: Some(daemon.urg_health()),
     };
     // A robot does not refuse to clean for want of a recording.
     match crate::live::Telemetry::start(taps, daemon.shared(), clock, opts) {

@@ -30,6 +30,7 @@ pub mod logs;
 pub mod recorder;
 pub mod recording;
 pub mod server;
+mod status;
 pub mod telemetry;
 pub mod topics;
 

@@ -8,7 +8,6 @@
 //! for a client that does not read, and the disk is written from here.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -50,6 +49,8 @@ pub struct TelemetryOptions {
     pub sim: bool,
     /// What the daemon was started with, recorded for a replay.
     pub setup: Option<crate::recording::Setup>,
+    /// The scanner link's counters, for the status.
+    pub scanner: Option<Arc<sweepline_io::urg::UrgHealth>>,
 }
 
 /// Why telemetry could not start.
@@ -239,7 +240,12 @@ impl Channels {
             map: ChannelBuilder::new(topics::MAP).context(ctx).build(),
             swept: ChannelBuilder::new(topics::SWEPT).context(ctx).build(),
             plan: ChannelBuilder::new(topics::PLAN).context(ctx).build(),
-            status: json_channel(ctx, topics::STATUS, "sweepline.Status", STATUS_SCHEMA),
+            status: json_channel(
+                ctx,
+                topics::STATUS,
+                "sweepline.Status",
+                crate::status::SCHEMA,
+            ),
             log: ChannelBuilder::new(topics::LOG).context(ctx).build(),
             truth: sim.then(|| ChannelBuilder::new(topics::TRUTH).context(ctx).build()),
         }
@@ -256,41 +262,6 @@ const SCAN_INPUT_SCHEMA: &str = r#"{"type":"object","title":"sweepline.ScanInput
 "intensities":{"type":"array","items":{"type":"number"}},"invalid":{"type":"array","items":{"type":"integer"}},
 "raw_stamp":{"type":"integer"},"sensor_ms":{"type":"integer"},"epoch":{"type":"integer"},
 "dropped_before":{"type":"integer"},"raw":{"type":"array","items":{"type":"integer"}}}}"#;
-
-/// The JSON schema of [`topics::STATUS`].
-const STATUS_SCHEMA: &str = r#"{"type":"object","title":"sweepline.Status","properties":{
-"time":{"type":"number"},"task":{"type":"string"},"covered_m2":{"type":"number"},
-"path_length_m":{"type":"number"},"localised":{"type":"boolean"},"lost":{"type":"boolean"},
-"scans":{"type":"integer"},"unmatched_scans":{"type":"integer"},"relocalisations":{"type":"integer"},
-"pose":{"type":"array","items":{"type":"number"}},
-"base_link":{"type":"object"},"safety_events":{"type":"integer"}}}"#;
-
-/// The status message.
-#[derive(serde::Serialize)]
-struct Status<'a> {
-    time: f64,
-    task: &'a str,
-    covered_m2: f64,
-    path_length_m: f64,
-    localised: bool,
-    lost: bool,
-    scans: u64,
-    unmatched_scans: u64,
-    relocalisations: u64,
-    pose: [f64; 3],
-    base_link: BaseLink,
-    safety_events: u64,
-}
-
-/// The wheel base's link counters.
-#[derive(serde::Serialize)]
-struct BaseLink {
-    sent: u64,
-    received: u64,
-    checksum_errors: u64,
-    timeouts: u64,
-    link_losses: u64,
-}
 
 /// The thread's state: the channels, reused buffers and what was last sent.
 struct Worker {
@@ -521,45 +492,9 @@ impl Worker {
     }
 
     fn status(&mut self, now: f64) {
-        let sh = &self.shared;
-        let base = sh.base_health();
-        let (task, covered, path, localised, scans, fallbacks, pose) = sh.with_status(|s| {
-            (
-                s.task.clone(),
-                s.covered_area,
-                s.path_length,
-                s.localised,
-                s.scans,
-                s.fallbacks,
-                s.pose,
-            )
-        });
-        let status = Status {
-            time: now,
-            task: &task,
-            covered_m2: covered,
-            path_length_m: path,
-            localised,
-            lost: sh.lost.load(Ordering::Relaxed),
-            scans,
-            unmatched_scans: fallbacks,
-            relocalisations: sh.relocalisations.load(Ordering::Relaxed),
-            pose: [
-                pose.translation.vector.x,
-                pose.translation.vector.y,
-                pose.rotation.angle(),
-            ],
-            base_link: BaseLink {
-                sent: base.sent,
-                received: base.received,
-                checksum_errors: base.checksum_errors,
-                timeouts: base.timeouts,
-                link_losses: base.link_losses,
-            },
-            safety_events: sh.safety_events.load(Ordering::Relaxed),
-        };
         self.json.clear();
-        if serde_json::to_writer(&mut self.json, &status).is_ok() {
+        let urg = self.opts.scanner.as_deref();
+        if crate::status::write(&self.shared, urg, now, &mut self.json).is_ok() {
             self.stats.statuses += 1;
             self.ch.status.log_with_meta(&self.json, self.meta(now));
         }

@@ -811,6 +811,7 @@ fn start_telemetry(
             start: told_start(opts),
             frame,
         }),
+        scanner: Some(daemon.urg_health()),
     };
     crate::live::Telemetry::start(taps, daemon.shared(), clock.clone(), topts)
         .map(Some)

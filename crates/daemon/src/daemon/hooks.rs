@@ -26,6 +26,8 @@ use crate::pipeline::Pipeline;
 const CHECKPOINT: &str = "checkpoint";
 /// The writer's slot for heartbeats.
 const HEARTBEAT: &str = "heartbeat";
+/// How often the pipeline's metrics are handed to the live view (clock s).
+const METRICS_PERIOD: f64 = 1.0;
 
 /// Hooks of a daemon run.
 pub struct DaemonHooks {
@@ -48,6 +50,8 @@ pub struct DaemonHooks {
     task_kind: String,
     /// The robot as configured, for the run folder's `mount.toml`.
     robot: Option<crate::robot::RobotParams>,
+    /// When the metrics are next handed to the live view.
+    metrics_every: Every,
 }
 
 impl DaemonHooks {
@@ -80,6 +84,7 @@ impl DaemonHooks {
             warned_slow: false,
             store: state_dir.map(CheckpointStore::new),
             every: Every::new(period),
+            metrics_every: Every::new(METRICS_PERIOD),
             heartbeat: state_dir.map(super::resume::heartbeat_store),
             beat: Every::new(heartbeat),
             sequence: base.sequence,
@@ -225,7 +230,13 @@ impl Hooks for DaemonHooks {
         )
     }
 
-    fn tick(&mut self, _pipeline: &Pipeline, now: f64) {
+    fn tick(&mut self, pipeline: &Pipeline, now: f64) {
+        if self.metrics_every.due(now) {
+            let m = std::sync::Arc::new(pipeline.snapshot());
+            if let Ok(mut slot) = self.shared.metrics.lock() {
+                *slot = Some(m);
+            }
+        }
         if self.every.due(now) {
             self.checkpoint();
         }

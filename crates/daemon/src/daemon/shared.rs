@@ -310,6 +310,9 @@ pub struct Shared {
     /// Told the stamp of every scan the localise stage is through with,
     /// and infinity when it stops (the simulator paces its clock by it).
     pub scan_done: ScanObserver,
+    /// The pipeline's counters and histograms, taken by the supervisor
+    /// once a second (none before the first), for the live view.
+    pub metrics: Mutex<Option<std::sync::Arc<crate::pipeline::metrics::MetricsSnapshot>>>,
 }
 
 /// A callback for every scan through localisation, set at most once.
