@@ -108,13 +108,19 @@ fn a_sim_run_is_recorded_on_every_channel_with_its_schema() {
             "{topic}: log times go backwards"
         );
     }
-    // Every scan handed to the localise stage, none lost to the recorder.
+    // Every scan the scanner stage handed on, none lost to the recorder
+    // (the last one may be copied while the stages stop, after the
+    // report's count; a loaded machine may make the localise stage skip
+    // one: then there are fewer poses than scans).
     assert_eq!(dropped(&r, "tap_scans"), 0);
-    assert_eq!(dropped(&r, "scans"), 0);
     let delivered = sent(&r, "scans") as usize;
     assert!(delivered > 300, "{delivered} scans");
-    assert_eq!(topics[topics::SCAN].2.len(), delivered);
-    assert_eq!(topics[topics::SCAN_INPUT].2.len(), delivered);
+    let recorded = topics[topics::SCAN].2.len();
+    assert!(
+        (delivered..=delivered + 1).contains(&recorded),
+        "{recorded} scans recorded, {delivered} delivered"
+    );
+    assert_eq!(topics[topics::SCAN_INPUT].2.len(), recorded);
     assert_eq!(topics[topics::POSE].2.len() as u64, r.scans.0);
     // The LaserScan shows the very scan the localise stage got.
     for ((_, laser), (_, input)) in topics[topics::SCAN]
@@ -138,7 +144,7 @@ fn a_sim_run_is_recorded_on_every_channel_with_its_schema() {
     // Our own reader gets the same scans back, with the setup and truth.
     let rec = Recording::read(&out.join("run.mcap")).unwrap();
     assert!(rec.complete);
-    assert_eq!(rec.scans.len(), delivered);
+    assert_eq!(rec.scans.len(), recorded);
     assert!(rec.setup.as_ref().is_some_and(|s| s.is_ok()));
     assert!(rec.map_to_world.is_some());
     assert!(
@@ -146,6 +152,39 @@ fn a_sim_run_is_recorded_on_every_channel_with_its_schema() {
         "{} truth samples",
         rec.truth.len()
     );
+    // `sweepline replay run.mcap`, then `sweepline eval --truth run.mcap`.
+    let bin = env!("CARGO_BIN_EXE_sweepline");
+    let replayed = out.join("replay");
+    let st = Command::new(bin)
+        .arg("replay")
+        .arg(out.join("run.mcap"))
+        .arg("--out")
+        .arg(&replayed)
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&st.stdout);
+    assert!(st.status.success(), "{text}");
+    assert!(
+        text.contains("against the recorded truth: position RMSE"),
+        "{text}"
+    );
+    let ev = Command::new(bin)
+        .arg("eval")
+        .arg(replayed.join("trajectory.txt"))
+        .arg("--truth")
+        .arg(out.join("run.mcap"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&ev.stdout);
+    assert!(ev.status.success(), "{text}");
+    let mm: f64 = text
+        .split("position RMSE ")
+        .nth(1)
+        .and_then(|r| r.split(" mm").next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(mm < 30.0, "replayed position RMSE {mm} mm");
 }
 
 /// A port free right now on the loopback address.

@@ -1,4 +1,5 @@
-//! `sweepline eval`: scores a trajectory against Kümmerle et al. relations.
+//! `sweepline eval`: scores a trajectory against Kümmerle et al. relations,
+//! or against the true poses a simulator's recording (`run.mcap`) holds.
 
 use super::CliResult;
 use crate::sim::eval::breakdown::{breakdown, shared, short_errors};
@@ -11,8 +12,13 @@ use crate::sim::eval::{
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The relations file (t1 t2 x y z roll pitch yaw per line).
-    #[arg(long)]
-    pub relations: std::path::PathBuf,
+    #[arg(long, required_unless_present = "truth", conflicts_with = "truth")]
+    pub relations: Option<std::path::PathBuf>,
+    /// A `sweepline sim` recording (`run.mcap`): score the trajectory (map
+    /// frame, e.g. from `sweepline replay run.mcap`) against the true
+    /// poses it holds, as the run's own report scores the live poses.
+    #[arg(long, value_name = "RECORDING")]
+    pub truth: Option<std::path::PathBuf>,
     /// The trajectory (timestamp x y theta per line).
     pub trajectory: std::path::PathBuf,
     /// Also estimate the annotation noise of the short relations from relation
@@ -44,10 +50,14 @@ pub struct Args {
 
 /// Runs `sweepline eval`.
 pub fn run(args: Args) -> CliResult {
-    let rel_text = read_text(&args.relations)?;
-    let rels = parse_relations(&rel_text, &args.relations.display().to_string())?;
     let traj_text = read_text(&args.trajectory)?;
     let traj = parse_trajectory(&traj_text, &args.trajectory.display().to_string())?;
+    let Some(relations) = &args.relations else {
+        let truth = args.truth.as_deref().ok_or("give --relations or --truth")?;
+        return score_truth(truth, &traj);
+    };
+    let rel_text = read_text(relations)?;
+    let rels = parse_relations(&rel_text, &relations.display().to_string())?;
     let rels = match (args.time_offset, args.tolerance) {
         (0.0, None) => rels,
         (o, t) => align(&rels, &traj, o, t.unwrap_or(STAMP_TOLERANCE)),
@@ -68,5 +78,37 @@ pub fn run(args: Args) -> CliResult {
         let noise = truth_noise(&rels, &traj, 2000, 1)?;
         print!("{noise}");
     }
+    Ok(())
+}
+
+/// Scores `traj` against the truth of the recording at `path`.
+fn score_truth(path: &std::path::Path, traj: &[crate::sim::eval::Stamped]) -> CliResult {
+    let rec = crate::live::Recording::read(path)?;
+    let to_w = rec
+        .map_to_world
+        .filter(|_| !rec.truth.is_empty())
+        .ok_or_else(|| {
+            format!(
+                "{}: no truth recorded (not a `sweepline sim` recording)",
+                path.display()
+            )
+        })?;
+    let fixes: Vec<_> = traj.iter().map(|s| (s.t, s.pose)).collect();
+    let (pos, head, max, n) = crate::sim::closed_loop::score_fixes(&fixes, &rec.truth, &to_w);
+    if n == 0 {
+        return Err(format!(
+            "no trajectory pose within 0.2 s of a true pose of {}: another run's trajectory?",
+            path.display()
+        )
+        .into());
+    }
+    println!(
+        "against the truth of {}: position RMSE {:.1} mm, heading RMSE {:.2}°, max {:.1} mm ({n} of {} poses scored)",
+        path.display(),
+        pos * 1e3,
+        head.to_degrees(),
+        max * 1e3,
+        traj.len()
+    );
     Ok(())
 }
