@@ -108,6 +108,100 @@ def row_realtime(out):
     return f"daemon CPU {cpu} % of one core (budget 5 %); end-to-end p50 {e2e[0]:.2f} ms, p99 {e2e[1]:.2f} ms"
 
 
+def ws_viewer(port, seconds, counts):
+    """A minimal Foxglove WebSocket viewer (stdlib only): connects to the
+    live view on `port`, subscribes to every channel and reads for
+    `seconds`, counting binary message frames into `counts["messages"]`."""
+    import base64, json as _json, socket, struct, time as _time
+    deadline = _time.monotonic() + 30
+    while True:
+        try:
+            sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+            break
+        except OSError:
+            if _time.monotonic() > deadline:
+                return
+            _time.sleep(0.2)
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                  f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+                  "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n").encode())
+    buf = b""
+    while b"\r\n\r\n" not in buf:
+        buf += sock.recv(4096)
+    buf = buf.split(b"\r\n\r\n", 1)[1]
+
+    def need(n):
+        nonlocal buf
+        while len(buf) < n:
+            chunk = sock.recv(65536)
+            if not chunk:
+                raise EOFError
+            buf += chunk
+        out, buf = buf[:n], buf[n:]
+        return out
+
+    def send_text(text):
+        data, mask = text.encode(), os.urandom(4)
+        head = bytes([0x81]) + (bytes([0x80 | len(data)]) if len(data) < 126
+                                else bytes([0x80 | 126]) + struct.pack(">H", len(data)))
+        sock.sendall(head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(data)))
+
+    end = _time.monotonic() + seconds
+    sock.settimeout(1.0)
+    while _time.monotonic() < end:
+        try:
+            b0, b1 = need(2)
+            n = b1 & 0x7F
+            if n == 126:
+                n = struct.unpack(">H", need(2))[0]
+            elif n == 127:
+                n = struct.unpack(">Q", need(8))[0]
+            payload = need(n)
+        except (socket.timeout, EOFError, OSError):
+            if _time.monotonic() >= end:
+                break
+            continue
+        if b0 & 0x0F == 1:
+            msg = _json.loads(payload)
+            if msg.get("op") == "advertise":
+                subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
+                send_text(_json.dumps({"op": "subscribe", "subscriptions": subs}))
+        elif b0 & 0x0F == 2:
+            counts["messages"] = counts.get("messages", 0) + 1
+    sock.close()
+
+
+def row_live_cost(out):
+    import socket, threading
+    secs = 180
+    base = ["--speed", "1", "--fixed-speed", "--time-cap", str(secs), "--seed", "1"]
+    figs = []
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    counts = {}
+    for name, extra in [("neither", ["--live", "off", "--no-record"]),
+                        ("recording", ["--live", "off"]),
+                        ("recording and a viewer", ["--live", f"127.0.0.1:{port}"])]:
+        viewer = None
+        if "--live" in extra and extra[extra.index("--live") + 1] != "off":
+            viewer = threading.Thread(target=ws_viewer, args=(port, secs + 20, counts), daemon=True)
+            viewer.start()
+        md, rep = sim_run(out, "live-" + name.replace(" ", "-"), base + extra)
+        if viewer:
+            viewer.join(timeout=60)
+        m = re.search(r"the process without them: ([0-9.]+) % of one core", rep)
+        e2e = nums(cell(md, "end-to-end latency"))
+        drops = re.search(r"^\| scans \|[^|]*\|[^|]*\|[^|]*\|[^|]*\| *([0-9]+)", rep, re.M)
+        figs.append(f"{name}: CPU {m.group(1) if m else '?'} % of one core, end-to-end p99 "
+                    f"{e2e[1]:.2f} ms, scans dropped {drops.group(1) if drops else '?'}")
+    mcap = os.path.join(out, "live-recording", "run.mcap")
+    size = os.path.getsize(mcap) / 1e6 if os.path.exists(mcap) else 0
+    return ("; ".join(figs) + f" (the viewer read {counts.get('messages', 0)} messages); "
+            f"recording {size / secs * 3600:.0f} MB per hour")
+
+
 def row_lockstep24(out):
     rooms = covrun.expand(["@rooms24"])
     rs = covrun.run_all(BIN, os.path.join(ROOT, "hw", "robot.toml"), os.path.join(out, "rooms24"), rooms)
@@ -335,6 +429,8 @@ ROWS = [
      "`sweepline sim --seed N --speed 5 --fixed-speed`", row_main_fixed5),
     ("realtime", "real time: CPU of the daemon (without the in-process emulators), end-to-end latency",
      "`sweepline sim --speed 1 --fixed-speed --time-cap 600`", row_realtime),
+    ("live-cost", "real time, default room, 180 s: CPU of the daemon and end-to-end latency with neither recording nor viewer, with the recording, with the recording and a viewer reading every channel",
+     "`sweepline sim --speed 1 --fixed-speed --time-cap 180 --seed 1 [--live off] [--no-record]`", row_live_cost),
     ("lockstep24", "lock-step coverage, 24 rooms, ideal localisation",
      "`python3 scripts/covrun.py target/release/sweepline hw/robot.toml OUT @rooms24`", row_lockstep24),
     ("closed12", "closed loop, twelve rooms, seed 1",

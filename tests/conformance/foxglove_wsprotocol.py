@@ -86,6 +86,8 @@ def main():
         c.check("the server chose foxglove.websocket.v1", r["protocol"] == "foxglove.websocket.v1",
                 str(r["protocol"]))
         c.check("serverInfo names sweepline", r["serverName"] == "sweepline", str(r["serverName"]))
+        c.check("read-only: no capability (no client publish, services, parameters)",
+                r["capabilities"] == [], str(r["capabilities"]))
         ch = r["channels"]
         for topic, schema in [("/scan", "foxglove.LaserScan"), ("/pose", "foxglove.PoseInFrame"),
                               ("/tf", "foxglove.FrameTransform"), ("/map", "foxglove.Grid"),

@@ -10,7 +10,7 @@ const { FoxgloveClient } = wsProtocol;
 
 const [url, seconds] = [process.argv[2], Number(process.argv[3] ?? 10)];
 const wanted = ["/scan", "/pose", "/tf", "/map", "/sweepline/status", "/log"];
-const result = { protocol: null, serverName: null, channels: {}, counts: {}, status: null, errors: [] };
+const result = { protocol: null, serverName: null, capabilities: null, channels: {}, counts: {}, status: null, errors: [] };
 
 function connect(deadline) {
   const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
@@ -26,7 +26,10 @@ function connect(deadline) {
     result.protocol = ws.protocol;
     const client = new FoxgloveClient({ ws });
     const bySub = new Map();
-    client.on("serverInfo", (info) => { result.serverName = info.name; });
+    client.on("serverInfo", (info) => {
+      result.serverName = info.name;
+      result.capabilities = info.capabilities;
+    });
     client.on("advertise", (channels) => {
       for (const ch of channels) {
         result.channels[ch.topic] = { schemaName: ch.schemaName, encoding: ch.encoding };
