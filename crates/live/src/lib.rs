@@ -25,6 +25,7 @@
 
 use sweepline_core::{decomp, geom, grid};
 
+mod channels;
 mod convert;
 pub mod logs;
 pub mod recorder;

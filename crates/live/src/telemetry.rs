@@ -17,15 +17,15 @@ use foxglove::schemas::{
     packed_element_field::NumericType, FrameTransform, LaserScan, PoseInFrame, SceneEntityDeletion,
     SceneUpdate,
 };
-use foxglove::{Channel, ChannelBuilder, Context, PartialMetadata, RawChannel, Schema};
+use foxglove::{Context, PartialMetadata};
 use sweepline_daemon::daemon::taps::ScanRecord;
 use sweepline_daemon::daemon::{Shared, Taps};
 use sweepline_daemon::pipeline::Recv;
 use sweepline_io::clock::SharedClock;
 
+use crate::channels::Channels;
 use crate::convert;
 use crate::geom::Pose;
-use crate::topics;
 
 /// How often the recording is flushed to the file (s of the daemon's clock).
 const FLUSH_PERIOD: f64 = 1.0;
@@ -198,70 +198,6 @@ impl ClockMap {
         (self.wall_ns as f64 + d).max(0.0) as u64
     }
 }
-
-/// A JSON channel with a JSON schema.
-fn json_channel(ctx: &Arc<Context>, topic: &str, name: &str, schema: &str) -> Arc<RawChannel> {
-    ChannelBuilder::new(topic)
-        .context(ctx)
-        .message_encoding("json")
-        .schema(Schema::new(name, "jsonschema", schema.as_bytes().to_vec()))
-        .build_raw()
-        .expect("a JSON channel with a schema is valid")
-}
-
-/// The channels.
-struct Channels {
-    scan: Channel<LaserScan>,
-    scan_input: Arc<RawChannel>,
-    pose: Channel<PoseInFrame>,
-    odom: Channel<PoseInFrame>,
-    tf: Channel<FrameTransform>,
-    map: Channel<foxglove::schemas::Grid>,
-    swept: Channel<foxglove::schemas::Grid>,
-    plan: Channel<SceneUpdate>,
-    status: Arc<RawChannel>,
-    log: Channel<foxglove::schemas::Log>,
-    truth: Option<Channel<PoseInFrame>>,
-}
-
-impl Channels {
-    fn new(ctx: &Arc<Context>, sim: bool) -> Self {
-        Self {
-            scan: ChannelBuilder::new(topics::SCAN).context(ctx).build(),
-            scan_input: json_channel(
-                ctx,
-                topics::SCAN_INPUT,
-                "sweepline.ScanInput",
-                SCAN_INPUT_SCHEMA,
-            ),
-            pose: ChannelBuilder::new(topics::POSE).context(ctx).build(),
-            odom: ChannelBuilder::new(topics::ODOM).context(ctx).build(),
-            tf: ChannelBuilder::new(topics::TF).context(ctx).build(),
-            map: ChannelBuilder::new(topics::MAP).context(ctx).build(),
-            swept: ChannelBuilder::new(topics::SWEPT).context(ctx).build(),
-            plan: ChannelBuilder::new(topics::PLAN).context(ctx).build(),
-            status: json_channel(
-                ctx,
-                topics::STATUS,
-                "sweepline.Status",
-                crate::status::SCHEMA,
-            ),
-            log: ChannelBuilder::new(topics::LOG).context(ctx).build(),
-            truth: sim.then(|| ChannelBuilder::new(topics::TRUTH).context(ctx).build()),
-        }
-    }
-}
-
-/// The JSON schema of [`topics::SCAN_INPUT`].
-const SCAN_INPUT_SCHEMA: &str = r#"{"type":"object","title":"sweepline.ScanInput","properties":{
-"stamp":{"type":"number"},"seq":{"type":"integer"},
-"odom":{"type":"array","items":{"type":"number"}},"odom_current":{"type":"boolean"},
-"interval":{"type":"number"},"motion":{"type":"array","items":{"type":"number"}},
-"first_beam_time":{"type":"number"},"beam_interval":{"type":"number"},
-"angles":{"type":"array","items":{"type":"number"}},"ranges":{"type":"array","items":{"type":"number"}},
-"intensities":{"type":"array","items":{"type":"number"}},"invalid":{"type":"array","items":{"type":"integer"}},
-"raw_stamp":{"type":"integer"},"sensor_ms":{"type":"integer"},"epoch":{"type":"integer"},
-"dropped_before":{"type":"integer"},"raw":{"type":"array","items":{"type":"integer"}}}}"#;
 
 /// The thread's state: the channels, reused buffers and what was last sent.
 struct Worker {
