@@ -9,7 +9,7 @@ Usage: foxglove_wsprotocol.py PATH/TO/sweepline
 Installs the client into target/conformance-node (needs `node` and `npm`),
 starts a simulation serving the live view on a free loopback port, runs
 node/live_client.mjs against it and checks what the client saw. Ends with
-`foxglove ws-protocol conformance: N passed, M failed`.
+`foxglove live view conformance: N passed, M failed`.
 """
 
 import json
@@ -108,7 +108,7 @@ def main():
         if sim and sim.poll() is None:
             sim.kill()
     print(f"info took {time.monotonic() - t0:.1f} s")
-    print(f"foxglove ws-protocol conformance: {c.passed} passed, {c.failed} failed")
+    print(f"foxglove live view conformance: {c.passed} passed, {c.failed} failed")
     return 1 if c.failed else 0
 
 

@@ -31,7 +31,8 @@ for script in "$here"/*_*.py; do
     echo "== $(basename "$script")"
     log="$(mktemp)"
     "$venv/bin/python" "$script" "$bin" | tee "$log" || status=1
-    # Each script closes with `NAME: N passed, M failed`.
+    # Each script closes with `NAME: N passed, M failed` (NAME: lower-case
+    # letters, digits and spaces).
     read -r p f < <(tail -n 1 "$log" | sed -nE 's/^[a-z0-9 ]+: ([0-9]+) passed, ([0-9]+) failed$/\1 \2/p') || { p=0; f=1; status=1; }
     passed=$((passed + ${p:-0}))
     failed=$((failed + ${f:-1}))
