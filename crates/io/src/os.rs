@@ -75,6 +75,30 @@ pub fn set_thread_fifo(priority: i32) -> io::Result<()> {
     }
 }
 
+/// Lowers the calling thread's priority to `nice` (0..=19; higher is
+/// lower): for work beside the scan path (the recorder, the live view),
+/// which then neither preempts a stage when it is woken nor competes with
+/// the stages for a busy core. Needs no privilege.
+pub fn set_thread_nice(nice: i32) -> io::Result<()> {
+    if !(0..=19).contains(&nice) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("nice {nice} outside 0..=19"),
+        ));
+    }
+    // SAFETY: gettid has no preconditions; setpriority with PRIO_PROCESS and
+    // a thread id changes only that thread on Linux, and takes no pointers.
+    let rc = unsafe {
+        let tid = libc::gettid();
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, nice)
+    };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
 /// The calling thread's scheduling policy (e.g. [`SCHED_FIFO`]) and
 /// priority, to check what [`set_thread_fifo`] left in place.
 pub fn thread_scheduling() -> io::Result<(i32, i32)> {
@@ -97,6 +121,23 @@ pub fn clock_ticks_per_second() -> Option<u64> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_thread_lowers_its_own_priority_only() {
+        let nice = std::thread::spawn(|| {
+            super::set_thread_nice(7).unwrap();
+            // SAFETY: as in set_thread_nice.
+            unsafe { libc::getpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t) }
+        })
+        .join()
+        .unwrap();
+        assert_eq!(nice, 7);
+        // SAFETY: as above, for this thread.
+        let mine = unsafe { libc::getpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t) };
+        assert_ne!(mine, 7);
+        assert!(super::set_thread_nice(20).is_err());
+    }
+
     use super::*;
 
     #[test]

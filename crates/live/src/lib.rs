@@ -36,5 +36,16 @@ pub mod telemetry;
 pub mod topics;
 
 pub use recorder::RecordTo;
+
+/// The priority of the threads beside the scan path (telemetry, live view):
+/// woken by a scan, they do not preempt the stage that handed it over.
+const BACKGROUND_NICE: i32 = 10;
+
+/// Lowers the calling thread to [`BACKGROUND_NICE`].
+fn background() {
+    if let Err(e) = sweepline_io::os::set_thread_nice(BACKGROUND_NICE) {
+        log::debug!("cannot lower the priority of a telemetry thread: {e}");
+    }
+}
 pub use recording::{Recording, RecordingError};
 pub use telemetry::{Telemetry, TelemetryError, TelemetryOptions, TelemetryStats};

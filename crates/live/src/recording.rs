@@ -146,9 +146,18 @@ impl Recording {
             entry.ordered &= msg.log_time >= entry.last;
             entry.last = msg.log_time;
             match topic {
-                topics::SCAN_INPUT => rec
-                    .scans
-                    .push(serde_json::from_slice(&msg.data).map_err(|e| bad(e.to_string()))?),
+                topics::SCAN_INPUT => {
+                    let mut s: ScanRecord =
+                        serde_json::from_slice(&msg.data).map_err(|e| bad(e.to_string()))?;
+                    if s.angles.is_empty() {
+                        // The same angles as the scan before.
+                        let prev = rec.scans.last().ok_or_else(|| {
+                            bad("the first scan of the file has no beam angles".into())
+                        })?;
+                        s.angles.clone_from(&prev.angles);
+                    }
+                    rec.scans.push(s);
+                }
                 topics::TRUTH => {
                     let p = foxglove::schemas::PoseInFrame::decode(&msg.data[..])
                         .map_err(|e| bad(e.to_string()))?;

@@ -39,6 +39,8 @@ pub struct LiveServer {
     stop: Arc<AtomicBool>,
     inner: Option<WebSocketServerHandle>,
     accept: Option<std::thread::JoinHandle<()>>,
+    /// The server's runtime (dropped last).
+    runtime: Option<tokio::runtime::Runtime>,
 }
 
 impl LiveServer {
@@ -46,10 +48,18 @@ impl LiveServer {
     pub fn start(ctx: &Arc<Context>, addr: &str) -> Result<LiveServer, String> {
         let listener = TcpListener::bind(addr).map_err(|e| e.to_string())?;
         let local = listener.local_addr().map_err(|e| e.to_string())?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .thread_name("live-view")
+            .on_thread_start(crate::background)
+            .enable_all()
+            .build()
+            .map_err(|e| e.to_string())?;
         let inner = WebSocketServer::new()
             .name("sweepline")
             .context(ctx)
             .bind("127.0.0.1", 0)
+            .tokio_runtime(runtime.handle())
             .start_blocking()
             .map_err(|e| e.to_string())?;
         let inner_addr = SocketAddr::from(([127, 0, 0, 1], inner.port()));
@@ -65,6 +75,7 @@ impl LiveServer {
             stop,
             inner: Some(inner),
             accept: Some(accept),
+            runtime: Some(runtime),
         })
     }
 
@@ -84,10 +95,14 @@ impl LiveServer {
         if let Some(i) = self.inner.take() {
             drop(i.stop());
         }
+        if let Some(r) = self.runtime.take() {
+            r.shutdown_background();
+        }
     }
 }
 
 fn accept_loop(listener: TcpListener, inner: SocketAddr, stop: &AtomicBool) {
+    crate::background();
     let clients = Arc::new(AtomicUsize::new(0));
     for conn in listener.incoming() {
         if stop.load(Ordering::Acquire) {
@@ -103,6 +118,7 @@ fn accept_loop(listener: TcpListener, inner: SocketAddr, stop: &AtomicBool) {
         let spawned = std::thread::Builder::new()
             .name("live-client".into())
             .spawn(move || {
+                crate::background();
                 if let Err(e) = relay(client, inner) {
                     log::debug!("live view: a viewer left: {e}");
                 }
@@ -187,6 +203,7 @@ fn relay(mut client: TcpStream, inner: SocketAddr) -> std::io::Result<()> {
     let up = std::thread::Builder::new()
         .name("live-client-up".into())
         .spawn(move || {
+            crate::background();
             let _ = std::io::copy(&mut c2, &mut s2);
             let _ = s2.shutdown(Shutdown::Write);
         })?;

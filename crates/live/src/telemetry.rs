@@ -31,6 +31,8 @@ use crate::geom::Pose;
 const FLUSH_PERIOD: f64 = 1.0;
 /// How often the status is logged (s).
 const STATUS_PERIOD: f64 = 0.5;
+/// Longest the thread sleeps waiting for a scan (wall time).
+const WAIT: Duration = Duration::from_millis(50);
 /// How often the grids are logged (s).
 const GRID_PERIOD: f64 = 1.0;
 
@@ -212,6 +214,10 @@ struct Worker {
     clock: ClockMap,
     recorder: Option<crate::recorder::Recorder>,
     record: ScanRecord,
+    /// The beam angles last recorded in the current file.
+    last_angles: Vec<f64>,
+    /// An empty list swapped in for angles that did not change.
+    spare: Vec<f64>,
     json: Vec<u8>,
     laser: LaserScan,
     bytes: Vec<u8>,
@@ -245,6 +251,8 @@ impl Worker {
             clock,
             recorder: None,
             record: ScanRecord::default(),
+            last_angles: Vec::new(),
+            spare: Vec::new(),
             json: Vec::with_capacity(64 * 1024),
             laser: LaserScan::default(),
             bytes: Vec::new(),
@@ -268,16 +276,20 @@ impl Worker {
     /// Until told to finish: scans and poses as they come, the rest on
     /// their periods; then the taps drained and the recording closed.
     fn run(mut self, finish: &Receiver<MetadataRecords>, clock: SharedClock) -> TelemetryStats {
+        crate::background();
         loop {
             let done = finish.try_recv().ok();
-            let mut busy = false;
+            // Asleep until a scan comes (or the periodic work is due).
+            if done.is_none() {
+                if let Recv::Msg(s) = self.taps.scans.recv_timeout(WAIT) {
+                    self.scan(&s);
+                }
+            }
             while let Recv::Msg(s) = self.taps.scans.try_recv() {
                 self.scan(&s);
-                busy = true;
             }
             while let Recv::Msg(f) = self.taps.fixes.try_recv() {
                 self.fix(&f);
-                busy = true;
             }
             while let Ok((t, p)) = self.truth.try_recv() {
                 self.truth(t, &p);
@@ -290,9 +302,6 @@ impl Worker {
             if let Some(metadata) = done {
                 self.close(&metadata);
                 break;
-            }
-            if !busy {
-                std::thread::sleep(Duration::from_millis(10));
             }
         }
         self.stats
@@ -313,8 +322,19 @@ impl Worker {
         let t = tap.msg.stamp;
         self.stats.scans += 1;
         self.record.fill_from(tap);
+        // Angles only when they change (the first scan of a file has them).
+        let same = self.record.angles == self.last_angles;
+        if same {
+            std::mem::swap(&mut self.record.angles, &mut self.spare);
+        } else {
+            self.last_angles.clone_from(&self.record.angles);
+        }
         self.json.clear();
-        if serde_json::to_writer(&mut self.json, &self.record).is_ok() {
+        let written = serde_json::to_writer(&mut self.json, &self.record);
+        if same {
+            std::mem::swap(&mut self.record.angles, &mut self.spare);
+        }
+        if written.is_ok() {
             self.ch.scan_input.log_with_meta(&self.json, self.meta(t));
         }
         let s = &tap.msg.scan;
@@ -419,7 +439,13 @@ impl Worker {
                 s
             })
         };
-        if let Err(e) = r.tick(now_setup) {
+        let before = r.path().to_path_buf();
+        let ticked = r.tick(now_setup);
+        if r.path() != before {
+            // A new file: its first scan carries the angles again.
+            self.last_angles.clear();
+        }
+        if let Err(e) = ticked {
             // The robot goes on; the recording stops at the first error.
             log::warn!("{e}; recording stopped");
             self.stats.record_errors += 1;

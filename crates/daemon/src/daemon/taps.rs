@@ -119,7 +119,10 @@ pub struct ScanRecord {
     pub first_beam_time: f64,
     /// Time between neighbouring beams (s).
     pub beam_interval: f64,
-    /// Beam angles in the sensor frame (rad).
+    /// Beam angles in the sensor frame (rad). Empty in a recording: the
+    /// same as the scan before's in the file (a scanner's beams keep their
+    /// angles; the first scan of each file has them).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub angles: Vec<f64>,
     /// Ranges (m; what the driver made of the raw values).
     pub ranges: Vec<f64>,
