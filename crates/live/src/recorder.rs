@@ -60,6 +60,8 @@ pub(crate) struct Recorder {
     clock: BTreeMap<String, String>,
     /// Bytes of the files closed so far.
     closed_bytes: u64,
+    /// The millisecond in the newest file's name (0: none yet).
+    last_ms: u64,
 }
 
 impl Recorder {
@@ -80,6 +82,7 @@ impl Recorder {
             files: VecDeque::new(),
             clock,
             closed_bytes: 0,
+            last_ms: 0,
         };
         if let RecordTo::Rotating { dir, .. } = &r.to {
             std::fs::create_dir_all(dir).map_err(|e| RecordError {
@@ -108,7 +111,7 @@ impl Recorder {
     fn next_file(&mut self, setup: Option<&Setup>) -> Result<(), RecordError> {
         self.path = match &self.to {
             RecordTo::File(p) => p.clone(),
-            RecordTo::Rotating { dir, .. } => fresh_name(dir),
+            RecordTo::Rotating { dir, .. } => fresh_name(dir, &mut self.last_ms),
         };
         if let RecordTo::File(p) = &self.to {
             // The file is the run's: an older one goes.
@@ -227,15 +230,29 @@ fn existing(dir: &Path) -> VecDeque<PathBuf> {
     v.into()
 }
 
-/// `run-<unix milliseconds>.mcap` in `dir` (the next free millisecond
-/// if taken): the names sort as the files were started.
-fn fresh_name(dir: &Path) -> PathBuf {
-    let mut ms = std::time::SystemTime::now()
+/// `run-<unix milliseconds>.mcap` in `dir`, later than `last` (the
+/// newest file's millisecond, updated) and not taken: the names sort as
+/// the files were started, even when files are started within one
+/// millisecond and the oldest have been removed.
+fn fresh_name(dir: &Path, last: &mut u64) -> PathBuf {
+    let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as u64);
+    let newest = existing(dir)
+        .back()
+        .and_then(|p| {
+            p.file_stem()?
+                .to_str()?
+                .strip_prefix("run-")?
+                .parse::<u64>()
+                .ok()
+        })
+        .unwrap_or(0);
+    let mut ms = now.max(*last + 1).max(newest + 1);
     loop {
         let p = dir.join(format!("run-{ms:014}.mcap"));
         if !p.exists() {
+            *last = ms;
             return p;
         }
         ms += 1;
