@@ -1,42 +1,19 @@
 //! The recorder's copies cost the scan path no allocation: the scanner
 //! stage's copy of a scan (the message and the sensor's raw values) moves
 //! through a tap edge into preallocated slots, and the telemetry thread
-//! turns it into its record reusing the record's buffers. Proven with a
-//! counting global allocator; this binary holds one test so that nothing
-//! else allocates meanwhile.
+//! turns it into its record reusing the record's buffers. Proven with the
+//! counting allocator of `alloc_support` (this thread's allocations only).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
+mod alloc_support;
 
+use alloc_support::{count_allocs, Counting};
 use sweepline::daemon::taps::{ScanRecord, SensorScan};
 use sweepline::pipeline::{queue, Overflow, Recv};
 use sweepline::scip::Reading;
 use sweepline::urg::UrgScan;
 
-struct Counting;
-
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static A: Counting = Counting;
+static GLOBAL: Counting = Counting;
 
 #[test]
 fn copying_a_scan_onto_a_tap_and_recording_it_allocate_nothing() {
@@ -71,19 +48,19 @@ fn copying_a_scan_onto_a_tap_and_recording_it_allocate_nothing() {
             out.fill_from(&t);
         }
     }
-    let before = ALLOCS.load(Ordering::Relaxed);
-    for _ in 0..200 {
-        // The scanner stage's side.
-        let _ = tx.send(sweepline::daemon::TapScan {
-            msg: tap.msg.clone(),
-            sensor: SensorScan::of(&urg),
-        });
-        // The telemetry thread's side.
-        if let Recv::Msg(t) = rx.try_recv() {
-            out.fill_from(&t);
+    let ((), allocs) = count_allocs(|| {
+        for _ in 0..200 {
+            // The scanner stage's side.
+            let _ = tx.send(sweepline::daemon::TapScan {
+                msg: tap.msg.clone(),
+                sensor: SensorScan::of(&urg),
+            });
+            // The telemetry thread's side.
+            if let Recv::Msg(t) = rx.try_recv() {
+                out.fill_from(&t);
+            }
         }
-    }
-    let allocs = ALLOCS.load(Ordering::Relaxed) - before;
+    });
     assert_eq!(allocs, 0, "allocations in 200 copies");
     assert_eq!(out.ranges, record.ranges);
     assert_eq!(out.invalid, record.invalid);
