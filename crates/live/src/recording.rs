@@ -100,6 +100,11 @@ impl Recording {
             path: path.to_path_buf(),
             why,
         };
+        if !bytes.starts_with(mcap::MAGIC) {
+            return Err(mcap_err(
+                "it does not start with the MCAP magic bytes".into(),
+            ));
+        }
         let mut rec = Recording::default();
         let metadata = read_metadata(&bytes, &mut rec.complete).map_err(mcap_err)?;
         let clock = metadata
@@ -288,5 +293,38 @@ impl Setup {
                 height: f[4] as usize,
             },
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A missing file, an empty one and garbage each give an error that
+    /// names the file; none panics.
+    #[test]
+    fn what_is_not_a_recording_is_a_clear_error() {
+        let dir = std::env::temp_dir().join(format!("sweepline-badrec-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let missing = dir.join("missing.mcap");
+        assert!(matches!(
+            Recording::read(&missing),
+            Err(RecordingError::Io { .. })
+        ));
+        let mut x = 7u32;
+        let garbage: Vec<u8> = (0..4096)
+            .map(|_| {
+                x = x.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                (x >> 24) as u8
+            })
+            .collect();
+        for (name, bytes) in [("empty.mcap", Vec::new()), ("garbage.mcap", garbage)] {
+            let p = dir.join(name);
+            std::fs::write(&p, bytes).unwrap();
+            let e = Recording::read(&p).unwrap_err();
+            assert!(matches!(e, RecordingError::Mcap { .. }), "{name}: {e}");
+            assert!(e.to_string().contains(name), "{e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
