@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use foxglove::Decode;
 use sweepline::config::Config;
+use sweepline::daemon::shared::OdomLog;
 use sweepline::daemon::taps::ScanRecord;
 use sweepline::live::{topics, Recording};
 use sweepline::sim::closed_loop::{self, SimOptions, SimReport};
@@ -89,6 +90,7 @@ fn a_sim_run_is_recorded_on_every_channel_with_its_schema() {
     let expect = [
         (topics::SCAN, "foxglove.LaserScan", "protobuf"),
         (topics::SCAN_INPUT, "sweepline.ScanInput", "json"),
+        (topics::ODOMETRY_INPUT, "sweepline.OdometryInput", "json"),
         (topics::POSE, "foxglove.PoseInFrame", "protobuf"),
         (topics::ODOM, "foxglove.PoseInFrame", "protobuf"),
         (topics::TF, "foxglove.FrameTransform", "protobuf"),
@@ -153,6 +155,7 @@ fn a_sim_run_is_recorded_on_every_channel_with_its_schema() {
     let rec = Recording::read(&out.join("run.mcap")).unwrap();
     assert!(rec.complete);
     assert_eq!(rec.scans.len(), recorded);
+    odometry_is_whole(&r, &rec);
     assert!(rec.setup.as_ref().is_some_and(|s| s.is_ok()));
     assert!(rec.map_to_world.is_some());
     assert!(
@@ -193,6 +196,46 @@ fn a_sim_run_is_recorded_on_every_channel_with_its_schema() {
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("{text}"));
     assert!(mm < 30.0, "replayed position RMSE {mm} mm");
+}
+
+/// The recorded wheel odometry is every reading the motor stage took, and
+/// integrated as the daemon integrates it, it gives the odometry pose each
+/// scan was paired with (to the last bits of a heading written as an angle).
+fn odometry_is_whole(r: &SimReport, rec: &Recording) {
+    assert_eq!(dropped(r, "tap_odometry"), 0);
+    let odo = &rec.odometry;
+    assert!(odo.len() > 30 * 45, "{} odometry readings", odo.len());
+    // Each reading starts where the one before ended: none is missing.
+    for w in odo.windows(2) {
+        assert_eq!(w[1].t0, w[0].t1, "a gap in the odometry");
+        assert!(w[1].t1 >= w[1].t0);
+    }
+    let log = OdomLog::default();
+    let mut next = 0;
+    let mut checked = 0;
+    for s in rec.scans.iter().filter(|s| s.odom_current) {
+        // Readings up to the first at or after the scan, as the daemon had
+        // them when it paired the scan.
+        while next < odo.len() && (next == 0 || odo[next - 1].t1 < s.stamp) {
+            let o = odo[next].to_odometry();
+            log.push(o.t1, &o.delta);
+            next += 1;
+        }
+        let p = log.at(s.stamp);
+        let xyt = [p.translation.x, p.translation.y, p.rotation.angle()];
+        let off = xyt.iter().zip(&s.odom).map(|(a, b)| (a - b).abs());
+        assert!(
+            off.fold(0.0, f64::max) < 1e-12,
+            "scan {}: {xyt:?} against {:?}",
+            s.seq,
+            s.odom
+        );
+        checked += 1;
+    }
+    assert!(
+        checked * 10 > rec.scans.len() * 9,
+        "{checked} scans checked"
+    );
 }
 
 /// A port free right now on the loopback address.

@@ -27,6 +27,7 @@ from mcap_protobuf.decoder import DecoderFactory
 EXPECTED = {
     "/scan": ("foxglove.LaserScan", "protobuf"),
     "/sweepline/scan_input": ("sweepline.ScanInput", "json"),
+    "/sweepline/odometry_input": ("sweepline.OdometryInput", "json"),
     "/pose": ("foxglove.PoseInFrame", "protobuf"),
     "/odom": ("foxglove.PoseInFrame", "protobuf"),
     "/tf": ("foxglove.FrameTransform", "protobuf"),
@@ -78,6 +79,9 @@ def whole_file(path, c):
         c.check("as many LaserScans as scan inputs",
                 counts.get("/scan") == counts.get("/sweepline/scan_input") and counts["/scan"] > 300,
                 f"{counts.get('/scan')} / {counts.get('/sweepline/scan_input')}")
+        c.check("wheel odometry at 30 Hz or more (the motor stage polls at 50 Hz)",
+                counts.get("/sweepline/odometry_input", 0) > 30 * 60,
+                f"{counts.get('/sweepline/odometry_input')} readings in 60 s")
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
         c.check("metadata: clock, setup, map_to_world",
                 {"clock", "setup", "map_to_world"} <= metadata.keys(), str(sorted(metadata)))

@@ -22,6 +22,7 @@ fn json_channel(ctx: &Arc<Context>, topic: &str, name: &str, schema: &str) -> Ar
 pub(crate) struct Channels {
     pub(crate) scan: Channel<LaserScan>,
     pub(crate) scan_input: Arc<RawChannel>,
+    pub(crate) odometry_input: Arc<RawChannel>,
     pub(crate) pose: Channel<PoseInFrame>,
     pub(crate) odom: Channel<PoseInFrame>,
     pub(crate) tf: Channel<FrameTransform>,
@@ -42,6 +43,12 @@ impl Channels {
                 topics::SCAN_INPUT,
                 "sweepline.ScanInput",
                 SCAN_INPUT_SCHEMA,
+            ),
+            odometry_input: json_channel(
+                ctx,
+                topics::ODOMETRY_INPUT,
+                "sweepline.OdometryInput",
+                ODOMETRY_INPUT_SCHEMA,
             ),
             pose: ChannelBuilder::new(topics::POSE).context(ctx).build(),
             odom: ChannelBuilder::new(topics::ODOM).context(ctx).build(),
@@ -71,3 +78,9 @@ const SCAN_INPUT_SCHEMA: &str = r#"{"type":"object","title":"sweepline.ScanInput
 "intensities":{"type":"array","items":{"type":"number"}},"invalid":{"type":"array","items":{"type":"integer"}},
 "raw_stamp":{"type":"integer"},"sensor_ms":{"type":"integer"},"epoch":{"type":"integer"},
 "dropped_before":{"type":"integer"},"raw":{"type":"array","items":{"type":"integer"}}}}"#;
+
+/// The JSON schema of [`topics::ODOMETRY_INPUT`].
+const ODOMETRY_INPUT_SCHEMA: &str = r#"{"type":"object","title":"sweepline.OdometryInput","properties":{
+"t0":{"type":"number"},"t1":{"type":"number"},
+"delta":{"type":"array","items":{"type":"number"}},
+"left":{"type":"number"},"right":{"type":"number"}}}"#;

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use foxglove::Decode;
 use mcap::read::{LinearReader, MessageStream, Options};
 use mcap::records::Record;
-use sweepline_daemon::daemon::taps::ScanRecord;
+use sweepline_daemon::daemon::taps::{OdometryRecord, ScanRecord};
 
 use crate::geom::Pose;
 use crate::topics;
@@ -75,6 +75,8 @@ pub struct ChannelSummary {
 pub struct Recording {
     /// Every scan the localise stage was handed, in order.
     pub scans: Vec<ScanRecord>,
+    /// Every wheel odometry reading, in order.
+    pub odometry: Vec<OdometryRecord>,
     /// The simulator's true poses (daemon-clock s, world frame).
     pub truth: Vec<(f64, Pose)>,
     /// The map frame in the world (`sim` only).
@@ -162,6 +164,10 @@ impl Recording {
                         s.angles.clone_from(&prev.angles);
                     }
                     rec.scans.push(s);
+                }
+                topics::ODOMETRY_INPUT => {
+                    rec.odometry
+                        .push(serde_json::from_slice(&msg.data).map_err(|e| bad(e.to_string()))?);
                 }
                 topics::TRUTH => {
                     let p = foxglove::schemas::PoseInFrame::decode(&msg.data[..])

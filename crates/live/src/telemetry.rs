@@ -18,7 +18,7 @@ use foxglove::schemas::{
     SceneUpdate,
 };
 use foxglove::{Context, PartialMetadata};
-use sweepline_daemon::daemon::taps::ScanRecord;
+use sweepline_daemon::daemon::taps::{OdometryRecord, ScanRecord};
 use sweepline_daemon::daemon::{Shared, Taps};
 use sweepline_daemon::pipeline::Recv;
 use sweepline_io::clock::SharedClock;
@@ -73,6 +73,8 @@ pub struct TelemetryStats {
     pub scans: u64,
     /// Pose fixes logged.
     pub poses: u64,
+    /// Wheel odometry readings logged.
+    pub odometry: u64,
     /// Status messages logged.
     pub statuses: u64,
     /// Evidence grids logged.
@@ -288,6 +290,9 @@ impl Worker {
             while let Recv::Msg(s) = self.taps.scans.try_recv() {
                 self.scan(&s);
             }
+            while let Recv::Msg(o) = self.taps.odometry.try_recv() {
+                self.odometry(&o);
+            }
             while let Recv::Msg(f) = self.taps.fixes.try_recv() {
                 self.fix(&f);
             }
@@ -352,6 +357,16 @@ impl Worker {
             l.intensities.push(b.intensity);
         }
         self.ch.scan.log_with_meta(&self.laser, self.meta(t));
+    }
+
+    fn odometry(&mut self, o: &sweepline_core::base::Odometry) {
+        self.stats.odometry += 1;
+        self.json.clear();
+        if serde_json::to_writer(&mut self.json, &OdometryRecord::of(o)).is_ok() {
+            self.ch
+                .odometry_input
+                .log_with_meta(&self.json, self.meta(o.t1));
+        }
     }
 
     fn fix(&mut self, f: &sweepline_daemon::daemon::messages::PoseFix) {

@@ -9,6 +9,9 @@ pub const SCAN: &str = "/scan";
 /// the localise stage got it, with the sensor's raw values and clock and the
 /// wheel odometry; what `sweepline replay run.mcap` reads.
 pub const SCAN_INPUT: &str = "/sweepline/scan_input";
+/// JSON [`sweepline_daemon::daemon::taps::OdometryRecord`]: each wheel
+/// odometry reading (50 Hz) exactly as the motor stage got it.
+pub const ODOMETRY_INPUT: &str = "/sweepline/odometry_input";
 /// `foxglove.PoseInFrame` in `map`: the localised robot pose of each scan.
 pub const POSE: &str = "/pose";
 /// `foxglove.PoseInFrame` in `odom`: the wheel odometry at each scan.

@@ -211,6 +211,7 @@ impl Daemon {
             let (tx, rx) = taps::taps();
             pipeline.register_edge(&tx.scans);
             pipeline.register_edge(&tx.fixes);
+            pipeline.register_edge(&tx.odometry);
             (Some(tx), Some(rx))
         } else {
             (None, None)
@@ -305,6 +306,7 @@ impl Daemon {
                     setup.map.width as f64 * setup.map.resolution,
                     setup.map.height as f64 * setup.map.resolution,
                 ),
+                tap: tap_tx.as_ref().map(|t| t.odometry.clone()),
             },
         )?;
         pipeline.spawn(

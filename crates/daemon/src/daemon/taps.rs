@@ -11,6 +11,7 @@ use sweepline_wire::scip::Reading;
 
 use super::messages::{PoseFix, ScanMsg};
 use crate::capacity::MAX_BEAMS;
+use crate::motor::Odometry;
 use crate::pipeline::{queue, Overflow, Rx, Tx};
 use crate::urg::UrgScan;
 
@@ -18,6 +19,8 @@ use crate::urg::UrgScan;
 const SCAN_TAP_DEPTH: usize = 32;
 /// Pose fixes a tap holds before it drops.
 const FIX_TAP_DEPTH: usize = 64;
+/// Odometry readings a tap holds before it drops (2.5 s at 50 Hz).
+const ODOMETRY_TAP_DEPTH: usize = 128;
 
 /// The sensor's own view of a scan: what the driver read before turning it
 /// into metres, so that a recording keeps the bytes' meaning losslessly.
@@ -74,6 +77,8 @@ pub(crate) struct TapSenders {
     pub(crate) scans: Tx<TapScan>,
     /// Pose fixes, from the localise stage.
     pub(crate) fixes: Tx<PoseFix>,
+    /// Wheel odometry readings, from the motor stage.
+    pub(crate) odometry: Tx<Odometry>,
 }
 
 /// The consumer ends, for the telemetry thread.
@@ -82,19 +87,72 @@ pub struct Taps {
     pub scans: Rx<TapScan>,
     /// Every pose the localise stage handed to the control stage.
     pub fixes: Rx<PoseFix>,
+    /// Every wheel odometry reading the motor stage took.
+    pub odometry: Rx<Odometry>,
 }
 
-/// A new pair of taps.
+/// A new set of taps.
 pub(crate) fn taps() -> (TapSenders, Taps) {
     let (scans_tx, scans) = queue("tap_scans", SCAN_TAP_DEPTH, Overflow::RejectNewest);
     let (fixes_tx, fixes) = queue("tap_fixes", FIX_TAP_DEPTH, Overflow::RejectNewest);
+    let (odo_tx, odometry) = queue("tap_odometry", ODOMETRY_TAP_DEPTH, Overflow::RejectNewest);
     (
         TapSenders {
             scans: scans_tx,
             fixes: fixes_tx,
+            odometry: odo_tx,
         },
-        Taps { scans, fixes },
+        Taps {
+            scans,
+            fixes,
+            odometry,
+        },
     )
+}
+
+/// A wheel odometry reading as a recording keeps it (a JSON document per
+/// reading in `run.mcap`, channel `/sweepline/odometry_input`): the
+/// driver's increment as the motor stage got it, every number exact.
+/// Composing the increments in order gives the odometry pose the scanner
+/// stage paired each scan with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct OdometryRecord {
+    /// Time of the earlier encoder reading (s, the daemon's clock).
+    pub t0: f64,
+    /// Time of the later reading (s).
+    pub t1: f64,
+    /// Motion from the earlier to the later reading in the earlier base
+    /// frame (x m, y m, heading rad).
+    pub delta: [f64; 3],
+    /// Left wheel travel (m).
+    pub left: f64,
+    /// Right wheel travel (m).
+    pub right: f64,
+}
+
+impl OdometryRecord {
+    /// The record of a reading.
+    pub fn of(o: &Odometry) -> Self {
+        Self {
+            t0: o.t0,
+            t1: o.t1,
+            delta: xyt(&o.delta),
+            left: o.left,
+            right: o.right,
+        }
+    }
+
+    /// The reading back.
+    pub fn to_odometry(&self) -> Odometry {
+        let [x, y, t] = self.delta;
+        Odometry {
+            t0: self.t0,
+            t1: self.t1,
+            delta: crate::geom::pose(x, y, t),
+            left: self.left,
+            right: self.right,
+        }
+    }
 }
 
 /// A scan as a recording keeps it: everything the localise stage was

@@ -61,6 +61,8 @@ pub struct MotorStage {
     pub contact: ContactParams,
     /// A contact closed before the pose was known.
     pub held: HeldContact,
+    /// A copy of every odometry reading (none: no tap).
+    pub(crate) tap: Option<Tx<crate::motor::Odometry>>,
 }
 
 impl MotorStage {
@@ -137,6 +139,9 @@ impl MotorStage {
         let fb = fb.map_err(|e| StageFault::Transient(e.to_string()))?;
         if let Some(o) = fb.odometry {
             self.shared.odom.push(o.t1, &o.delta);
+            if let Some(tap) = &self.tap {
+                let _ = tap.send(o);
+            }
             self.held.moved(&o.delta);
             self.motion.note(&o);
         }
