@@ -172,6 +172,19 @@ def ws_viewer(port, seconds, counts):
     sock.close()
 
 
+LIVE_THREADS = ("telemetry", "live-view", "live-accept", "live-client", "live-client-up")
+
+
+def live_threads_share(rep):
+    """The share of one core (%) of the report's telemetry and live-view
+    threads (its CPU-by-thread table), 0 when none ran."""
+    total = 0.0
+    for name, share in re.findall(r"^\| ([a-z-]+) \| [0-9.]+ s \| ([0-9.]+) % \|", rep, re.M):
+        if name in LIVE_THREADS:
+            total += float(share)
+    return total
+
+
 def row_live_cost(out):
     import socket, threading
     secs = 180
@@ -194,8 +207,10 @@ def row_live_cost(out):
         m = re.search(r"the process without them: ([0-9.]+) % of one core", rep)
         e2e = nums(cell(md, "end-to-end latency"))
         drops = re.search(r"^\| scans \|[^|]*\|[^|]*\|[^|]*\|[^|]*\| *([0-9]+)", rep, re.M)
-        figs.append(f"{name}: CPU {m.group(1) if m else '?'} % of one core, end-to-end p99 "
-                    f"{e2e[1]:.2f} ms, scans dropped {drops.group(1) if drops else '?'}")
+        live = live_threads_share(rep)
+        figs.append(f"{name}: CPU {m.group(1) if m else '?'} % of one core"
+                    + (f" (of which the telemetry and live-view threads {live:.2f} %)" if live else "")
+                    + f", end-to-end p99 {e2e[1]:.2f} ms, scans dropped {drops.group(1) if drops else '?'}")
     mcap = os.path.join(out, "live-recording", "run.mcap")
     size = os.path.getsize(mcap) / 1e6 if os.path.exists(mcap) else 0
     return ("; ".join(figs) + f" (the viewer read {counts.get('messages', 0)} messages); "

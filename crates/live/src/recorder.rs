@@ -122,8 +122,13 @@ impl Recorder {
                 std::fs::remove_file(p).map_err(|e| self.err(e))?;
             }
         }
+        // zstd level 1 on this thread: the default level 3 with a worker
+        // thread per core cost 0.47 s of CPU per 120 s of the default room
+        // against 0.32 s (the whole telemetry thread), for files 16 % larger.
         let options = McapWriteOptions::new()
             .compression(Some(McapCompression::Zstd))
+            .compression_threads(0)
+            .compression_level(1)
             .chunk_size(Some(CHUNK_SIZE));
         let keep = self.channels.clone();
         let handle = McapWriter::with_options(options)
