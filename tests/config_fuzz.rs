@@ -294,6 +294,41 @@ fn hostile_inputs_name_the_key_or_line() {
             "[daemon.contact]\nbearing = 0.5\n".into(),
             &["bearing", "side_bearing"],
         ),
+        (
+            "live bind without a port",
+            "[live]\nbind = \"localhost\"\n".into(),
+            &["live.bind", "HOST:PORT"],
+        ),
+        (
+            "live bind port out of range",
+            "[live]\nbind = \"127.0.0.1:70000\"\n".into(),
+            &["live.bind"],
+        ),
+        (
+            "unknown live key",
+            "[live]\nport = 8765\n".into(),
+            &["port", "bind"],
+        ),
+        (
+            "record file size NaN",
+            "[record]\nfile_mib = nan\n".into(),
+            &["record.file_mib"],
+        ),
+        (
+            "record cap below one file",
+            "[record]\nfile_mib = 64\nmax_mib = 10\n".into(),
+            &["record.max_mib", "record.file_mib"],
+        ),
+        (
+            "record channels not a list",
+            "[record]\nchannels = \"/scan\"\n".into(),
+            &["line 2", "channels"],
+        ),
+        (
+            "record topic without a slash",
+            "[record]\nchannels = [\"scan\"]\n".into(),
+            &["record.channels", "scan"],
+        ),
         ("deep arrays", deep_arrays, &["line 1"]),
         ("deep tables", deep_tables, &["line 1"]),
         ("long key", long_key, &["line 2", "kkkk"]),

@@ -32,6 +32,8 @@ from pycreate2 import Create2
 from pycreate2.OI import OPCODES, RESPONSE_SIZES
 from pycreate2.packets import SensorPacketDecoder
 
+from checks import Checks
+
 # Packet sizes from the OI specification. pycreate2's RESPONSE_SIZES has 3 for
 # the unused packets 32 and 33; the specification gives 1 and 2 bytes.
 SINGLE_SIZES = {i: 1 for i in range(7, 59)}
@@ -48,21 +50,6 @@ def size(pid):
         a, b = GROUPS[pid]
         return sum(SINGLE_SIZES[i] for i in range(a, b + 1))
     return SINGLE_SIZES[pid]
-
-
-class Checks:
-    def __init__(self):
-        self.passed = 0
-        self.failed = 0
-
-    def check(self, name, ok, detail=""):
-        if ok:
-            self.passed += 1
-        else:
-            self.failed += 1
-        print(f"{'ok  ' if ok else 'FAIL'} {name}" + (f": {detail}" if detail else ""),
-              flush=True)
-        return ok
 
 
 def quiet(f, *a):
@@ -471,8 +458,7 @@ def main():
     except Exception as e:  # a crash is a failed check, not a traceback
         c.check("script ran to the end", False, f"{type(e).__name__}: {e}")
     print(f"info took {time.monotonic() - t0:.1f} s")
-    print(f"create2 conformance: {c.passed} passed, {c.failed} failed")
-    return 1 if c.failed else 0
+    return c.close("create2 conformance")
 
 
 if __name__ == "__main__":

@@ -21,23 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from checks import Checks
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
-
-
-class Checks:
-    def __init__(self):
-        self.passed = 0
-        self.failed = 0
-
-    def check(self, name, ok, detail=""):
-        if ok:
-            self.passed += 1
-        else:
-            self.failed += 1
-        print(f"{'ok  ' if ok else 'FAIL'} {name}" + (f": {detail}" if detail else ""),
-              flush=True)
-        return ok
 
 
 def install():
@@ -108,8 +95,7 @@ def main():
         if sim and sim.poll() is None:
             sim.kill()
     print(f"info took {time.monotonic() - t0:.1f} s")
-    print(f"foxglove live view conformance: {c.passed} passed, {c.failed} failed")
-    return 1 if c.failed else 0
+    return c.close("foxglove live view conformance")
 
 
 if __name__ == "__main__":

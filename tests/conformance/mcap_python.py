@@ -24,6 +24,8 @@ from pathlib import Path
 from mcap.reader import make_reader, NonSeekingReader
 from mcap_protobuf.decoder import DecoderFactory
 
+from checks import Checks
+
 EXPECTED = {
     "/scan": ("foxglove.LaserScan", "protobuf"),
     "/sweepline/scan_input": ("sweepline.ScanInput", "json"),
@@ -38,21 +40,6 @@ EXPECTED = {
     "/sweepline/status": ("sweepline.Status", "json"),
     "/sim/truth": ("foxglove.PoseInFrame", "protobuf"),
 }
-
-
-class Checks:
-    def __init__(self):
-        self.passed = 0
-        self.failed = 0
-
-    def check(self, name, ok, detail=""):
-        if ok:
-            self.passed += 1
-        else:
-            self.failed += 1
-        print(f"{'ok  ' if ok else 'FAIL'} {name}" + (f": {detail}" if detail else ""),
-              flush=True)
-        return ok
 
 
 def record(binary, out):
@@ -144,8 +131,7 @@ def main():
     except Exception as e:  # a crash is a failed check, not a traceback
         c.check("script ran to the end", False, f"{type(e).__name__}: {e}")
     print(f"info took {time.monotonic() - t0:.1f} s")
-    print(f"mcap conformance: {c.passed} passed, {c.failed} failed")
-    return 1 if c.failed else 0
+    return c.close("mcap conformance")
 
 
 if __name__ == "__main__":

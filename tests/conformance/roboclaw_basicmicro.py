@@ -18,13 +18,11 @@ import time
 
 from basicmicro import Basicmicro
 
+from checks import Checks
+
 ADDR = 0x80
-RESULTS = []
-
-
-def check(name, ok, detail=""):
-    RESULTS.append(bool(ok))
-    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + str(detail) if detail else ''}", flush=True)
+CHECKS = Checks()
+check = CHECKS.check
 
 
 def signed32(v):
@@ -334,10 +332,7 @@ def main():
     )
     bump_fault(binary)
     world_bump(binary)
-    passed = sum(RESULTS)
-    failed = len(RESULTS) - passed
-    print(f"roboclaw: {passed} passed, {failed} failed")
-    sys.exit(1 if failed else 0)
+    sys.exit(CHECKS.close("roboclaw"))
 
 
 if __name__ == "__main__":

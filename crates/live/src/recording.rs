@@ -333,4 +333,114 @@ mod tests {
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
+
+    /// An MCAP file at `path` with `setup` metadata (if given) and the
+    /// JSON scan inputs `scans`.
+    fn write_recording(path: &Path, setup: Option<BTreeMap<String, String>>, scans: &[&str]) {
+        let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+        let mut w = mcap::Writer::new(file).unwrap();
+        if let Some(m) = setup {
+            w.write_metadata(&mcap::records::Metadata {
+                name: SETUP.into(),
+                metadata: m,
+            })
+            .unwrap();
+        }
+        let schema = w
+            .add_schema("sweepline.ScanInput", "jsonschema", b"{}")
+            .unwrap();
+        let ch = w
+            .add_channel(schema, topics::SCAN_INPUT, "json", &BTreeMap::new())
+            .unwrap();
+        for (i, doc) in scans.iter().enumerate() {
+            let header = mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: i as u32,
+                log_time: i as u64,
+                publish_time: i as u64,
+            };
+            w.write_to_known_channel(&header, doc.as_bytes()).unwrap();
+        }
+        w.finish().unwrap();
+    }
+
+    /// A scan input of `n` beams, with angles or without.
+    fn scan_json(n: usize, angles: bool) -> String {
+        let mut r = ScanRecord {
+            seq: 3,
+            ranges: vec![1.0; n],
+            intensities: vec![0.0; n],
+            raw: vec![1000; n],
+            ..Default::default()
+        };
+        if angles {
+            r.angles = vec![0.0; n];
+        }
+        serde_json::to_string(&r).unwrap()
+    }
+
+    /// Broken messages and metadata in a well-formed file: each is an error
+    /// that names the file, the topic and the message (or the setup key),
+    /// and a record whose arrays disagree is refused when it is used.
+    #[test]
+    fn bad_messages_and_metadata_are_clear_errors() {
+        let dir = std::env::temp_dir().join(format!("sweepline-badmsg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let good = scan_json(4, true);
+        let no_angles = scan_json(4, false);
+        let cases: [(&str, Vec<&str>, &[&str]); 3] = [
+            (
+                "json.mcap",
+                vec![good.as_str(), "{\"stamp\": [1, 2"],
+                &["json.mcap", "scan_input", "1"],
+            ),
+            (
+                "type.mcap",
+                vec!["{\"stamp\": \"noon\"}"],
+                &["scan_input", "0"],
+            ),
+            ("angles.mcap", vec![no_angles.as_str()], &["no beam angles"]),
+        ];
+        for (name, msgs, wants) in &cases {
+            let p = dir.join(name);
+            write_recording(&p, None, msgs);
+            let e = Recording::read(&p).unwrap_err();
+            assert!(matches!(e, RecordingError::Message { .. }), "{name}: {e}");
+            for w in *wants {
+                assert!(e.to_string().contains(w), "{name}: want {w:?} in {e}");
+            }
+        }
+        // The arrays disagree: read, but refused when turned back into a scan.
+        let p = dir.join("shape.mcap");
+        let mut r: ScanRecord = serde_json::from_str(&good).unwrap();
+        r.intensities.pop();
+        let uneven = serde_json::to_string(&r).unwrap();
+        write_recording(&p, None, &[&uneven]);
+        let rec = Recording::read(&p).unwrap();
+        let e = rec.scans[0].to_tap().unwrap_err();
+        assert!(e.to_string().contains("3 intensities"), "{e}");
+        // A setup that is not one: the recording reads, the setup is the error.
+        let robot = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../hw/robot.toml");
+        let shipped = sweepline_daemon::config::Config::load(&robot).unwrap();
+        for (key, value, want) in [
+            ("config", "{not json", "setup: config"),
+            ("start", "1 2", "setup: `start` needs 3"),
+        ] {
+            let mut m: BTreeMap<String, String> = [
+                ("config", serde_json::to_string(&shipped).unwrap()),
+                ("start", "0 0 0".to_string()),
+                ("map_frame", "0 0 0.05 10 10".to_string()),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect();
+            m.insert(key.into(), value.into());
+            let p = dir.join("setup.mcap");
+            write_recording(&p, Some(m), &[&good]);
+            let rec = Recording::read(&p).unwrap();
+            let e = rec.setup.unwrap().unwrap_err();
+            assert!(e.contains(want), "{key}: want {want:?} in {e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
