@@ -53,14 +53,15 @@ fn freiburg_079_without_odometry_is_tracked_throughout_and_beats_csm() {
     assert!(r.local.rot_deg.mean <= 0.62, "{r}");
     assert!(r.all.trans.mean < 1.47 && r.all.rot_deg.mean < 9.6, "{r}");
 
-    // Without the search the same prior loses the track for good (at about
-    // 898 s of log time) and the relations show it.
+    // Without the search the same prior loses the track at about 898 s of
+    // log time (139 scans unmatched in a row; the keyframe store takes it
+    // up again, in the wrong place) and the relations show it.
     let mut blind = params.clone();
     blind.search.window = 0.0;
     blind.search.window_angle = 0.0;
     let lost = replay(&log, &blind);
     assert!(
-        lost.unmatched_at_end > 100,
+        lost.longest_unmatched > 100,
         "{}",
         sweepline::cli::replay::summary(&lost)
     );
@@ -70,28 +71,31 @@ fn freiburg_079_without_odometry_is_tracked_throughout_and_beats_csm() {
 
 /// The thinned Intel and ACES logs (0.67 m / 21.8° and 0.97 m / 10.6°
 /// between scans, median): without the search almost nothing matches (28
-/// and 45 scans). Intel reaches the 90 % the issue asks for; ACES does not
-/// (228 of 440 as configured; see docs/evaluation.md, where the settings
-/// tried are listed), and is held to four times its blind count so that a
-/// regression shows.
+/// and 45 scans); with it and the keyframe store at least 90 % of each. A
+/// match accepted is not yet a match right: the corrected logs' poses (the
+/// SLAM result) say how many scan-to-scan steps are right to 0.1 m and 2°
+/// (measured 82.8 % and 69.9 %; with the six-keyframe window 86.8 % and
+/// 33.3 %, docs/evaluation.md).
 #[test]
 fn thinned_intel_and_aces_logs_without_odometry_are_matched() {
     let params = no_odometry();
     let mut blind = params.clone();
     blind.search.window = 0.0;
     blind.search.window_angle = 0.0;
-    for (log, rels, offset, scans) in [
+    for (log, rels, offset, scans, right) in [
         (
             "datasets/intel/intel-corrected.log.gz",
             "datasets/intel/intel.relations",
             976052857.337,
             910,
+            0.78,
         ),
         (
             "datasets/aces/aces-corrected.log.gz",
             "datasets/aces/aces.relations",
             70.179,
             440,
+            0.65,
         ),
     ] {
         let log = sweepline::require_shared!(log);
@@ -109,16 +113,35 @@ fn thinned_intel_and_aces_logs_without_odometry_are_matched() {
             "{} matched, {without} without the search",
             res.matched
         );
-        if scans == 910 {
-            // Intel: at least 90 % of the scans matched (the first is the map).
-            assert!(
-                res.matched * 10 >= (scans - 1) * 9,
-                "{} of {scans} matched",
-                res.matched
-            );
-        }
+        // At least 90 % of the scans matched (the first is the map).
+        assert!(
+            res.matched * 10 >= (scans - 1) * 9,
+            "{} of {scans} matched",
+            res.matched
+        );
+        let share = right_steps(&res);
+        eprintln!("steps right to 0.1 m and 2°: {:.1} %", 100.0 * share);
+        assert!(share >= right, "{:.1} % of the steps right", 100.0 * share);
         // Scored for the record; CSM fails here too (Intel 5.52 m / 35.2°,
         // ACES 38.7 m / 48.7° over 3 relations).
         score(&res, &rels, offset, 0.006);
     }
+}
+
+/// The share of scan-to-scan steps of the trajectory that agree with the
+/// log's own poses (in a corrected log, the SLAM result) to 0.1 m and 2°.
+fn right_steps(res: &ReplayResult) -> f64 {
+    let (t, o) = (&res.trajectory, &res.odometry);
+    assert_eq!(t.len(), o.len());
+    let right = t
+        .windows(2)
+        .zip(o.windows(2))
+        .filter(|(a, b)| {
+            let got = a[0].pose.inverse() * a[1].pose;
+            let want = b[0].pose.inverse() * b[1].pose;
+            let d = want.inverse() * got;
+            d.translation.vector.norm() < 0.1 && d.rotation.angle().abs().to_degrees() < 2.0
+        })
+        .count();
+    right as f64 / (t.len() - 1) as f64
 }
