@@ -109,10 +109,11 @@ def row_realtime(out):
     return f"daemon CPU {cpu} % of one core (budget 5 %); end-to-end p50 {e2e[0]:.2f} ms, p99 {e2e[1]:.2f} ms"
 
 
-def ws_viewer(port, seconds, counts):
+def ws_viewer(port, seconds, counts, stall=False):
     """A minimal Foxglove WebSocket viewer (stdlib only): connects to the
     live view on `port`, subscribes to every channel and reads for
-    `seconds`, counting binary message frames into `counts["messages"]`."""
+    `seconds`, counting binary message frames into `counts["messages"]`;
+    with `stall`, never reads again once subscribed (a stalled viewer)."""
     import base64, json as _json, socket, struct, time as _time
     deadline = _time.monotonic() + 30
     while True:
@@ -168,6 +169,9 @@ def ws_viewer(port, seconds, counts):
             if msg.get("op") == "advertise":
                 subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
                 send_text(_json.dumps({"op": "subscribe", "subscriptions": subs}))
+                if stall:
+                    _time.sleep(max(0.0, end - _time.monotonic()))
+                    break
         elif b0 & 0x0F == 2:
             counts["messages"] = counts.get("messages", 0) + 1
     sock.close()
@@ -197,10 +201,13 @@ def row_live_cost(out):
     counts = {}
     for name, extra in [("neither", ["--live", "off", "--no-record"]),
                         ("recording", ["--live", "off"]),
-                        ("recording and a viewer", ["--live", f"127.0.0.1:{port}"])]:
+                        ("recording and a viewer", ["--live", f"127.0.0.1:{port}"]),
+                        ("recording and a stalled viewer", ["--live", f"127.0.0.1:{port}"])]:
         viewer = None
         if "--live" in extra and extra[extra.index("--live") + 1] != "off":
-            viewer = threading.Thread(target=ws_viewer, args=(port, secs + 20, counts), daemon=True)
+            stall = "stalled" in name
+            viewer = threading.Thread(target=ws_viewer, args=(port, secs + 20, {} if stall else counts, stall),
+                                      daemon=True)
             viewer.start()
         md, rep = sim_run(out, "live-" + name.replace(" ", "-"), base + extra)
         if viewer:
@@ -499,7 +506,7 @@ ROWS = [
      "`sweepline sim --seed N --speed 5 --fixed-speed`", row_main_fixed5),
     ("realtime", "real time: CPU of the daemon (without the in-process emulators), end-to-end latency",
      "`sweepline sim --speed 1 --fixed-speed --time-cap 600`", row_realtime),
-    ("live-cost", "real time, default room, 180 s: CPU of the daemon and end-to-end latency with neither recording nor viewer, with the recording, with the recording and a viewer reading every channel",
+    ("live-cost", "real time, default room, 180 s: CPU of the daemon and end-to-end latency with neither recording nor viewer, with the recording, with the recording and a viewer reading every channel, with the recording and a viewer that subscribes to every channel and never reads",
      "`sweepline sim --speed 1 --fixed-speed --time-cap 180 --seed 1 [--live off] [--no-record]`", row_live_cost),
     ("lockstep24", "lock-step coverage, 24 rooms, ideal localisation",
      "`python3 scripts/covrun.py target/release/sweepline hw/robot.toml OUT @rooms24`", row_lockstep24),
