@@ -1,8 +1,9 @@
 //! The shipped systemd unit and udev rules: the directives the daemon relies
 //! on are present, every udev rule line is well-formed, real-time priority
-//! is refused as shipped and granted by `systemd/realtime.conf`, and, where
-//! `systemd-analyze` is installed, the unit (with and without that drop-in)
-//! verifies without a warning.
+//! is refused as shipped and granted by `systemd/realtime.conf`, the live
+//! view is unreachable as shipped and loopback-only with
+//! `systemd/live-view.conf`, and, where `systemd-analyze` is installed, the
+//! unit (alone and with each drop-in) verifies without a warning.
 
 use std::process::Command;
 
@@ -185,19 +186,45 @@ fn real_time_priority_is_refused_as_shipped_and_granted_by_the_drop_in() {
     }
 }
 
-#[test]
-fn unit_with_the_real_time_drop_in_verifies_with_systemd_analyze() {
+/// Where `systemd-analyze` is installed: the unit with the drop-in at
+/// `drop_in` (its [Service] lines put at the end of the unit's [Service],
+/// what systemd makes of the pair) verifies without a warning.
+fn verifies_with_drop_in(tag: &str, drop_in: &str) {
     if !have_systemd_analyze() {
         return;
     }
-    // The drop-in's [Service] lines put at the end of the unit's
-    // [Service]: what systemd makes of the pair.
     let unit = std::fs::read_to_string(UNIT).unwrap();
-    let drop_in = std::fs::read_to_string(DROP_IN).unwrap();
+    let drop_in = std::fs::read_to_string(drop_in).unwrap();
     let (_, service_lines) = drop_in.split_once("[Service]").unwrap();
     let (head, install) = unit.split_once("[Install]").unwrap();
-    assert_verifies(
-        "unit-rt",
-        &format!("{head}{service_lines}\n[Install]{install}"),
-    );
+    assert_verifies(tag, &format!("{head}{service_lines}\n[Install]{install}"));
+}
+
+#[test]
+fn unit_with_the_real_time_drop_in_verifies_with_systemd_analyze() {
+    verifies_with_drop_in("unit-rt", DROP_IN);
+}
+
+const LIVE_DROP_IN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/systemd/live-view.conf");
+
+/// As shipped the unit has no network at all (the live view cannot be
+/// reached); `systemd/live-view.conf` opens IP sockets to and from the
+/// loopback addresses only.
+#[test]
+fn the_live_view_is_unreachable_as_shipped_and_loopback_only_with_the_drop_in() {
+    let unit = directives(&std::fs::read_to_string(UNIT).unwrap());
+    assert_eq!(last(&unit, "PrivateNetwork"), Some("yes"));
+    assert_eq!(last(&unit, "RestrictAddressFamilies"), Some("AF_UNIX"));
+    let mut both = unit.clone();
+    both.extend(directives(&std::fs::read_to_string(LIVE_DROP_IN).unwrap()));
+    assert_eq!(last(&both, "PrivateNetwork"), Some("no"));
+    let families = last(&both, "RestrictAddressFamilies").unwrap_or_default();
+    assert!(families.contains("AF_INET"), "{families}");
+    assert_eq!(last(&both, "IPAddressDeny"), Some("any"));
+    assert_eq!(last(&both, "IPAddressAllow"), Some("localhost"));
+}
+
+#[test]
+fn unit_with_the_live_view_drop_in_verifies_with_systemd_analyze() {
+    verifies_with_drop_in("unit-live", LIVE_DROP_IN);
 }
