@@ -38,8 +38,8 @@ fn copying_a_scan_onto_a_tap_and_recording_it_allocate_nothing() {
     }
     let (tx, rx) = queue("tap_scans", 32, Overflow::RejectNewest);
     let mut out = ScanRecord::default();
-    // Warm-up: the record's buffers grow to a scan's size once.
-    for _ in 0..3 {
+    // One copy: the scanner stage's side, then the telemetry thread's.
+    let mut copy = || {
         let _ = tx.send(sweepline::daemon::TapScan {
             msg: tap.msg.clone(),
             sensor: SensorScan::of(&urg),
@@ -47,18 +47,14 @@ fn copying_a_scan_onto_a_tap_and_recording_it_allocate_nothing() {
         if let Recv::Msg(t) = rx.try_recv() {
             out.fill_from(&t);
         }
+    };
+    // Warm-up: the record's buffers grow to a scan's size once.
+    for _ in 0..3 {
+        copy();
     }
     let ((), allocs) = count_allocs(|| {
         for _ in 0..200 {
-            // The scanner stage's side.
-            let _ = tx.send(sweepline::daemon::TapScan {
-                msg: tap.msg.clone(),
-                sensor: SensorScan::of(&urg),
-            });
-            // The telemetry thread's side.
-            if let Recv::Msg(t) = rx.try_recv() {
-                out.fill_from(&t);
-            }
+            copy();
         }
     });
     assert_eq!(allocs, 0, "allocations in 200 copies");
