@@ -337,6 +337,17 @@ mod tests {
     /// An MCAP file at `path` with `setup` metadata (if given) and the
     /// JSON scan inputs `scans`.
     fn write_recording(path: &Path, setup: Option<BTreeMap<String, String>>, scans: &[&str]) {
+        write_topic(path, setup, topics::SCAN_INPUT, scans);
+    }
+
+    /// An MCAP file at `path` with `setup` metadata (if given) and the
+    /// JSON documents `docs` on `topic`.
+    fn write_topic(
+        path: &Path,
+        setup: Option<BTreeMap<String, String>>,
+        topic: &str,
+        docs: &[&str],
+    ) {
         let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
         let mut w = mcap::Writer::new(file).unwrap();
         if let Some(m) = setup {
@@ -350,9 +361,9 @@ mod tests {
             .add_schema("sweepline.ScanInput", "jsonschema", b"{}")
             .unwrap();
         let ch = w
-            .add_channel(schema, topics::SCAN_INPUT, "json", &BTreeMap::new())
+            .add_channel(schema, topic, "json", &BTreeMap::new())
             .unwrap();
-        for (i, doc) in scans.iter().enumerate() {
+        for (i, doc) in docs.iter().enumerate() {
             let header = mcap::records::MessageHeader {
                 channel_id: ch,
                 sequence: i as u32,
@@ -410,6 +421,12 @@ mod tests {
                 assert!(e.to_string().contains(w), "{name}: want {w:?} in {e}");
             }
         }
+        // A wheel odometry reading that is not one.
+        let p = dir.join("odometry.mcap");
+        write_topic(&p, None, topics::ODOMETRY_INPUT, &["{\"t0\": \"soon\"}"]);
+        let e = Recording::read(&p).unwrap_err();
+        assert!(matches!(e, RecordingError::Message { .. }), "{e}");
+        assert!(e.to_string().contains("odometry_input"), "{e}");
         // The arrays disagree: read, but refused when turned back into a scan.
         let p = dir.join("shape.mcap");
         let mut r: ScanRecord = serde_json::from_str(&good).unwrap();
