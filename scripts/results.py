@@ -406,6 +406,67 @@ def row_rooms3(out):
     return ", ".join(figs)
 
 
+def config_with(out, name, line, replacement):
+    """hw/robot.toml with its line `line` replaced, written to OUT/NAME."""
+    text = open(os.path.join(ROOT, "hw", "robot.toml")).read()
+    text, n = re.subn("^" + re.escape(line) + "$", replacement, text, flags=re.M)
+    if n != 1:
+        raise RuntimeError(f"hw/robot.toml has no `{line}` line")
+    cfg = os.path.join(out, name)
+    with open(cfg, "w") as f:
+        f.write(text)
+    return cfg
+
+
+def paper_map_config(out):
+    return config_with(out, "paper-map.toml", 'kind = "grid"', 'kind = "paper"')
+
+
+def row_map_kinds(out):
+    """Lock-step, 24 rooms: `[map] kind = "grid"` against `"paper"`."""
+    rooms = covrun.expand(["@rooms24"])
+    got = {}
+    for kind, cfg in (("grid", os.path.join(ROOT, "hw", "robot.toml")), ("paper", paper_map_config(out))):
+        rs = covrun.run_all(BIN, cfg, os.path.join(out, f"rooms24_{kind}"), rooms)
+        if any("error" in r for r in rs):
+            raise RuntimeError(f"lock-step runs failed ({kind})")
+        got[kind] = rs
+    both = lambda f: " / ".join(f(got[k]) for k in ("grid", "paper"))
+    mean = lambda k: lambda rs: f"{sum(r[k] for r in rs) / len(rs):.2f}"
+    low = lambda rs: f"{min(r['cov_on'] for r in rs):.2f}"
+    ov = lambda rs: f"{sum(r['ov_on'] for r in rs) / len(rs):.1f}"
+    shifts, costs = [], []
+    for w in rooms:
+        md = open(os.path.join(out, "rooms24_paper", w.replace(":", "_"), "metrics.md")).read()
+        shifts.append(nums(cell(md, "paper map: segment corrections"))[3])
+        costs.append(nums(cell(md, "paper map: merge and render"))[0])
+    return (f"grid / paper: coverage {both(mean('cov_on'))} % mean (lowest {both(low)}), overlap {both(ov)} %; "
+            f"the segment correction moves maps built on exact poses {span(shifts, '{:.1f}')} mm on a room's mean; "
+            f"the paper map takes {span(costs)} ms per scan")
+
+
+def row_map_kinds_closed(out):
+    """Closed loop, the default room, seeds 1-3, both kinds of map."""
+    got = {}
+    for kind, extra in (("grid", []), ("paper", ["--config", paper_map_config(out)])):
+        cov, ov, pos, cpu = [], [], [], []
+        for s in SEEDS:
+            md, rep = sim_run(out, f"mapkind_{kind}_s{s}", ["--seed", str(s), *extra])
+            cov.append(nums(cell(md, "coverage of reachable floor"))[0])
+            ov.append(nums(cell(md, "overlap"))[0])
+            pos.append(nums(cell(md, "localisation error at scan times"))[0])
+            m = re.search(r"^\| map \| (\d+) \|.*\| ([0-9.]+) s \| [0-9.]+ % \|$", rep, re.M)
+            if not m:
+                raise RuntimeError("report.md has no map stage row")
+            cpu.append(float(m.group(2)) / int(m.group(1)) * 1e3)
+        got[kind] = (cov, ov, pos, cpu)
+    g, p = got["grid"], got["paper"]
+    mean = lambda v: sum(v) / len(v)
+    return (f"grid / paper: coverage {span(g[0])} / {span(p[0])} %, overlap {mean(g[1]):.1f} / {mean(p[1]):.1f} % mean, "
+            f"pose RMSE {span(g[2], '{:.1f}')} / {span(p[2], '{:.1f}')} mm, "
+            f"map stage CPU {mean(g[3]):.2f} / {mean(p[3]):.2f} ms per message")
+
+
 def row_deskew(out):
     cfg = os.path.join(out, "no-deskew.toml")
     text = open(os.path.join(ROOT, "hw", "robot.toml")).read()
@@ -510,6 +571,11 @@ ROWS = [
      "`sweepline sim --speed 1 --fixed-speed --time-cap 180 --seed 1 [--live off] [--no-record]`", row_live_cost),
     ("lockstep24", "lock-step coverage, 24 rooms, ideal localisation",
      "`python3 scripts/covrun.py target/release/sweepline hw/robot.toml OUT @rooms24`", row_lockstep24),
+    ("map-kinds", "the planner's map, `[map] kind` grid against paper: lock-step, 24 rooms, ideal localisation",
+     "`python3 scripts/covrun.py target/release/sweepline CONFIG OUT @rooms24` (CONFIG: hw/robot.toml with `kind = \"grid\"` or `\"paper\"`)",
+     row_map_kinds),
+    ("map-kinds-closed", "the planner's map, `[map] kind` grid against paper: closed loop, the default room, seeds 1-3",
+     "`sweepline sim --seed N [--config PAPER-MAP.toml]`", row_map_kinds_closed),
     ("closed12", "closed loop, twelve rooms, seed 1",
      "`python3 scripts/simrun.py target/release/sweepline OUT paper Freiburg52_scan:0 ...` (the rooms of `covrun.py @test12`)",
      row_closed12),

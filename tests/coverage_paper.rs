@@ -4,6 +4,7 @@
 //! targets are in the comments where the build does not reach them yet.
 
 use sweepline::config::Config;
+use sweepline::map::MapKind;
 use sweepline::sim::lockstep::{run, LockstepOptions, Mode, RunResult};
 use sweepline::sim::world::World;
 
@@ -90,4 +91,56 @@ fn the_run_is_deterministic() {
     let b = run(&world, &Config::default(), &o, Mode::Online).unwrap();
     assert_eq!(a.metrics, b.metrics);
     assert_eq!(a.trajectory, b.trajectory);
+}
+
+/// `[map] kind = "paper"` (the side-by-side figures over 24 rooms come from
+/// `python3 scripts/results.py map-kinds`): the grid in mid-cell, as the
+/// daemon's is.
+fn paper_map_opts() -> LockstepOptions {
+    LockstepOptions {
+        grid_offset: 0.025,
+        ..opts()
+    }
+}
+
+#[test]
+fn the_paper_map_covers_the_paper_workspace() {
+    let world = paper();
+    let mut cfg = Config::default();
+    cfg.map.kind = MapKind::Paper;
+    let r = run(&world, &cfg, &paper_map_opts(), Mode::Online).unwrap();
+    let m = &r.metrics;
+    let p = r.paper.as_ref().expect("a paper-map run reports its map");
+    eprintln!(
+        "paper map: coverage {:.4} overlap {:.3} collisions {} points {} segments {} corrections {:?}",
+        m.coverage, m.overlap, m.collisions, p.points, p.segments, p.corrections
+    );
+    assert!(r.finished, "finishes before the cap");
+    assert_eq!(m.collisions, 0);
+    assert!(m.coverage >= 0.99, "coverage {}", m.coverage);
+    // The room's walls are straight: the map holds them as segments, and the
+    // correction, on exact poses, moves the map by at most a few millimetres.
+    assert!(p.segments >= 8, "{} segments", p.segments);
+    assert!(p.points > 500, "{} points", p.points);
+    let c = &p.corrections;
+    assert_eq!(c.scans as usize, p.map_seconds.len());
+    assert!(c.applied > c.scans / 2, "{c:?}");
+    assert!(c.translation_mean() < 0.002, "{c:?}");
+    assert!(c.translation_max < 0.01, "{c:?}");
+    // The grid the planner got holds the drawn walls.
+    let (_, free, occupied) = r.grid.counts();
+    assert!(free > 0 && occupied > 0);
+}
+
+#[test]
+fn the_grid_kind_keeps_no_paper_map() {
+    let world = paper();
+    let cfg = Config::default();
+    assert_eq!(cfg.map.kind, MapKind::Grid);
+    let o = LockstepOptions {
+        time_cap: 30.0,
+        ..paper_map_opts()
+    };
+    let r = run(&world, &cfg, &o, Mode::Online).unwrap();
+    assert!(r.paper.is_none());
 }

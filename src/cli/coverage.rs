@@ -349,6 +349,9 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
         "| planner update p99 (wall clock) | {:.2} ms | |",
         p99(&online.plan_seconds) * 1e3
     );
+    if let Some(p) = &online.paper {
+        paper_rows(&mut s, p);
+    }
     let _ = writeln!(
         s,
         "\nOverlap by what the robot was doing when floor was swept a second time (% of swept area):\n\n| cause | online | {} |\n|---|---|---|",
@@ -481,4 +484,32 @@ pub fn trajectory_csv(run: &RunResult, dt: f64) -> String {
         }
     }
     out
+}
+
+/// The paper map's rows of the metrics table (`[map] kind = "paper"`).
+fn paper_rows(s: &mut String, p: &lockstep::PaperSummary) {
+    let c = &p.corrections;
+    let mean_ms = p.map_seconds.iter().sum::<f64>() / p.map_seconds.len().max(1) as f64 * 1e3;
+    let _ = writeln!(
+        s,
+        "| paper map: merge and render per scan, mean / p99 (wall clock) | {mean_ms:.2} / {:.2} ms | |",
+        p99(&p.map_seconds) * 1e3
+    );
+    let _ = writeln!(
+        s,
+        "| paper map: points / wall segments / memory | {} / {} / {:.1} MB | |",
+        p.points,
+        p.segments,
+        p.memory_bytes as f64 / 1e6
+    );
+    let _ = writeln!(
+        s,
+        "| paper map: segment corrections applied / refused of scans (mean / largest shift) | {} / {} of {} ({:.1} / {:.1} mm, {:.2}°) | |",
+        c.applied,
+        c.refused,
+        c.scans,
+        c.translation_mean() * 1e3,
+        c.translation_max * 1e3,
+        c.rotation_max.to_degrees()
+    );
 }

@@ -11,7 +11,7 @@
 
 // The layers below, by the names they have in `sweepline`, so that paths
 // such as `crate::config::Config` read the same in every crate.
-use sweepline_core::{capacity, control, decomp, geom, grid, plan, scan, svg_canvas};
+use sweepline_core::{capacity, control, decomp, geom, grid, map, plan, scan, svg_canvas};
 use sweepline_daemon::{config, daemon, pipeline, report};
 use sweepline_io::{clock, motor, serial, urg};
 use sweepline_live as live;

@@ -22,9 +22,11 @@ use crate::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::decomp::{DecompError, Decomposer, Decomposition};
 use crate::geom::{heading, Pose};
 use crate::grid::{CellState, Grid};
+use crate::map::{CorrectionTally, MapKind, PaperGrid};
 use crate::noise::gauss;
 use crate::plan::planner::{DoneReport, PlanStats};
 use crate::plan::{CoveragePlanner, PlanError, PlanStatus};
+use crate::scan::{Beam, LaserScan};
 use crate::walker::{cast_ray_among, touches, Body, Crowd};
 use crate::world::World;
 
@@ -178,12 +180,24 @@ pub struct RunResult {
     /// Times the follower slowed or stopped short of something the scan
     /// showed ahead that its path did not expect (the protective field).
     pub guard_stops: u64,
+    /// The paper's map, when the run planned on it.
+    pub paper: Option<PaperSummary>,
 }
 
 /// Casts one simulated URG-04LX scan at `pose` and integrates it into `grid`.
 pub fn scan_into(world: &World, pose: &Pose, grid: &mut Grid) {
     let mut ahead = ObstaclePoints::default();
-    cast_scan(world, &[], pose, pose, grid, &mut ahead, || 0.0);
+    cast_scan(world, &[], pose, pose, Sink::Grid(grid), &mut ahead, || 0.0);
+}
+
+/// Where a cast scan goes: straight into the evidence grid, or into a
+/// [`LaserScan`] (sensor frame) for the paper's map to merge.
+pub(crate) enum Sink<'a> {
+    /// Integrate every beam into this grid.
+    Grid(&'a mut Grid),
+    /// Fill this scan (cleared first); no-return beams are invalid with an
+    /// infinite range.
+    Scan(&'a mut LaserScan),
 }
 
 /// Casts scans at the true pose and integrates them as a robot with
@@ -214,9 +228,13 @@ impl NoisyScanner {
     /// One scan from the true `pose` into `grid`, people walking through
     /// the room standing where `bodies` are (exactly [`scan_into`] when the
     /// noise is all zero and there is nobody).
-    pub fn scan_into(&mut self, world: &World, bodies: &[Body], pose: &Pose, grid: &mut Grid) {
+    ///
+    /// Returns the pose the scan was placed at (the true one off by the
+    /// localisation error), for a [`Sink::Scan`] to be merged there.
+    pub fn scan_into(&mut self, world: &World, bodies: &[Body], pose: &Pose, sink: Sink) -> Pose {
         if self.noise.is_ideal() {
-            return cast_scan(world, bodies, pose, pose, grid, &mut self.ahead, || 0.0);
+            cast_scan(world, bodies, pose, pose, sink, &mut self.ahead, || 0.0);
+            return *pose;
         }
         let n = self.noise;
         let dx = n.position * gauss(&mut self.rng);
@@ -224,9 +242,10 @@ impl NoisyScanner {
         let dth = n.heading * gauss(&mut self.rng);
         let seen = pose_off_by(pose, Vector2::new(dx, dy), dth);
         let rng = &mut self.rng;
-        cast_scan(world, bodies, pose, &seen, grid, &mut self.ahead, || {
+        cast_scan(world, bodies, pose, &seen, sink, &mut self.ahead, || {
             n.range * gauss(rng)
         });
+        seen
     }
 }
 
@@ -246,7 +265,7 @@ fn cast_scan(
     bodies: &[Body],
     pose: &Pose,
     seen: &Pose,
-    grid: &mut Grid,
+    mut sink: Sink,
     ahead: &mut ObstaclePoints,
     mut range_error: impl FnMut() -> f64,
 ) {
@@ -255,6 +274,9 @@ fn cast_scan(
     let so: Point2<f64> = seen.translation.vector.into();
     let sth = heading(seen);
     ahead.clear(*pose);
+    if let Sink::Scan(s) = &mut sink {
+        s.beams.clear();
+    }
     for k in 0..URG_BEAMS {
         let rel = URG_FIRST + k as f64 * URG_STEP;
         let a = sth + rel;
@@ -262,11 +284,26 @@ fn cast_scan(
         match cast_ray_among(world, bodies, &o, th + rel, URG_MAX_RANGE) {
             Some(hit) if hit.range >= URG_MIN_RANGE => {
                 let r = (hit.range + range_error()).max(URG_MIN_RANGE);
-                grid.integrate_ray(&so, &(so + dir * r), true);
+                match &mut sink {
+                    Sink::Grid(g) => g.integrate_ray(&so, &(so + dir * r), true),
+                    Sink::Scan(s) => {
+                        let _ = s.beams.push(Beam::hit(rel, r));
+                    }
+                }
                 ahead.push(Point2::new(r * rel.cos(), r * rel.sin()));
             }
             Some(_) => {}
-            None => grid.integrate_ray(&so, &(so + dir * URG_MAX_RANGE), false),
+            None => match &mut sink {
+                Sink::Grid(g) => g.integrate_ray(&so, &(so + dir * URG_MAX_RANGE), false),
+                Sink::Scan(s) => {
+                    let _ = s.beams.push(Beam {
+                        angle: rel,
+                        range: f64::INFINITY,
+                        intensity: 0.0,
+                        valid: false,
+                    });
+                }
+            },
         }
     }
 }
@@ -365,6 +402,10 @@ pub fn run(
     if mode == Mode::Offline {
         fill_from_truth(world, &mut grid);
     }
+    let mut paper = match (mode, config.map.kind) {
+        (Mode::Online, MapKind::Paper) => Some(PaperRun::new(config, &world.start, &grid)?),
+        _ => None,
+    };
     let mut pose = world.start;
     // The offline reference has the room to itself: with no scans, it could
     // not see a person to keep off them.
@@ -388,8 +429,16 @@ pub fn run(
     while t < opts.time_cap {
         if t + 1e-9 >= next_scan {
             next_scan += opts.scan_period;
-            if mode == Mode::Online {
-                scanner.scan_into(world, crowd.bodies(), &pose, &mut grid);
+            match (&mut paper, mode) {
+                (Some(p), _) => {
+                    let seen =
+                        scanner.scan_into(world, crowd.bodies(), &pose, Sink::Scan(&mut p.scan));
+                    p.merge(&seen, &mut grid)?;
+                }
+                (None, Mode::Online) => {
+                    scanner.scan_into(world, crowd.bodies(), &pose, Sink::Grid(&mut grid));
+                }
+                (None, Mode::Offline) => {}
             }
             let t0 = std::time::Instant::now();
             let decomp = if opts.use_cells {
@@ -466,7 +515,63 @@ pub fn run(
         repeat_causes: tracker.repeat_causes().to_vec(),
         tasks: planner.history().to_vec(),
         guard_stops: guard.stops,
+        paper: paper.map(|p| p.summary()),
     })
+}
+
+/// The paper's map in a lock-step run, with its cost.
+struct PaperRun {
+    map: PaperGrid,
+    scan: LaserScan,
+    seconds: Vec<f64>,
+}
+
+impl PaperRun {
+    fn new(config: &Config, start: &Pose, grid: &Grid) -> Result<Self, LockstepError> {
+        let map = PaperGrid::new(config.map.clone(), *start, grid.clone())
+            .map_err(|e| LockstepError::BadOption(e.to_string()))?;
+        Ok(Self {
+            map,
+            scan: LaserScan::default(),
+            seconds: Vec::new(),
+        })
+    }
+
+    /// Merges the cast scan, placed at `seen`, and renders the planner's grid.
+    fn merge(&mut self, seen: &Pose, grid: &mut Grid) -> Result<(), LockstepError> {
+        let t0 = std::time::Instant::now();
+        self.map
+            .merge(&self.scan, seen)
+            .map_err(|e| LockstepError::BadOption(e.to_string()))?;
+        self.map.render_into(grid);
+        self.seconds.push(t0.elapsed().as_secs_f64());
+        Ok(())
+    }
+
+    fn summary(self) -> PaperSummary {
+        PaperSummary {
+            corrections: self.map.tally(),
+            points: self.map.map().points().len(),
+            segments: self.map.map().segment_map().segments().len(),
+            memory_bytes: self.map.memory_bytes(),
+            map_seconds: self.seconds,
+        }
+    }
+}
+
+/// What the paper's map did in a run with `[map] kind = "paper"`.
+#[derive(Clone, Debug)]
+pub struct PaperSummary {
+    /// The segment correction's work.
+    pub corrections: CorrectionTally,
+    /// Points stored.
+    pub points: usize,
+    /// Wall segments.
+    pub segments: usize,
+    /// Bytes the map holds ([`PaperGrid::memory_bytes`]).
+    pub memory_bytes: usize,
+    /// Wall-clock duration of each merge and render (s).
+    pub map_seconds: Vec<f64>,
 }
 
 #[cfg(test)]
@@ -588,7 +693,7 @@ mod tests {
             let mut g = grid_for(&w, 0.05, 0.5, 0.0);
             let mut s = NoisyScanner::new(noise);
             for _ in 0..3 {
-                s.scan_into(&w, &[], &w.start, &mut g);
+                s.scan_into(&w, &[], &w.start, Sink::Grid(&mut g));
             }
             cells(&g)
         };

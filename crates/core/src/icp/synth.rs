@@ -132,6 +132,23 @@ pub fn ray(
     nearest(walls, origin, angle, max_range).map(|(t, _)| t)
 }
 
+/// A full-circle scan of `walls` from `origin` (heading 0) in `beams` equal
+/// steps from −π: one valid beam per ray that hits within 10 m.
+pub fn laser_scan(
+    walls: &[Wall],
+    origin: &nalgebra::Point2<f64>,
+    beams: usize,
+) -> crate::scan::LaserScan {
+    let mut s = crate::scan::LaserScan::default();
+    for k in 0..beams {
+        let a = k as f64 * std::f64::consts::TAU / beams as f64 - std::f64::consts::PI;
+        if let Some(r) = ray(walls, origin, a, 10.0) {
+            let _ = s.beams.push(crate::scan::Beam::hit(a, r));
+        }
+    }
+    s
+}
+
 /// The nearest hit of the ray from `origin` at `angle` (rad, world frame)
 /// within `max_range`: its distance (m) and the wall's intensity (the first
 /// wall listed wins a tie).

@@ -30,6 +30,7 @@
 pub mod correction;
 pub mod fit;
 pub mod lines;
+mod paper_grid;
 pub mod params;
 pub mod points;
 pub mod pose;
@@ -43,7 +44,8 @@ use nalgebra::{Point2, Vector2};
 
 pub use correction::{Correction, CorrectionOutcome};
 pub use lines::{Curve, LineExtractor, ScanLine};
-pub use params::MapParams;
+pub use paper_grid::{CorrectionTally, PaperGrid};
+pub use params::{MapKind, MapParams};
 pub use points::{MergeCounts, PointMap};
 pub use pose::compose_increment;
 pub use segments::{MapSegment, SegmentMap};
@@ -137,12 +139,19 @@ impl Map {
     /// An empty map whose robot starts at `start`; the explored-area grid is
     /// centred there.
     pub fn new(params: MapParams, start: Pose) -> Result<Map, MapError> {
+        let centre = Point2::from(start.translation.vector);
+        let grid = Grid::centred(centre, params.grid_extent, params.grid_resolution);
+        Self::with_grid(params, start, grid)
+    }
+
+    /// An empty map whose robot starts at `start`, its explored-area grid
+    /// `grid` (the caller's geometry, and evidence to start from: a resumed
+    /// run's grid); `grid_extent` and `grid_resolution` are not used.
+    pub fn with_grid(params: MapParams, start: Pose, grid: Grid) -> Result<Map, MapError> {
         params.validate()?;
         if !pose::pose_is_finite(&start) {
             return Err(MapError::NonFinitePose(start));
         }
-        let centre = Point2::from(start.translation.vector);
-        let grid = Grid::centred(centre, params.grid_extent, params.grid_resolution);
         let first = Arc::new(PointMapSnapshot::empty(grid.clone(), start));
         Ok(Map {
             points: PointMap::new(params.merge_distance, params.reserve_points),

@@ -9,6 +9,9 @@ use crate::param_check::{invalid, ParamError};
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MapParams {
+    /// What the planner's map is built from: the evidence grid alone, or the
+    /// paper's point map with segment correction and its wall segments.
+    pub kind: MapKind,
     /// Merge threshold d_th of the paper's rule: a scan point closer than this
     /// to a stored point where the stored surface is dense is a duplicate.
     pub merge_distance: f64,
@@ -78,9 +81,24 @@ pub struct MapParams {
     pub reserve_points: usize,
 }
 
+/// Which map the daemon and the lock-step simulation plan on (`[map] kind`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MapKind {
+    /// Registered scans go straight into the evidence grid.
+    #[default]
+    Grid,
+    /// Registered scans go into the paper's map (point map with the merge
+    /// rule, line features, segment correction); the planner gets its
+    /// explored-area grid with the wall segments drawn in
+    /// ([`super::PaperGrid`]).
+    Paper,
+}
+
 impl Default for MapParams {
     fn default() -> Self {
         Self {
+            kind: MapKind::Grid,
             merge_distance: 0.05,
             min_spacing: 0.01,
             min_range: 0.02,

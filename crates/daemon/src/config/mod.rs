@@ -293,6 +293,18 @@ mod tests {
     }
 
     #[test]
+    fn the_map_kind_is_grid_or_paper() {
+        let cfg = Config::from_toml("[map]\nkind = \"paper\"\n", "t.toml").unwrap();
+        assert_eq!(cfg.map.kind, crate::map::MapKind::Paper);
+        let e = Config::from_toml("[map]\nkind = \"points\"\n", "t.toml").unwrap_err();
+        let e = e.to_string();
+        assert!(
+            e.contains("points") && e.contains("`grid` or `paper`"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn bad_value_is_named() {
         let e = Config::from_toml("[robot]\nradius = -1.0\n", "t.toml").unwrap_err();
         assert!(e.to_string().contains("robot.radius"), "{e}");

@@ -259,7 +259,9 @@ impl Daemon {
             shared.clone(),
             MAP_MAX_RANGE,
             cfg.daemon.contact.same_contact,
-        );
+        )
+        .with_map_kind(&cfg.map, &start)
+        .map_err(|e| DaemonError::Config(e.to_string()))?;
         if let Some(r) = &resume {
             map.restore(r.map.clone());
         }

@@ -55,7 +55,9 @@ impl Replayer {
             shared.clone(),
             MAP_MAX_RANGE,
             cfg.daemon.contact.same_contact,
-        );
+        )
+        .with_map_kind(&cfg.map, &start)
+        .map_err(|e| DaemonError::Config(e.to_string()))?;
         Ok(Replayer {
             localise,
             map,

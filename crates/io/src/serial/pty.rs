@@ -51,7 +51,7 @@ pub enum PtyError {
 /// One pseudo-terminal pair seen from the emulator side.
 pub struct Pty {
     master: OwnedFd,
-    _slave: OwnedFd,
+    slave: OwnedFd,
     slave_path: PathBuf,
     read_timeout: Duration,
     write_timeout: Duration,
@@ -109,7 +109,7 @@ impl Pty {
         rustix::fs::fcntl_setfl(&master, fl | OFlags::NONBLOCK)?;
         Ok(Pty {
             master,
-            _slave: slave,
+            slave,
             slave_path: PathBuf::from(name.to_string_lossy().into_owned()),
             read_timeout: Duration::from_millis(10),
             write_timeout: Duration::from_secs(1),
@@ -119,6 +119,13 @@ impl Pty {
     /// The slave device path (`/dev/pts/N`) a client opens.
     pub fn slave_path(&self) -> &Path {
         &self.slave_path
+    }
+
+    /// Bytes written to the client that it has not read yet (the slave's
+    /// input queue): an emulator that pulls the plug waits for 0, as a
+    /// real sensor's last reply has left the cable before the plug does.
+    pub fn unread_by_client(&self) -> io::Result<u64> {
+        Ok(rustix::io::ioctl_fionread(&self.slave)?)
     }
 
     /// Sets how long a `read` waits for the first byte before `TimedOut`.

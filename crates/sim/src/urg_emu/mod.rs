@@ -316,6 +316,10 @@ impl Engine {
     }
 }
 
+/// How many tenths of a scan period an unplug waits at most for the client
+/// to read what was sent before the plug is pulled.
+const UNPLUG_DRAIN_WAITS: u32 = 50;
+
 /// Runs the emulator on `host` until `keep_going` returns false. `on_plug`
 /// is told the pty's slave path (`/dev/pts/N`) after every (re)plug, `None`
 /// while unplugged.
@@ -344,8 +348,16 @@ pub fn run(
             }
             Some(Action::Unplug(d)) => {
                 // Let the client read the last scan first: the fault is an
-                // unplug between scans, so no scan is cut in half.
+                // unplug between scans, so no scan is cut in half (on a
+                // loaded host the client may take longer than the pause).
                 sleep_while(&*clock, 0.3 * period, &go);
+                let unread = |h: &mut PtyHost| h.pty().and_then(|p| p.unread_by_client().ok());
+                for _ in 0..UNPLUG_DRAIN_WAITS {
+                    if !go() || unread(&mut host).is_none_or(|n| n == 0) {
+                        break;
+                    }
+                    sleep_while(&*clock, 0.1 * period, &go);
+                }
                 host.unplug();
                 if let Ok(mut l) = log.lock() {
                     l.unplugs += 1;

@@ -12,7 +12,9 @@ use crate::daemon::contact::ContactMark;
 use crate::daemon::messages::{MapMsg, MapSnapshot};
 use crate::daemon::shared::Shared;
 use crate::daemon::snapshot::MapStageSnapshot;
+use crate::geom::Pose;
 use crate::grid::Grid;
+use crate::map::{MapError, MapKind, MapParams, PaperGrid};
 use crate::pipeline::checkpoint::{ContactArc, ContactArcs};
 use crate::pipeline::{Poll, Recv, Rx, Stage, StageCtx, StageFault, Tx};
 
@@ -44,6 +46,9 @@ pub struct MapStage {
     /// [`Self::contacts`] as the checkpoint stores them, rebuilt when they
     /// change (none before the first), for the snapshot.
     arcs: Option<Arc<ContactArcs>>,
+    /// `[map] kind = "paper"`: the paper's map, which [`Self::grid`] is
+    /// rendered from after every scan (see [`PaperGrid`]).
+    paper: Option<PaperGrid>,
 }
 
 /// The checkpoint section of contact `marks`.
@@ -76,7 +81,17 @@ impl MapStage {
             retired: 0,
             published: None,
             arcs: None,
+            paper: None,
         }
+    }
+
+    /// Plans on the map `params.kind` names: for `paper`, registered scans
+    /// go into the paper's map, starting at `start` over this stage's grid.
+    pub fn with_map_kind(mut self, params: &MapParams, start: &Pose) -> Result<Self, MapError> {
+        if params.kind == MapKind::Paper {
+            self.paper = Some(PaperGrid::new(params.clone(), *start, self.grid.clone())?);
+        }
+        Ok(self)
     }
 
     /// What a restart needs of this stage: the grid as last handed to the
@@ -115,8 +130,23 @@ impl MapStage {
         }
         self.published = snapshot.grid;
         self.arcs = snapshot.contacts;
+        self.restart_paper_map();
         self.publish();
         self.mark_contacts();
+    }
+
+    /// A resumed run's paper map starts over on the restored grid: the
+    /// checkpoint holds the grid, not the points and segments, which the
+    /// next scans bring back.
+    fn restart_paper_map(&mut self) {
+        let Some(pg) = &self.paper else {
+            return;
+        };
+        let (params, pose) = (pg.map().params().clone(), pg.map().pose());
+        match PaperGrid::new(params, pose, self.grid.clone()) {
+            Ok(p) => self.paper = Some(p),
+            Err(e) => log::warn!("resume: the paper map keeps its empty grid: {e}"),
+        }
     }
 
     /// The contact marks changed: the snapshot gets the new list.
@@ -130,6 +160,14 @@ impl MapStage {
     /// crossed.
     pub fn merge(&mut self, msg: MapMsg) {
         match msg {
+            MapMsg::Scan { pose: p, scan } if self.paper.is_some() => {
+                if let Some(pg) = &mut self.paper {
+                    match pg.merge(&scan, &p) {
+                        Ok(_) => pg.render_into(&mut self.grid),
+                        Err(e) => log::warn!("map: scan not merged into the paper map: {e}"),
+                    }
+                }
+            }
             MapMsg::Scan { pose: p, scan } => {
                 let o: Point2<f64> = p.translation.vector.into();
                 for b in scan.beams.iter() {
@@ -219,5 +257,85 @@ impl Stage for MapStage {
         self.tx
             .send(msg)
             .map_or_else(|_| gone(&self.shared, "plan"), |_| Ok(()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::daemon::snapshot::MapStageSnapshot;
+    use crate::geom::pose;
+    use crate::grid::CellState;
+    use crate::pipeline::{latest, queue, Overflow};
+    use crate::scan::LaserScan;
+
+    /// A 1° scan from `(x, y)`, heading 0, of the room `[0, 4] × [0, 3]`.
+    fn room_scan(x: f64, y: f64) -> LaserScan {
+        let room = crate::icp::synth::room(4.0, 3.0, 1.0);
+        crate::icp::synth::laser_scan(&room, &Point2::new(x, y), 360)
+    }
+
+    fn stage(kind: MapKind) -> MapStage {
+        let (_tx, rx) = queue("registered_scans", 8, Overflow::DropOldest);
+        let (snap_tx, _snap_rx) = latest("map_snapshots");
+        let grid = Grid::new(Point2::new(-0.475, -0.475), 0.05, 100, 80);
+        let params = MapParams {
+            kind,
+            ..MapParams::default()
+        };
+        MapStage::new(grid, rx, snap_tx, Arc::new(Shared::default()), 5.6, 0.1)
+            .with_map_kind(&params, &pose(2.0, 1.5, 0.0))
+            .unwrap()
+    }
+
+    #[test]
+    fn the_paper_kind_plans_on_the_paper_map_and_keeps_a_resumed_grid() {
+        let mut s = stage(MapKind::Paper);
+        assert!(s.paper.is_some());
+        // A resumed run: the checkpointed grid holds a wall the new run
+        // has not seen yet (outside the room the scans see).
+        let mut restored = s.grid.clone();
+        let behind = restored.cell_of(&Point2::new(4.3, 3.3)).unwrap();
+        restored.set_state(behind, CellState::Occupied);
+        s.restore(MapStageSnapshot {
+            grid: Some(Arc::new(restored)),
+            contacts: None,
+        });
+        for k in 0..6 {
+            let x = 1.8 + 0.08 * f64::from(k);
+            s.merge(MapMsg::Scan {
+                pose: pose(x, 1.5, 0.0),
+                scan: room_scan(x, 1.5),
+            });
+        }
+        let pg = s.paper.as_ref().unwrap();
+        assert_eq!(pg.tally().scans, 6);
+        assert!(pg.map().snapshot().walls.len() >= 4);
+        assert_eq!(
+            s.grid.state(behind),
+            CellState::Occupied,
+            "the resumed grid's wall"
+        );
+        let at = |x: f64, y: f64| s.grid.state(s.grid.cell_of(&Point2::new(x, y)).unwrap());
+        assert_eq!(at(2.0, 1.5), CellState::Free);
+        assert_eq!(at(4.01, 1.5), CellState::Occupied);
+        // A pose the map refuses is logged, not merged, and nothing breaks.
+        s.merge(MapMsg::Scan {
+            pose: pose(f64::NAN, 1.5, 0.0),
+            scan: room_scan(2.0, 1.5),
+        });
+        assert_eq!(s.paper.as_ref().unwrap().tally().scans, 6);
+    }
+
+    #[test]
+    fn the_grid_kind_keeps_no_paper_map() {
+        let mut s = stage(MapKind::Grid);
+        assert!(s.paper.is_none());
+        s.merge(MapMsg::Scan {
+            pose: pose(2.0, 1.5, 0.0),
+            scan: room_scan(2.0, 1.5),
+        });
+        let c = s.grid.cell_of(&Point2::new(2.0, 1.5)).unwrap();
+        assert_eq!(s.grid.state(c), CellState::Free);
     }
 }
