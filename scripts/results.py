@@ -435,14 +435,18 @@ def row_map_kinds(out):
     mean = lambda k: lambda rs: f"{sum(r[k] for r in rs) / len(rs):.2f}"
     low = lambda rs: f"{min(r['cov_on'] for r in rs):.2f}"
     ov = lambda rs: f"{sum(r['ov_on'] for r in rs) / len(rs):.1f}"
-    shifts, costs = [], []
+    path = lambda rs: f"{sum(r['path_on'] for r in rs):.0f}"
+    shifts, memory = [], {"grid": [], "paper": []}
     for w in rooms:
-        md = open(os.path.join(out, "rooms24_paper", w.replace(":", "_"), "metrics.md")).read()
+        read = lambda kind: open(os.path.join(out, f"rooms24_{kind}", w.replace(":", "_"), "metrics.md")).read()
+        md = read("paper")
         shifts.append(nums(cell(md, "paper map: segment corrections"))[3])
-        costs.append(nums(cell(md, "paper map: merge and render"))[0])
-    return (f"grid / paper: coverage {both(mean('cov_on'))} % mean (lowest {both(low)}), overlap {both(ov)} %; "
-            f"the segment correction moves maps built on exact poses {span(shifts, '{:.1f}')} mm on a room's mean; "
-            f"the paper map takes {span(costs)} ms per scan")
+        for kind in memory:
+            memory[kind].append(nums(cell(read(kind), "map memory"))[0])
+    mem = lambda k: f"{sum(memory[k]) / len(memory[k]):.2f}"
+    return (f"grid / paper: coverage {both(mean('cov_on'))} % mean (lowest {both(low)}), overlap {both(ov)} %, "
+            f"path {path(got['grid'])} / {path(got['paper'])} m in all, map memory {mem('grid')} / {mem('paper')} MB mean; "
+            f"the segment correction moves maps built on exact poses {span(shifts, '{:.1f}')} mm on a room's mean")
 
 
 def row_map_kinds_closed(out):

@@ -349,6 +349,12 @@ pub fn markdown(name: &str, online: &RunResult, offline: Option<&RunResult>) -> 
         "| planner update p99 (wall clock) | {:.2} ms | |",
         p99(&online.plan_seconds) * 1e3
     );
+    let paper_bytes = online.paper.as_ref().map_or(0, |p| p.memory_bytes);
+    let _ = writeln!(
+        s,
+        "| map memory (the planner's grid, and the paper map's points, segments and grid) | {:.2} MB | |",
+        (online.grid.memory_bytes() + paper_bytes) as f64 / 1e6
+    );
     if let Some(p) = &online.paper {
         paper_rows(&mut s, p);
     }
@@ -497,10 +503,8 @@ fn paper_rows(s: &mut String, p: &lockstep::PaperSummary) {
     );
     let _ = writeln!(
         s,
-        "| paper map: points / wall segments / memory | {} / {} / {:.1} MB | |",
-        p.points,
-        p.segments,
-        p.memory_bytes as f64 / 1e6
+        "| paper map: points / wall segments | {} / {} | |",
+        p.points, p.segments
     );
     let _ = writeln!(
         s,

@@ -688,6 +688,15 @@ impl Grid {
         )
     }
 
+    /// Bytes the grid's cells hold: evidence, the hit flag, the surface
+    /// credit and the mean hit position.
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of_val(self.cells.as_slice())
+            + std::mem::size_of_val(self.hit.as_slice())
+            + std::mem::size_of_val(self.held.as_slice())
+            + std::mem::size_of_val(self.mean.as_slice())
+    }
+
     /// Number of cells in each state: (unknown, free, occupied).
     pub fn counts(&self) -> (usize, usize, usize) {
         let mut c = (0, 0, 0);

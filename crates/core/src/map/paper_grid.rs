@@ -115,19 +115,14 @@ impl PaperGrid {
         self.tally
     }
 
-    /// Bytes the map holds: its points and segments as reserved, and the
-    /// explored-area grid's evidence and surface memory.
+    /// Bytes the map holds: its points, its segments and its explored-area
+    /// grid (the planner's grid rendered from it is the caller's).
     pub fn memory_bytes(&self) -> usize {
-        let g = self.map.grid();
-        let cells = g.width() * g.height();
         std::mem::size_of_val(self.map.points())
             + std::mem::size_of_val(self.map.segment_map().segments())
-            + cells * GRID_BYTES_PER_CELL
+            + self.map.grid().memory_bytes()
     }
 }
-
-/// Evidence (1), hit flag (1), surface credit (1) and mean hit position (2).
-const GRID_BYTES_PER_CELL: usize = 5;
 
 /// Marks occupied every cell along `w` (sampled at a quarter cell) that is
 /// unknown or where a beam has ended; cells seen free and never hit stay so.
@@ -198,7 +193,8 @@ mod tests {
         let t = pg.tally();
         assert_eq!(t.scans, 6);
         assert!(t.translation_max <= 0.01, "{t:?}");
-        assert!(pg.memory_bytes() > 100 * 80 * GRID_BYTES_PER_CELL);
+        assert!(pg.memory_bytes() > pg.map().grid().memory_bytes());
+        assert_eq!(grid().memory_bytes(), 100 * 80 * 5);
     }
 
     #[test]
