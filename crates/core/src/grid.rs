@@ -609,7 +609,6 @@ impl Grid {
     /// balance (a wall seen at a grazing angle, a face on the cell's edge).
     /// Unknown space behind such a cell is not a way into unexplored floor.
     /// Not kept in checkpoints: a restored grid starts with no cell hit.
-    #[cfg(test)]
     pub(crate) fn was_hit(&self, c: CellIndex) -> bool {
         self.hit[c.1 * self.width + c.0]
     }

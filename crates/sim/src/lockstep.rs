@@ -22,7 +22,7 @@ use crate::coverage_metrics::{CoverageMetrics, CoverageTracker, MetricsError};
 use crate::decomp::{DecompError, Decomposer, Decomposition};
 use crate::geom::{heading, Pose};
 use crate::grid::{CellState, Grid};
-use crate::map::{CorrectionTally, MapKind, PaperGrid};
+use crate::map::{CorrectionTally, MapError, MapKind, PaperGrid};
 use crate::noise::gauss;
 use crate::plan::planner::{DoneReport, PlanStats};
 use crate::plan::{CoveragePlanner, PlanError, PlanStatus};
@@ -134,6 +134,9 @@ pub enum LockstepError {
     /// A harness setting is out of range.
     #[error("lockstep option {0}")]
     BadOption(String),
+    /// The paper's map refused its settings or a pose (`[map] kind = "paper"`).
+    #[error("paper map: {0}")]
+    Map(#[from] MapError),
 }
 
 /// A decomposition at one moment of the run, for pictures.
@@ -528,8 +531,7 @@ struct PaperRun {
 
 impl PaperRun {
     fn new(config: &Config, start: &Pose, grid: &Grid) -> Result<Self, LockstepError> {
-        let map = PaperGrid::new(config.map.clone(), *start, grid.clone())
-            .map_err(|e| LockstepError::BadOption(e.to_string()))?;
+        let map = PaperGrid::new(config.map.clone(), *start, grid.clone())?;
         Ok(Self {
             map,
             scan: LaserScan::default(),
@@ -540,9 +542,7 @@ impl PaperRun {
     /// Merges the cast scan, placed at `seen`, and renders the planner's grid.
     fn merge(&mut self, seen: &Pose, grid: &mut Grid) -> Result<(), LockstepError> {
         let t0 = std::time::Instant::now();
-        self.map
-            .merge(&self.scan, seen)
-            .map_err(|e| LockstepError::BadOption(e.to_string()))?;
+        self.map.merge(&self.scan, seen)?;
         self.map.render_into(grid);
         self.seconds.push(t0.elapsed().as_secs_f64());
         Ok(())

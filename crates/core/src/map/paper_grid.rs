@@ -138,11 +138,10 @@ fn draw_wall(out: &mut Grid, w: &Segment) {
         let Some(c) = out.cell_of(&p) else {
             continue;
         };
-        let i = c.1 * out.width() + c.0;
         let solid = match out.state(c) {
             CellState::Unknown => true,
             CellState::Occupied => false,
-            CellState::Free => out.hit_flags()[i],
+            CellState::Free => out.was_hit(c),
         };
         if solid {
             out.set_state(c, CellState::Occupied);

@@ -160,26 +160,24 @@ impl MapStage {
     /// crossed.
     pub fn merge(&mut self, msg: MapMsg) {
         match msg {
-            MapMsg::Scan { pose: p, scan } if self.paper.is_some() => {
-                if let Some(pg) = &mut self.paper {
-                    match pg.merge(&scan, &p) {
-                        Ok(_) => pg.render_into(&mut self.grid),
-                        Err(e) => log::warn!("map: scan not merged into the paper map: {e}"),
+            MapMsg::Scan { pose: p, scan } => match &mut self.paper {
+                Some(pg) => match pg.merge(&scan, &p) {
+                    Ok(_) => pg.render_into(&mut self.grid),
+                    Err(e) => log::warn!("map: scan not merged into the paper map: {e}"),
+                },
+                None => {
+                    let o: Point2<f64> = p.translation.vector.into();
+                    for b in scan.beams.iter() {
+                        if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
+                            continue;
+                        }
+                        let r = b.range.min(self.max_range);
+                        let (s, c) = b.angle.sin_cos();
+                        let end = p * Point2::new(r * c, r * s);
+                        self.grid.integrate_ray(&o, &end, r >= b.range);
                     }
                 }
-            }
-            MapMsg::Scan { pose: p, scan } => {
-                let o: Point2<f64> = p.translation.vector.into();
-                for b in scan.beams.iter() {
-                    if !(b.valid && b.range.is_finite() && b.angle.is_finite()) {
-                        continue;
-                    }
-                    let r = b.range.min(self.max_range);
-                    let (s, c) = b.angle.sin_cos();
-                    let end = p * Point2::new(r * c, r * s);
-                    self.grid.integrate_ray(&o, &end, r >= b.range);
-                }
-            }
+            },
             MapMsg::Contact(mark) => {
                 if !self
                     .contacts
